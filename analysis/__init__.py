@@ -1,0 +1,1 @@
+"""Pure analysis: model, simulator, identification, dynamics tools, discrepancy analysis."""

@@ -1,0 +1,233 @@
+"""The CSV + JSON exchange format of MODEL.md section 5: read it with clear errors, write it.
+
+A record is a uniformly sampled angle (plus optional table displacement and tach
+pulses) with a JSON sidecar naming the experiment, the rig constants and the drive.
+Files are parsed, never evaluated.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+EXPERIMENTS = ("free_decay", "impact_decay", "forced")
+REQUIRED_COLUMNS = ("time_s", "angle_rad")
+OPTIONAL_COLUMNS = ("table_m", "tach")
+RIG_KEYS = ("m_kg", "l_m", "R_m", "g")
+UNIFORM_TOLERANCE = 1e-3  # allowed deviation of a time step, as a fraction of the mean step
+
+
+class ExchangeFormatError(ValueError):
+    """A CSV or JSON file does not follow the exchange format; the message names file and field."""
+
+
+@dataclass(frozen=True)
+class ExchangeMeta:
+    """The JSON sidecar: experiment kind, rig constants (None where unknown), drive, notes."""
+
+    experiment: str
+    rig: dict[str, float | None] = field(default_factory=dict)
+    drive: dict[str, float] | None = None
+    notes: str = ""
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    def as_json(self) -> dict[str, Any]:
+        """The sidecar as a JSON-ready dict (extra keys kept)."""
+        out: dict[str, Any] = {"experiment": self.experiment, "rig": dict(self.rig)}
+        if self.drive is not None:
+            out["drive"] = dict(self.drive)
+        out["notes"] = self.notes
+        out.update(self.extra)
+        return out
+
+
+@dataclass(frozen=True)
+class ExchangeRecord:
+    """One uniformly sampled record: time base, angle and the optional channels."""
+
+    time_s: np.ndarray
+    angle_rad: np.ndarray
+    meta: ExchangeMeta
+    table_m: np.ndarray | None = None
+    tach: np.ndarray | None = None
+
+    @property
+    def sample_rate_hz(self) -> float:
+        """Sampling rate from the mean time step."""
+        return (self.time_s.size - 1) / (self.time_s[-1] - self.time_s[0])
+
+    @property
+    def tach_indices(self) -> np.ndarray:
+        """Sample indices of the tach pulses (empty when there is no tach column)."""
+        if self.tach is None:
+            return np.zeros(0, dtype=np.int64)
+        return np.flatnonzero(self.tach > 0.5)
+
+
+def sidecar_path(csv_path: str | Path) -> Path:
+    """NAME.json beside NAME.csv."""
+    return Path(csv_path).with_suffix(".json")
+
+
+def read_meta(path: str | Path) -> ExchangeMeta:
+    """Parse and validate a JSON sidecar."""
+    path = Path(path)
+    try:
+        raw = json.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise ExchangeFormatError(
+            f"{path}: metadata file not found (put NAME.json beside NAME.csv or pass --meta)"
+        ) from None
+    except (json.JSONDecodeError, UnicodeDecodeError) as error:
+        raise ExchangeFormatError(f"{path}: not valid JSON ({error})") from None
+    if not isinstance(raw, dict):
+        raise ExchangeFormatError(f"{path}: expected a JSON object at the top level")
+    experiment = raw.get("experiment")
+    if experiment not in EXPERIMENTS:
+        raise ExchangeFormatError(
+            f"{path}: 'experiment' is {experiment!r}; expected one of {', '.join(EXPERIMENTS)}"
+        )
+    rig_raw = raw.get("rig") or {}
+    if not isinstance(rig_raw, dict):
+        raise ExchangeFormatError(f"{path}: 'rig' must be an object with keys {RIG_KEYS}")
+    rig = {key: _optional_positive(path, f"rig.{key}", rig_raw.get(key)) for key in RIG_KEYS}
+    drive = raw.get("drive")
+    if drive is not None:
+        if not isinstance(drive, dict):
+            raise ExchangeFormatError(f"{path}: 'drive' must be an object")
+        drive = {
+            key: _optional_positive(path, f"drive.{key}", value, allow_zero=True)
+            for key, value in drive.items()
+        }
+    if experiment == "forced":
+        for key in ("frequency_hz",):
+            if not drive or drive.get(key) is None:
+                raise ExchangeFormatError(
+                    f"{path}: a forced record needs 'drive.{key}' (the drive frequency)"
+                )
+    notes = raw.get("notes") or ""
+    if not isinstance(notes, str):
+        raise ExchangeFormatError(f"{path}: 'notes' must be a string")
+    extra = {k: v for k, v in raw.items() if k not in ("experiment", "rig", "drive", "notes")}
+    return ExchangeMeta(experiment, rig, drive, notes, extra)
+
+
+def _optional_positive(
+    path: Path, key: str, value: Any, *, allow_zero: bool = False
+) -> float | None:
+    if value is None:
+        return None
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise ExchangeFormatError(f"{path}: '{key}' is {value!r}; expected a number or null")
+    if not math.isfinite(value) or value < 0 or (value == 0 and not allow_zero):
+        raise ExchangeFormatError(f"{path}: '{key}' is {value!r}; expected a positive number")
+    return float(value)
+
+
+def read_exchange(csv_path: str | Path, meta_path: str | Path | None = None) -> ExchangeRecord:
+    """Read NAME.csv and its sidecar (NAME.json, or ``meta_path``), validating both."""
+    csv_path = Path(csv_path)
+    meta = read_meta(meta_path or sidecar_path(csv_path))
+    columns = _read_columns(csv_path)
+    time_s = columns["time_s"]
+    if time_s.size < 2:
+        raise ExchangeFormatError(f"{csv_path}: needs at least 2 samples, found {time_s.size}")
+    if not np.all(np.isfinite(time_s)):
+        row = int(np.flatnonzero(~np.isfinite(time_s))[0]) + 2
+        raise ExchangeFormatError(f"{csv_path}: line {row}: time_s is not a finite number")
+    steps = np.diff(time_s)
+    mean_step = (time_s[-1] - time_s[0]) / (time_s.size - 1)
+    if mean_step <= 0:
+        raise ExchangeFormatError(f"{csv_path}: time_s must increase")
+    bad = np.flatnonzero(np.abs(steps - mean_step) > UNIFORM_TOLERANCE * mean_step + 1e-9)
+    if bad.size:
+        row = int(bad[0]) + 3
+        raise ExchangeFormatError(
+            f"{csv_path}: line {row}: time_s step {steps[bad[0]]:.6g} s differs from the mean "
+            f"{mean_step:.6g} s; the exchange format needs uniform sampling"
+        )
+    return ExchangeRecord(
+        time_s=time_s,
+        angle_rad=columns["angle_rad"],
+        meta=meta,
+        table_m=columns.get("table_m"),
+        tach=columns.get("tach"),
+    )
+
+
+def _read_columns(path: Path) -> dict[str, np.ndarray]:
+    try:
+        with path.open(newline="", encoding="utf-8") as handle:
+            header = next(csv.reader(handle), None)
+    except FileNotFoundError:
+        raise ExchangeFormatError(f"{path}: file not found") from None
+    except UnicodeDecodeError:
+        raise ExchangeFormatError(f"{path}: not a text CSV file") from None
+    if not header:
+        raise ExchangeFormatError(f"{path}: empty file; expected a header row")
+    header = [name.strip() for name in header]
+    missing = [name for name in REQUIRED_COLUMNS if name not in header]
+    if missing:
+        raise ExchangeFormatError(f"{path}: missing column(s) {missing}; the header has {header}")
+    wanted = [name for name in REQUIRED_COLUMNS + OPTIONAL_COLUMNS if name in header]
+    usecols = [header.index(name) for name in wanted]
+    try:
+        data = np.loadtxt(
+            path,
+            delimiter=",",
+            skiprows=1,
+            usecols=usecols,
+            ndmin=2,
+            dtype=float,
+            encoding="utf-8",
+        )
+    except ValueError as error:
+        raise ExchangeFormatError(f"{path}: {_first_bad_line(path, usecols) or error}") from None
+    return {name: data[:, i].copy() for i, name in enumerate(wanted)}
+
+
+def _first_bad_line(path: Path, usecols: list[int]) -> str | None:
+    with path.open(newline="", encoding="utf-8") as handle:
+        reader = csv.reader(handle)
+        header = next(reader)
+        for line_number, row in enumerate(reader, start=2):
+            for col in usecols:
+                try:
+                    float(row[col])
+                except (IndexError, ValueError):
+                    value = row[col] if col < len(row) else "<missing>"
+                    return f"line {line_number}: column {header[col].strip()!r} is {value!r}"
+    return None
+
+
+def write_exchange(csv_path: str | Path, record: ExchangeRecord) -> tuple[Path, Path]:
+    """Write NAME.csv and NAME.json; returns both paths."""
+    csv_path = Path(csv_path)
+    names = ["time_s", "angle_rad"]
+    columns = [record.time_s, record.angle_rad]
+    formats = ["%.12g", "%.12g"]
+    if record.table_m is not None:
+        names.append("table_m")
+        columns.append(record.table_m)
+        formats.append("%.9g")
+    if record.tach is not None:
+        names.append("tach")
+        columns.append(record.tach)
+        formats.append("%d")
+    np.savetxt(
+        csv_path,
+        np.column_stack(columns),
+        delimiter=",",
+        header=",".join(names),
+        comments="",
+        fmt=formats,
+    )
+    json_path = sidecar_path(csv_path)
+    json_path.write_text(json.dumps(record.meta.as_json(), indent=1) + "\n", encoding="utf-8")
+    return csv_path, json_path

@@ -1,0 +1,273 @@
+"""Registry of the named causes of MODEL.md section 6, each an extension of the baseline model.
+
+A cause declares its parameters once (name, unit, default, physical bounds) and
+how it acts: a dynamics cause writes its terms into the packed parameter vector
+of the compiled equations; a measurement cause transforms the measured angle.
+Adding a cause means registering one more ``Cause``; the equations stay as they are.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Literal
+
+import numpy as np
+from scipy.signal import lfilter
+
+from analysis.model import P, ParameterError
+
+if TYPE_CHECKING:
+    from analysis.model import Model
+
+NONE = "none"
+
+
+@dataclass(frozen=True)
+class ParameterSpec:
+    """One parameter of a cause: its JSON key (SI unit in the name), default and bounds."""
+
+    name: str
+    default: float
+    lower: float
+    upper: float
+    doc: str
+
+
+DynamicsHook = Callable[["Model", Mapping[str, float], np.ndarray], None]
+MeasurementHook = Callable[[np.ndarray, np.ndarray, Mapping[str, float]], np.ndarray]
+
+
+@dataclass(frozen=True)
+class Cause:
+    """A named way in which the baseline model can be wrong, as an extension of it."""
+
+    name: str
+    acts_on: Literal["dynamics", "measurement"]
+    parameters: tuple[ParameterSpec, ...]
+    doc: str
+    dynamics: DynamicsHook | None = None
+    measurement: MeasurementHook | None = None
+
+    def values(self, given: Mapping[str, float]) -> dict[str, float]:
+        """Complete, validated parameter values (defaults filled in)."""
+        known = {spec.name: spec for spec in self.parameters}
+        unknown = sorted(set(given) - set(known))
+        if unknown:
+            raise ParameterError(
+                f"{self.name}: unknown parameter(s) {unknown}; expected {sorted(known)}"
+            )
+        out = {}
+        for spec in self.parameters:
+            value = float(given.get(spec.name, spec.default))
+            if not (math.isfinite(value) and spec.lower <= value <= spec.upper):
+                raise ParameterError(
+                    f"{self.name}.{spec.name} = {value!r}: expected a value in "
+                    f"[{spec.lower}, {spec.upper}] ({spec.doc})"
+                )
+            out[spec.name] = value
+        return out
+
+
+CAUSES: dict[str, Cause] = {}
+
+
+def register(cause: Cause) -> Cause:
+    """Add a cause to the registry (names are unique)."""
+    if cause.name in CAUSES or cause.name == NONE:
+        raise ValueError(f"cause {cause.name!r} is already registered")
+    if (cause.acts_on == "dynamics") != (cause.dynamics is not None) or (
+        cause.acts_on == "measurement"
+    ) != (cause.measurement is not None):
+        raise ValueError(f"cause {cause.name!r}: give exactly the hook matching acts_on")
+    CAUSES[cause.name] = cause
+    return cause
+
+
+def cause(name: str) -> Cause:
+    """The registered cause called ``name``, with a clear error otherwise."""
+    try:
+        return CAUSES[name]
+    except KeyError:
+        raise ParameterError(
+            f"unknown cause {name!r}; known: {', '.join(sorted(CAUSES))}"
+        ) from None
+
+
+def validate_extensions(model: Model) -> None:
+    """Raise ParameterError for unknown causes or out-of-range values."""
+    for name, values in model.extensions.items():
+        cause(name).values(values)
+
+
+def apply_dynamics(model: Model, packed: np.ndarray) -> None:
+    """Let every active dynamics cause write its terms into the packed vector."""
+    for name, given in model.extensions.items():
+        c = cause(name)
+        if c.dynamics is not None:
+            c.dynamics(model, c.values(given), packed)
+
+
+def apply_measurement(model: Model, t: np.ndarray, theta: np.ndarray) -> np.ndarray:
+    """The angle a sensor reports for true angle ``theta`` sampled at times ``t``."""
+    measured = np.asarray(theta, dtype=float)
+    for name, given in model.extensions.items():
+        c = cause(name)
+        if c.measurement is not None:
+            measured = c.measurement(np.asarray(t, dtype=float), measured, c.values(given))
+    return measured
+
+
+# --------------------------------------------------------------------------- dynamics causes
+
+
+def _coulomb(model: Model, v: Mapping[str, float], p: np.ndarray) -> None:
+    p[P.COULOMB_ACC] = v["Tc_N_m"] / (model.rig.m_kg * model.rig.L_m**2)
+
+
+def _drag(model: Model, v: Mapping[str, float], p: np.ndarray) -> None:
+    p[P.C2] = v["c2_per_rad"]
+
+
+def _barrier_offset(model: Model, v: Mapping[str, float], p: np.ndarray) -> None:
+    p[P.THETA_B] = v["theta_b_rad"]
+
+
+def _contact_exponent(model: Model, v: Mapping[str, float], p: np.ndarray) -> None:
+    p[P.EXPONENT] = v["n"]
+    p[P.K] = v["K_n"]
+
+
+def _kelvin_voigt(model: Model, v: Mapping[str, float], p: np.ndarray) -> None:
+    p[P.MU0] = 0.0
+    p[P.C_VISCOUS] = v["c_N_s_per_m"]
+
+
+def _distortion(model: Model, v: Mapping[str, float], p: np.ndarray) -> None:
+    p[P.A2] = model.drive.amplitude_m * v["h2"]
+    p[P.PHI2] = v["phi2_rad"]
+
+
+def _amplitude(model: Model, v: Mapping[str, float], p: np.ndarray) -> None:
+    p[P.A1] *= 1.0 + v["eps"]
+    p[P.A2] *= 1.0 + v["eps"]
+
+
+# --------------------------------------------------------------------------- measurement causes
+
+
+def _offset(t: np.ndarray, theta: np.ndarray, v: Mapping[str, float]) -> np.ndarray:
+    return theta + v["offset_rad"]
+
+
+def _nonlinearity(t: np.ndarray, theta: np.ndarray, v: Mapping[str, float]) -> np.ndarray:
+    return theta + v["k3"] * theta**3
+
+
+def _lag(t: np.ndarray, theta: np.ndarray, v: Mapping[str, float]) -> np.ndarray:
+    """First-order low pass, exact for an input held between uniform samples."""
+    if theta.size < 2 or v["tau_s"] == 0.0:
+        return theta
+    dt = float(t[1] - t[0])
+    a = math.exp(-dt / v["tau_s"])
+    filtered, _ = lfilter([1.0 - a], [1.0, -a], theta, zi=[a * theta[0]])
+    return filtered
+
+
+register(
+    Cause(
+        "coulomb_friction",
+        "dynamics",
+        (ParameterSpec("Tc_N_m", 0.0, 0.0, 1.0, "pivot dry-friction torque, N m"),),
+        "Dry friction at the pivot with stiction: + Tc/(m L^2) sign(theta').",
+        dynamics=_coulomb,
+    )
+)
+register(
+    Cause(
+        "quadratic_drag",
+        "dynamics",
+        (ParameterSpec("c2_per_rad", 0.0, 0.0, 100.0, "aerodynamic drag coefficient, 1/rad"),),
+        "Aerodynamic drag: + c2 theta' |theta'|.",
+        dynamics=_drag,
+    )
+)
+register(
+    Cause(
+        "barrier_offset",
+        "dynamics",
+        (ParameterSpec("theta_b_rad", 0.0, -0.5, 0.5, "barrier surface angle, rad"),),
+        "Barrier surface not at theta = 0: contact while theta > theta_b.",
+        dynamics=_barrier_offset,
+    )
+)
+register(
+    Cause(
+        "contact_exponent",
+        "dynamics",
+        (
+            ParameterSpec("n", 1.5, 0.5, 3.0, "force-penetration exponent"),
+            ParameterSpec("K_n", 1.0e5, 1.0e-3, 1.0e12, "contact stiffness, N/m^n"),
+        ),
+        "Force-penetration law K_n delta^n instead of Hertz's delta^(3/2).",
+        dynamics=_contact_exponent,
+    )
+)
+register(
+    Cause(
+        "contact_damping_law",
+        "dynamics",
+        (ParameterSpec("c_N_s_per_m", 0.0, 0.0, 1.0e4, "Kelvin-Voigt contact damping, N s/m"),),
+        "Kelvin-Voigt contact dissipation K delta^(3/2) + c deltadot instead of Hunt-Crossley.",
+        dynamics=_kelvin_voigt,
+    )
+)
+register(
+    Cause(
+        "excitation_distortion",
+        "dynamics",
+        (
+            ParameterSpec("h2", 0.0, 0.0, 1.0, "second-harmonic amplitude ratio"),
+            ParameterSpec("phi2_rad", 0.0, -2 * math.pi, 2 * math.pi, "second-harmonic phase"),
+        ),
+        "Table motion with a second harmonic: A h2 sin(2 Omega t + phi2).",
+        dynamics=_distortion,
+    )
+)
+register(
+    Cause(
+        "excitation_amplitude",
+        "dynamics",
+        (ParameterSpec("eps", 0.0, -0.9, 9.0, "relative error of the stated amplitude"),),
+        "True table amplitude A (1 + eps).",
+        dynamics=_amplitude,
+    )
+)
+register(
+    Cause(
+        "sensor_offset",
+        "measurement",
+        (ParameterSpec("offset_rad", 0.0, -1.0, 1.0, "sensor zero offset, rad"),),
+        "Angle sensor zero not at the hanging position: measured = theta + offset.",
+        measurement=_offset,
+    )
+)
+register(
+    Cause(
+        "sensor_nonlinearity",
+        "measurement",
+        (ParameterSpec("k3", 0.0, -10.0, 10.0, "cubic linearity error, 1/rad^2"),),
+        "Angle sensor linearity error: measured = theta + k3 theta^3.",
+        measurement=_nonlinearity,
+    )
+)
+register(
+    Cause(
+        "sensor_lag",
+        "measurement",
+        (ParameterSpec("tau_s", 0.0, 0.0, 1.0, "first-order low-pass time constant, s"),),
+        "Angle channel low-pass filtered with time constant tau.",
+        measurement=_lag,
+    )
+)

@@ -1,0 +1,389 @@
+"""The impact-pendulum model of MODEL.md: parameters, nondimensional form, equations of motion.
+
+The equations are written once, as numba-compiled functions of a packed parameter
+vector (layout in ``P``), so the simulator, the virtual rig and the analysis all
+integrate exactly the same physics.  Every term of the superset equation is off
+(zero) by default; the named causes of MODEL.md section 6 switch terms on through
+the registry in :mod:`analysis.extensions`, never by editing these equations.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, field, fields, replace
+from enum import IntEnum
+from types import MappingProxyType
+from typing import Any
+
+import numba
+import numpy as np
+
+G_STANDARD = 9.81
+
+
+class ParameterError(ValueError):
+    """A model parameter is missing, unknown or outside its physical range."""
+
+
+# --------------------------------------------------------------------------- parameters
+
+
+@dataclass(frozen=True)
+class RigParameters:
+    """Physical constants of the pendulum and barrier, SI units (MODEL.md section 3)."""
+
+    m_kg: float = 0.0326
+    l_m: float = 0.050
+    L_m: float = 0.046
+    R_m: float = 0.0095
+    g_m_s2: float = G_STANDARD
+    zeta: float = 0.007
+    E_Pa: float = 2.0e6
+    mu0_s_per_m: float = 0.75
+    theta_b_rad: float = 0.0
+
+    def __post_init__(self) -> None:
+        for name in ("m_kg", "l_m", "L_m", "R_m", "g_m_s2", "E_Pa"):
+            _require(name, getattr(self, name), positive=True)
+        for name in ("zeta", "mu0_s_per_m"):
+            _require(name, getattr(self, name), positive=False)
+        _require("theta_b_rad", self.theta_b_rad, positive=False, allow_negative=True)
+        if abs(self.theta_b_rad) >= math.pi / 2:
+            raise ParameterError(
+                f"theta_b_rad = {self.theta_b_rad!r}: the barrier must sit below the pivot "
+                "(|theta_b_rad| < pi/2)"
+            )
+
+    @property
+    def omega_rad_s(self) -> float:
+        """Small-angle natural frequency sqrt(g / L)."""
+        return math.sqrt(self.g_m_s2 / self.L_m)
+
+    @property
+    def K_N_per_m1_5(self) -> float:
+        """Hertz stiffness K = (4/3) E sqrt(R), the only contact stiffness motion data identify."""
+        return 4.0 / 3.0 * self.E_Pa * math.sqrt(self.R_m)
+
+    def with_stiffness(self, K_N_per_m1_5: float) -> RigParameters:
+        """Same rig with the modulus chosen so that K = (4/3) E sqrt(R) takes the given value."""
+        _require("K_N_per_m1.5", K_N_per_m1_5, positive=True)
+        return replace(self, E_Pa=3.0 * K_N_per_m1_5 / (4.0 * math.sqrt(self.R_m)))
+
+    def with_values(self, **values: float) -> RigParameters:
+        """Copy with some fields replaced (validated); unknown names raise ParameterError."""
+        known = {f.name for f in fields(self)}
+        unknown = sorted(set(values) - known)
+        if unknown:
+            raise ParameterError(f"unknown rig parameter(s) {unknown}; known: {sorted(known)}")
+        return replace(self, **values)
+
+    def as_dict(self) -> dict[str, float]:
+        """Plain dict of the fields, for JSON."""
+        return asdict(self)
+
+
+@dataclass(frozen=True)
+class Drive:
+    """Horizontal table motion x_t(t) = A sin(Omega t) (+ a second harmonic, see excitation causes).
+
+    ``amplitude_m = 0`` means an unforced experiment.
+    """
+
+    amplitude_m: float = 0.0
+    frequency_hz: float = 0.0
+    h2: float = 0.0
+    phi2_rad: float = 0.0
+
+    def __post_init__(self) -> None:
+        _require("amplitude_m", self.amplitude_m, positive=False)
+        _require("frequency_hz", self.frequency_hz, positive=False)
+        _require("h2", self.h2, positive=False)
+        _require("phi2_rad", self.phi2_rad, positive=False, allow_negative=True)
+        if self.amplitude_m > 0 and self.frequency_hz <= 0:
+            raise ParameterError(
+                f"frequency_hz = {self.frequency_hz!r}: a drive with amplitude "
+                f"{self.amplitude_m} m needs a positive frequency"
+            )
+
+    @property
+    def Omega_rad_s(self) -> float:
+        """Drive angular frequency 2 pi f."""
+        return 2.0 * math.pi * self.frequency_hz
+
+    @property
+    def period_s(self) -> float:
+        """Drive period 1/f (inf when undriven)."""
+        return 1.0 / self.frequency_hz if self.frequency_hz > 0 else math.inf
+
+    @property
+    def is_forced(self) -> bool:
+        """True when the table moves."""
+        return self.amplitude_m > 0
+
+
+def _require(name: str, value: Any, *, positive: bool, allow_negative: bool = False) -> None:
+    if isinstance(value, bool) or not isinstance(value, int | float | np.floating | np.integer):
+        raise ParameterError(f"{name} = {value!r}: expected a number")
+    if not math.isfinite(value):
+        raise ParameterError(f"{name} = {value!r}: expected a finite number")
+    if positive and value <= 0:
+        raise ParameterError(f"{name} = {value!r}: must be > 0")
+    if not positive and not allow_negative and value < 0:
+        raise ParameterError(f"{name} = {value!r}: must be >= 0")
+
+
+# --------------------------------------------------------------------------- nondimensional form
+
+
+@dataclass(frozen=True)
+class Nondimensional:
+    """The paper's nondimensional groups (eq. 15), tau = Omega t."""
+
+    eta: float
+    beta: float
+    mu: float
+    gamma: float
+    zeta: float = 0.007
+
+    def __post_init__(self) -> None:
+        for name in ("eta", "gamma"):
+            _require(name, getattr(self, name), positive=True)
+        for name in ("beta", "mu", "zeta"):
+            _require(name, getattr(self, name), positive=False)
+
+
+def to_nondimensional(rig: RigParameters, drive: Drive) -> Nondimensional:
+    """eta = omega/Omega, beta = A/L, mu = mu0 l Omega, gamma = K l^(5/2) / (m Omega^2 L^2)."""
+    if drive.frequency_hz <= 0:
+        raise ParameterError("frequency_hz must be > 0 to form the nondimensional groups")
+    Omega = drive.Omega_rad_s
+    gamma = rig.K_N_per_m1_5 * rig.l_m**2.5 / (rig.m_kg * Omega**2 * rig.L_m**2)
+    return Nondimensional(
+        eta=rig.omega_rad_s / Omega,
+        beta=drive.amplitude_m / rig.L_m,
+        mu=rig.mu0_s_per_m * rig.l_m * Omega,
+        gamma=gamma,
+        zeta=rig.zeta,
+    )
+
+
+def from_nondimensional(
+    nd: Nondimensional, frequency_hz: float, rig: RigParameters | None = None
+) -> tuple[RigParameters, Drive]:
+    """Dimensional parameters reproducing ``nd`` at drive frequency ``frequency_hz``.
+
+    m, l, R and g are taken from ``rig`` (default: the paper's rig); L, zeta, E
+    (through K, with that R), mu0 and the drive amplitude follow from the groups.
+    """
+    _require("frequency_hz", frequency_hz, positive=True)
+    base = rig or RigParameters()
+    Omega = 2.0 * math.pi * frequency_hz
+    L = base.g_m_s2 / (nd.eta * Omega) ** 2
+    K = nd.gamma * base.m_kg * Omega**2 * L**2 / base.l_m**2.5
+    dimensional = base.with_values(
+        L_m=L, zeta=nd.zeta, mu0_s_per_m=nd.mu / (base.l_m * Omega)
+    ).with_stiffness(K)
+    return dimensional, Drive(amplitude_m=nd.beta * L, frequency_hz=frequency_hz)
+
+
+@dataclass(frozen=True)
+class PaperCase:
+    """One forced case of the paper (MODEL.md section 4 table)."""
+
+    name: str
+    frequency_hz: float
+    nondimensional: Nondimensional
+    experiment: str
+    paper_simulation: str
+
+    def dimensional(self, rig: RigParameters | None = None) -> tuple[RigParameters, Drive]:
+        """Rig and drive with the paper's nondimensional values (gamma kept, hence K)."""
+        return from_nondimensional(self.nondimensional, self.frequency_hz, rig)
+
+
+def _paper_cases() -> dict[str, PaperCase]:
+    low = dict(eta=1.162, mu=0.471, gamma=1.888e4)
+    high = dict(eta=0.232, mu=2.356, gamma=755.5)
+    table = [
+        ("a", 2.0, low, 0.375, "periodic, superharmonics", "periodic, similar spectrum"),
+        ("b", 2.0, low, 0.458, "periodic, superharmonics", "-"),
+        ("c", 2.0, low, 0.685, "periodic, superharmonics", "periodic, similar spectrum"),
+        (
+            "d",
+            10.0,
+            high,
+            0.030,
+            "period 2 and 3 subharmonics",
+            "multiple periodic attractors, period 2",
+        ),
+        ("e", 10.0, high, 0.064, "subharmonics", "-"),
+        ("f", 10.0, high, 0.078, "subharmonics, quasi-periodic content", "-"),
+        ("g", 10.0, high, 0.022, "chaotic", "period doubling (periodic), not chaotic"),
+        ("h", 10.0, high, 0.114, "chaotic", "chaotic"),
+        ("i", 10.0, high, 0.120, "chaotic", "chaotic"),
+    ]
+    return {
+        name: PaperCase(name, f, Nondimensional(beta=beta, **groups), seen, simulated)
+        for name, f, groups, beta, seen, simulated in table
+    }
+
+
+PAPER_CASES: MappingProxyType[str, PaperCase] = MappingProxyType(_paper_cases())
+
+
+def paper_case(name: str) -> PaperCase:
+    """The paper's forced case by letter (a..i)."""
+    try:
+        return PAPER_CASES[name.lower()]
+    except KeyError:
+        raise ParameterError(
+            f"unknown paper case {name!r}; choose one of {', '.join(PAPER_CASES)}"
+        ) from None
+
+
+# --------------------------------------------------------------------------- packed vector
+
+
+class P(IntEnum):
+    """Indices of the packed parameter vector the compiled equations read.
+
+    The vector is the superset model: baseline terms plus every extension slot,
+    each extension slot neutral (zero, or n = 1.5) unless a cause sets it.
+    """
+
+    OMEGA2 = 0  # g / L                        [1/s^2]
+    TWO_ZETA_OMEGA = 1  # 2 zeta omega          [1/s]
+    INV_L = 2  # 1 / L, scales table acceleration [1/m]
+    CONTACT_GAIN = 3  # l / (m L^2)             [1/(kg m)]
+    SHAFT_L = 4  # l, pivot to contact point     [m]
+    K = 5  # contact stiffness K_n               [N / m^n]
+    EXPONENT = 6  # force-penetration exponent n (1.5 = Hertz)
+    MU0 = 7  # Hunt-Crossley constant            [s/m]
+    C_VISCOUS = 8  # Kelvin-Voigt contact damping [N s/m]
+    THETA_B = 9  # barrier angle                 [rad]
+    SIN_THETA_B = 10  # sin(theta_b)
+    BARRIER = 11  # 1.0 barrier present, 0.0 removed
+    COULOMB_ACC = 12  # Tc / (m L^2)             [1/s^2]
+    C2 = 13  # quadratic drag coefficient        [1/rad]
+    OMEGA_DRIVE = 14  # Omega                    [rad/s]
+    A1 = 15  # table amplitude, fundamental      [m]
+    A2 = 16  # table amplitude, 2nd harmonic     [m]
+    PHI2 = 17  # phase of the 2nd harmonic       [rad]
+    PHASE0 = 18  # drive phase at t = 0, keeps it continuous when Omega changes [rad]
+    SIZE = 19
+
+
+@dataclass(frozen=True)
+class Model:
+    """A complete simulation model: rig, drive, barrier in or out, and active extensions.
+
+    ``extensions`` maps a cause name of MODEL.md section 6 to its parameter values;
+    :mod:`analysis.extensions` knows how each one acts.
+    """
+
+    rig: RigParameters = field(default_factory=RigParameters)
+    drive: Drive = field(default_factory=Drive)
+    barrier: bool = True
+    extensions: MappingProxyType[str, MappingProxyType[str, float]] = field(
+        default_factory=lambda: MappingProxyType({})
+    )
+
+    def __post_init__(self) -> None:
+        frozen = MappingProxyType(
+            {name: MappingProxyType(dict(values)) for name, values in dict(self.extensions).items()}
+        )
+        object.__setattr__(self, "extensions", frozen)
+        from analysis.extensions import validate_extensions
+
+        validate_extensions(self)
+
+    def with_extension(self, name: str, **values: float) -> Model:
+        """Copy with one named cause switched on (or its values replaced)."""
+        merged = {k: dict(v) for k, v in self.extensions.items()}
+        merged[name] = dict(values)
+        return replace(self, extensions=MappingProxyType(merged))
+
+    def pack(self) -> np.ndarray:
+        """The packed float64 parameter vector (layout ``P``) for the compiled equations."""
+        rig, drive = self.rig, self.drive
+        p = np.zeros(P.SIZE)
+        p[P.OMEGA2] = rig.g_m_s2 / rig.L_m
+        p[P.TWO_ZETA_OMEGA] = 2.0 * rig.zeta * rig.omega_rad_s
+        p[P.INV_L] = 1.0 / rig.L_m
+        p[P.CONTACT_GAIN] = rig.l_m / (rig.m_kg * rig.L_m**2)
+        p[P.SHAFT_L] = rig.l_m
+        p[P.K] = rig.K_N_per_m1_5
+        p[P.EXPONENT] = 1.5
+        p[P.MU0] = rig.mu0_s_per_m
+        p[P.THETA_B] = rig.theta_b_rad
+        p[P.BARRIER] = 1.0 if self.barrier else 0.0
+        p[P.OMEGA_DRIVE] = drive.Omega_rad_s
+        p[P.A1] = drive.amplitude_m
+        p[P.A2] = drive.amplitude_m * drive.h2
+        p[P.PHI2] = drive.phi2_rad
+        from analysis.extensions import apply_dynamics
+
+        apply_dynamics(self, p)
+        p[P.SIN_THETA_B] = math.sin(p[P.THETA_B])
+        return p
+
+
+# --------------------------------------------------------------------------- compiled equations
+
+
+@numba.njit(cache=True, inline="always")
+def penetration(theta: float, p: np.ndarray) -> float:
+    """Penetration delta = l (sin theta - sin theta_b) [m], > 0 in contact."""
+    return p[P.SHAFT_L] * (math.sin(theta) - p[P.SIN_THETA_B])
+
+
+@numba.njit(cache=True)
+def contact_force(theta: float, theta_dot: float, p: np.ndarray) -> float:
+    """Barrier force Fc [N] of MODEL.md section 2, generalised by the contact extensions.
+
+    Fc = K delta^n (1 + mu0 deltadot) + c deltadot, clamped at 0 (no adhesion);
+    zero out of contact, with the barrier removed, or beyond the horizontal.
+    """
+    if p[P.BARRIER] == 0.0 or math.cos(theta) <= 0.0:
+        return 0.0
+    delta = penetration(theta, p)
+    if delta <= 0.0:
+        return 0.0
+    delta_dot = p[P.SHAFT_L] * math.cos(theta) * theta_dot
+    force = p[P.K] * delta ** p[P.EXPONENT] * (1.0 + p[P.MU0] * delta_dot)
+    force += p[P.C_VISCOUS] * delta_dot
+    return force if force > 0.0 else 0.0
+
+
+@numba.njit(cache=True, inline="always")
+def table_acceleration(t: float, p: np.ndarray) -> float:
+    """x_t''(t) for x_t = A1 sin(phase) + A2 sin(2 phase + phi2), phase = Omega t + phase0."""
+    w = p[P.OMEGA_DRIVE]
+    phase = w * t + p[P.PHASE0]
+    return -w * w * (p[P.A1] * math.sin(phase) + 4.0 * p[P.A2] * math.sin(2.0 * phase + p[P.PHI2]))
+
+
+@numba.njit(cache=True, inline="always")
+def smooth_acceleration(t: float, theta: float, theta_dot: float, p: np.ndarray) -> float:
+    """theta'' from every term but Coulomb friction (that needs the integrator's stick logic)."""
+    acc = -p[P.TWO_ZETA_OMEGA] * theta_dot
+    acc -= p[P.C2] * theta_dot * abs(theta_dot)
+    acc -= table_acceleration(t, p) * p[P.INV_L] * math.cos(theta)
+    acc -= p[P.OMEGA2] * math.sin(theta)
+    acc -= p[P.CONTACT_GAIN] * contact_force(theta, theta_dot, p)
+    return acc
+
+
+@numba.njit(cache=True)
+def acceleration(t: float, theta: float, theta_dot: float, p: np.ndarray) -> float:
+    """theta'' of MODEL.md section 2 plus the active extension terms, while sliding (theta' != 0).
+
+    Coulomb friction enters as -Tc/(m L^2) sign(theta'); at theta' = 0 the pendulum
+    sticks unless the other torques exceed Tc, which the integrator resolves.
+    """
+    acc = smooth_acceleration(t, theta, theta_dot, p)
+    if theta_dot > 0.0:
+        acc -= p[P.COULOMB_ACC]
+    elif theta_dot < 0.0:
+        acc += p[P.COULOMB_ACC]
+    return acc

@@ -1,0 +1,1 @@
+"""Device interfaces and backends (serial DAQ, Modbus amplifier, simulated)."""

@@ -1,0 +1,1 @@
+"""The virtual rig: model physics behind emulators speaking the real wire protocols."""

@@ -1,0 +1,1 @@
+"""Acquisition engine, HDF5 recorder, procedures, rig configuration and the command line."""

@@ -1,0 +1,1 @@
+"""Sub-commands of impact-rig, one module each (registered as entry points)."""
