@@ -1,0 +1,255 @@
+"""Make a measured angle fit for identification: bad samples, noise level, release, rest, velocity.
+
+Real records start before the pendulum is let go, end long after it has stopped,
+carry an unknown sensor zero and the odd glitch.  Each step here is detected from
+the data alone and reported, so that the fits can state what they excluded.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.interpolate import make_smoothing_spline
+from scipy.ndimage import median_filter
+from scipy.signal import find_peaks
+
+from analysis.identify.result import IdentificationError
+
+SPIKE_THRESHOLD = 10.0  # robust standard deviations of the second difference
+STILL_THRESHOLD = 6.0  # noise standard deviations within which the angle counts as held still
+MIN_HELD_SAMPLES = 10
+REST_FRACTION = 0.02  # oscillation below this fraction of the initial swing (and the noise) = rest
+
+
+@dataclass(frozen=True)
+class PreparedSignal:
+    """The part of a record used by a fit, with what was removed and why."""
+
+    time_s: np.ndarray  # time since the start of the used segment
+    angle_rad: np.ndarray  # NaN where a sample was excluded
+    valid: np.ndarray  # bool mask of usable samples
+    start_index: int  # index in the original record of the first used sample
+    stop_index: int  # one past the last used sample
+    trim_start_s: float  # time removed at the start (before release)
+    trim_end_s: float  # time removed at the end (pendulum at rest)
+    n_nonfinite: int
+    n_spikes: int
+    noise_rad: float  # white-noise level estimated from second differences
+    quantum_rad: float  # smallest nonzero step between samples (sensor resolution)
+    notes: tuple[str, ...] = ()
+
+    @property
+    def n_excluded(self) -> int:
+        """Samples inside the segment that the fit does not use."""
+        return int(self.valid.size - np.count_nonzero(self.valid))
+
+
+def noise_and_quantum(angle: np.ndarray) -> tuple[float, float]:
+    """White-noise level (robust, from second differences) and the sensor's smallest step."""
+    finite = angle[np.isfinite(angle)]
+    steps = np.abs(np.diff(finite))
+    nonzero = steps[steps > 0]
+    quantum = float(nonzero.min()) if nonzero.size else 0.0
+    d2 = np.diff(finite, 2)
+    if d2.size < 8:
+        return max(quantum, 1e-12), quantum
+    # The second difference of a white sequence has variance 6 sigma^2; subtracting a running
+    # median removes the smooth signal's own curvature.
+    detail = d2 - median_filter(d2, size=9, mode="nearest")
+    mad = float(np.median(np.abs(detail - np.median(detail))))
+    noise = 1.4826 * mad / math.sqrt(6.0)
+    # A quantised signal has noise of at least quantum / sqrt(12).
+    return max(noise, quantum / math.sqrt(12.0), 1e-12), quantum
+
+
+def find_bad_samples(angle: np.ndarray) -> tuple[np.ndarray, int, int]:
+    """Mask of usable samples, with the counts of non-finite samples and of isolated spikes."""
+    finite = np.isfinite(angle)
+    valid = finite.copy()
+    index = np.flatnonzero(finite)
+    values = angle[index]
+    n_spikes = 0
+    if values.size >= 16:
+        d2 = np.diff(values, 2)
+        detail = d2 - median_filter(d2, size=9, mode="nearest")
+        mad = float(np.median(np.abs(detail - np.median(detail))))
+        steps = np.abs(np.diff(values))
+        quantum = float(steps[steps > 0].min()) if np.any(steps > 0) else 0.0
+        scale = max(1.4826 * mad, quantum, 1e-12)
+        # A spike of height s at sample i gives a second difference -2s at i and +s beside it.
+        strength = np.abs(detail) / scale
+        candidates = np.flatnonzero(strength > SPIKE_THRESHOLD)
+        for c in candidates:
+            lo, hi = max(c - 1, 0), min(c + 2, strength.size)
+            if strength[c] >= strength[lo:hi].max():
+                valid[index[c + 1]] = False
+                n_spikes += 1
+    return valid, int(np.count_nonzero(~finite)), n_spikes
+
+
+def centre_estimate(angle: np.ndarray) -> float:
+    """Rough rest angle of an oscillating signal: median of the midpoints of its swings."""
+    clean = angle[np.isfinite(angle)]
+    if clean.size < 3:
+        raise IdentificationError("too few finite samples to locate the rest angle")
+    low, high = np.percentile(clean, [1, 99])
+    rough = 0.5 * (low + high)
+    crossings = _crossings(clean - rough)
+    if crossings.size < 3:
+        return float(np.median(clean))
+    midpoints = []
+    for a, b in itertools.pairwise(crossings):
+        segment = clean[a:b + 1]
+        midpoints.append(segment.max() if segment.mean() > rough else segment.min())
+    extremes = np.asarray(midpoints)
+    return float(np.median(0.5 * (extremes[:-1] + extremes[1:])))
+
+
+def _crossings(centred: np.ndarray, hysteresis: float | None = None) -> np.ndarray:
+    """Indices where the signal changes side, counting only full passages across +-hysteresis."""
+    if hysteresis is None:
+        hysteresis = 3.0 * noise_and_quantum(centred)[0]
+    state = np.zeros(centred.size, dtype=np.int8)
+    state[centred > hysteresis] = 1
+    state[centred < -hysteresis] = -1
+    known = np.flatnonzero(state)
+    if known.size < 2:
+        return np.zeros(0, dtype=np.int64)
+    sides = state[known]
+    change = np.flatnonzero(sides[1:] != sides[:-1])
+    return known[change + 1]
+
+
+def turning_points(
+    angle: np.ndarray, centre: float, noise: float, min_distance: int
+) -> np.ndarray:
+    """Indices of the alternating extremes of a noisy oscillation (prominence above the noise)."""
+    filled = _fill_invalid(angle)
+    prominence = 10.0 * noise
+    peaks, _ = find_peaks(filled - centre, prominence=prominence, distance=min_distance)
+    troughs, _ = find_peaks(centre - filled, prominence=prominence, distance=min_distance)
+    return np.sort(np.concatenate([peaks, troughs]))
+
+
+def _fill_invalid(angle: np.ndarray) -> np.ndarray:
+    good = np.isfinite(angle)
+    if good.all():
+        return angle
+    idx = np.arange(angle.size)
+    return np.interp(idx, idx[good], angle[good])
+
+
+def prepare(time_s: np.ndarray, angle_rad: np.ndarray, *, detect_release: bool = True,
+            trim_rest: bool = True) -> PreparedSignal:
+    """Exclude bad samples, trim before the release and after the pendulum comes to rest."""
+    if time_s.size < 16:
+        raise IdentificationError(f"record too short: {time_s.size} samples, need at least 16")
+    valid, n_nonfinite, n_spikes = find_bad_samples(angle_rad)
+    if np.count_nonzero(valid) < 16:
+        raise IdentificationError(
+            f"only {np.count_nonzero(valid)} usable samples ({n_nonfinite} not finite)"
+        )
+    angle = np.where(valid, angle_rad, np.nan)
+    noise, quantum = noise_and_quantum(angle)
+    filled = _fill_invalid(angle)
+    notes: list[str] = []
+    start = 0
+    if detect_release:
+        start, note = _release_index(filled, noise, quantum)
+        if note:
+            notes.append(note)
+    stop = angle.size
+    if trim_rest:
+        stop = _rest_index(filled, start, noise, quantum)
+    if stop - start < 16:
+        raise IdentificationError(
+            f"no usable motion: only {stop - start} samples between release and rest"
+        )
+    t0 = time_s[start]
+    if stop < angle.size:
+        notes.append(
+            f"the pendulum is at rest from t = {time_s[stop] - time_s[0]:.4g} s on; "
+            f"the last {time_s[-1] - time_s[stop - 1]:.4g} s are not fitted"
+        )
+    return PreparedSignal(
+        time_s=time_s[start:stop] - t0,
+        angle_rad=angle[start:stop],
+        valid=valid[start:stop],
+        start_index=start,
+        stop_index=stop,
+        trim_start_s=float(t0 - time_s[0]),
+        trim_end_s=float(time_s[-1] - time_s[stop - 1]),
+        n_nonfinite=n_nonfinite,
+        n_spikes=n_spikes,
+        noise_rad=noise,
+        quantum_rad=quantum,
+        notes=tuple(notes),
+    )
+
+
+def _release_index(filled: np.ndarray, noise: float, quantum: float) -> tuple[int, str]:
+    """First sample of free motion: the end of a held-still start, else the first turning point.
+
+    Before the release the angle is either held still, or still being moved by hand
+    towards the release angle; in a free decay no swing is larger than the first, so
+    motion away from the centre beyond the starting angle is pre-release.
+    """
+    band = max(STILL_THRESHOLD * noise, 2.0 * quantum)
+    reference = np.median(filled[:5])
+    moved = np.flatnonzero(np.abs(filled - reference) > band)
+    if moved.size == 0:
+        raise IdentificationError("no oscillation: the angle never leaves its starting value")
+    held = int(moved[0])
+    centre = centre_estimate(filled[held:])
+    period_guess = _rough_period_samples(filled[held:] - centre)
+    # A pendulum let go from rest at t = 0 also stays inside the band for a moment; a hold
+    # is only recognised when it lasts a good fraction of a period.
+    if held >= max(MIN_HELD_SAMPLES, period_guess // 4):
+        return held - 1, f"held still until release at sample {held - 1}"
+    extremes = turning_points(filled, centre, noise, max(2, period_guess // 4))
+    if extremes.size == 0:
+        return 0, ""
+    first = int(extremes[0])
+    if abs(filled[first] - centre) > abs(filled[0] - centre) + band:
+        return first, f"moving away from rest until the first turning point at sample {first}"
+    return 0, ""
+
+
+def _rough_period_samples(centred: np.ndarray) -> int:
+    crossings = _crossings(centred)
+    if crossings.size < 3:
+        return max(4, centred.size // 2)
+    return int(max(4, 2 * np.median(np.diff(crossings))))
+
+
+def _rest_index(filled: np.ndarray, start: int, noise: float, quantum: float) -> int:
+    """One past the last sample of visible oscillation (the record's end if it never stops)."""
+    segment = filled[start:]
+    centre = centre_estimate(segment)
+    period = _rough_period_samples(segment - centre)
+    if segment.size < 3 * period:
+        return filled.size
+    initial = float(np.max(np.abs(segment[:period] - centre)))
+    level = max(8.0 * noise, 3.0 * quantum, REST_FRACTION * initial)
+    n_windows = segment.size // period
+    windows = segment[: n_windows * period].reshape(n_windows, period)
+    swing = windows.max(axis=1) - windows.min(axis=1)
+    moving = np.flatnonzero(swing > 2.0 * level)
+    if moving.size == 0:
+        raise IdentificationError("no oscillation above the noise level after the release")
+    last = int(moving[-1])
+    if last >= n_windows - 2:
+        return filled.size
+    return start + (last + 1) * period
+
+
+def spline_velocity(
+    time_s: np.ndarray, angle_rad: np.ndarray, lam: float | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """Smoothed angle and angular velocity from a smoothing spline (GCV-chosen smoothing)."""
+    good = np.isfinite(angle_rad)
+    spline = make_smoothing_spline(time_s[good], angle_rad[good], lam=lam)
+    return spline(time_s), spline.derivative()(time_s)
