@@ -1,0 +1,318 @@
+"""The shaker amplifier as a real pymodbus server: Modbus TCP on loopback, and Modbus RTU on a pty.
+
+The register logic is :class:`AmplifierFirmware`; this module only puts it on the
+wire, records what it received (for protocol tests) and injects transport faults
+(no reply, exception replies).  The server runs its asyncio loop in a background
+thread, so tests and the ``sim-rig`` command use it like a device on the bench.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import enum
+import logging
+import os
+import select
+import threading
+from dataclasses import dataclass
+
+from pymodbus.constants import ExcCodes
+from pymodbus.pdu import ModbusPDU
+from pymodbus.server import ModbusSerialServer, ModbusTcpServer
+from pymodbus.simulator import DataType, SimData, SimDevice
+
+from drivers.amplifier_registers import HOLDING_COUNT, INPUT_COUNT
+from hardware_sim.amplifier_firmware import AmplifierFirmware, RegisterAccessError
+
+WATCHDOG_POLL_S = 0.02
+_READ_INPUT, _READ_HOLDING = 4, 3
+_WRITES = (6, 16)
+
+# pymodbus logs every refused request and deprecation at WARNING/ERROR; an emulator
+# answering exceptions on purpose should not flood the console.
+logging.getLogger("pymodbus").setLevel(logging.CRITICAL)
+
+
+class TransportFault(enum.Enum):
+    """Faults of the link or the controller's communication, switchable at run time."""
+
+    NONE = "none"
+    NO_REPLY = "no_reply"  # requests are swallowed: the host times out
+    DEVICE_FAILURE = "device_failure"  # every request answers exception 0x04
+    BUSY = "busy"  # every request answers exception 0x06
+
+
+_EXCEPTION_FOR = {
+    TransportFault.DEVICE_FAILURE: ExcCodes.DEVICE_FAILURE,
+    TransportFault.BUSY: ExcCodes.DEVICE_BUSY,
+}
+
+
+@dataclass(frozen=True)
+class ReceivedRequest:
+    """One request PDU the emulator received (whether or not it answered)."""
+
+    function_code: int
+    address: int
+    count: int
+    values: tuple[int, ...]
+
+    @property
+    def is_write(self) -> bool:
+        """True for FC6 / FC16."""
+        return self.function_code in _WRITES
+
+
+class AmplifierEmulator:
+    """A pymodbus server answering as the shaker amplifier of docs/amplifier_registers.md.
+
+    ``port=0`` picks a free TCP port (read it from :attr:`port`).  ``rtu=True``
+    also serves Modbus RTU on a pseudo-terminal; clients open :attr:`rtu_path`.
+    ``tcp=False`` serves RTU only.
+    """
+
+    def __init__(
+        self,
+        firmware: AmplifierFirmware | None = None,
+        *,
+        host: str = "127.0.0.1",
+        port: int = 0,
+        tcp: bool = True,
+        rtu: bool = False,
+        rtu_baudrate: int = 19200,
+    ) -> None:
+        self.firmware = firmware or AmplifierFirmware()
+        self.host = host
+        self._requested_port = port
+        self._tcp, self._rtu = tcp, rtu
+        self._baudrate = rtu_baudrate
+        self.port: int | None = None
+        self.rtu_path: str | None = None
+        self.fault = TransportFault.NONE
+        self._requests: list[ReceivedRequest] = []
+        self._raw: list[bytes] = []
+        self._log_lock = threading.Lock()
+        self._loop: asyncio.AbstractEventLoop | None = None
+        self._thread: threading.Thread | None = None
+        self._servers: list = []
+        self._bridge: _PtyBridge | None = None
+        self._started = threading.Event()
+        self._start_error: BaseException | None = None
+
+    # ------------------------------------------------------------------ lifecycle
+
+    def start(self) -> AmplifierEmulator:
+        """Start serving; returns once the endpoints accept connections."""
+        if self._thread is not None:
+            return self
+        if self._rtu:
+            self._bridge = _PtyBridge()
+            self.rtu_path = self._bridge.client_path
+        self._thread = threading.Thread(target=self._run, name="amplifier-emulator", daemon=True)
+        self._thread.start()
+        self._started.wait(10.0)
+        if self._start_error is not None:
+            self.stop()
+            raise RuntimeError(f"amplifier emulator could not start: {self._start_error}")
+        return self
+
+    def stop(self) -> None:
+        """Stop serving and release the port and the pty; safe to call twice."""
+        loop, thread = self._loop, self._thread
+        if loop is not None and thread is not None and thread.is_alive():
+            with contextlib.suppress(RuntimeError):
+                asyncio.run_coroutine_threadsafe(self._shutdown(), loop).result(5.0)
+            thread.join(5.0)
+        self._thread = None
+        if self._bridge is not None:
+            self._bridge.close()
+            self._bridge = None
+
+    def __enter__(self) -> AmplifierEmulator:
+        return self.start()
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop()
+
+    @property
+    def endpoint(self) -> str:
+        """``host:port`` of the TCP server."""
+        return f"{self.host}:{self.port}"
+
+    # ------------------------------------------------------------------ what it saw
+
+    @property
+    def requests(self) -> list[ReceivedRequest]:
+        """Every request PDU received so far, oldest first."""
+        with self._log_lock:
+            return list(self._requests)
+
+    @property
+    def raw_received(self) -> list[bytes]:
+        """The raw bytes received, chunk by chunk as the transport delivered them."""
+        with self._log_lock:
+            return list(self._raw)
+
+    def clear_log(self) -> None:
+        """Forget the received requests (start of a test step)."""
+        with self._log_lock:
+            self._requests.clear()
+            self._raw.clear()
+
+    # ------------------------------------------------------------------ server internals
+
+    def _run(self) -> None:
+        loop = asyncio.new_event_loop()
+        self._loop = loop
+        try:
+            loop.run_until_complete(self._serve())
+        except BaseException as error:  # reported to start()
+            self._start_error = error
+        finally:
+            self._started.set()
+        try:
+            loop.run_forever()
+        finally:
+            loop.close()
+
+    def _device(self) -> SimDevice:
+        def block(count: int) -> list[SimData]:
+            return [SimData(0, count=count, values=0, datatype=DataType.REGISTERS)]
+
+        def bits() -> list[SimData]:
+            return [SimData(0, values=False, datatype=DataType.BITS)]
+
+        # id 0 answers every unit id, as most TCP controllers do.
+        return SimDevice(
+            id=0,
+            simdata=(bits(), bits(), block(HOLDING_COUNT), block(INPUT_COUNT)),
+            action=self._action,
+        )
+
+    async def _serve(self) -> None:
+        if self._tcp:
+            tcp = ModbusTcpServer(
+                self._device(),
+                address=(self.host, self._requested_port),
+                trace_packet=self._trace_packet,
+                trace_pdu=self._trace_pdu,
+            )
+            await tcp.serve_forever(background=True)
+            self.port = int(tcp.transport.sockets[0].getsockname()[1])
+            self._servers.append(tcp)
+        if self._rtu and self._bridge is not None:
+            rtu = ModbusSerialServer(
+                self._device(),
+                port=self._bridge.server_path,
+                baudrate=self._baudrate,
+                trace_packet=self._trace_packet,
+                trace_pdu=self._trace_pdu,
+            )
+            await rtu.serve_forever(background=True)
+            self._servers.append(rtu)
+        self._watchdog_task = asyncio.get_running_loop().create_task(self._watchdog())
+
+    async def _watchdog(self) -> None:
+        # The firmware also checks on every request; this catches a host that went silent.
+        while True:
+            self.firmware.service()
+            await asyncio.sleep(WATCHDOG_POLL_S)
+
+    async def _shutdown(self) -> None:
+        self._watchdog_task.cancel()
+        for server in self._servers:
+            await server.shutdown()
+        self._servers.clear()
+        asyncio.get_running_loop().call_soon(asyncio.get_running_loop().stop)
+
+    def _trace_packet(self, sending: bool, data: bytes) -> bytes:
+        if not sending and data:
+            with self._log_lock:
+                self._raw.append(bytes(data))
+        return data
+
+    def _trace_pdu(self, sending: bool, pdu: ModbusPDU) -> ModbusPDU | None:
+        if sending:
+            return pdu
+        values = tuple(getattr(pdu, "registers", None) or ())
+        count = getattr(pdu, "count", 0) or len(values)
+        with self._log_lock:
+            self._requests.append(ReceivedRequest(pdu.function_code, pdu.address, count, values))
+        if self.fault is TransportFault.NO_REPLY:
+            return None  # swallowed: never executed, never answered
+        return pdu
+
+    async def _action(
+        self,
+        function_code: int,
+        start_address: int,
+        address: int,
+        count: int,
+        registers: list[int],
+        set_values: list[int] | list[bool] | None,
+    ) -> ExcCodes | None:
+        if self.fault in _EXCEPTION_FOR:
+            return _EXCEPTION_FOR[self.fault]
+        offset = address - start_address
+        try:
+            if function_code == _READ_INPUT:
+                registers[offset : offset + count] = self.firmware.read_input(address, count)
+            elif function_code == _READ_HOLDING:
+                registers[offset : offset + count] = self.firmware.read_holding(address, count)
+            elif function_code in _WRITES and set_values is not None:
+                self.firmware.write(address, [int(v) for v in set_values])
+            else:
+                return ExcCodes.ILLEGAL_FUNCTION
+        except RegisterAccessError as error:
+            return ExcCodes(error.code)
+        return None
+
+
+class _PtyBridge:
+    """Two pseudo-terminals joined back to back, like a null-modem cable.
+
+    The server (pymodbus opens serial ports by path) opens one slave, the client
+    the other; a thread copies bytes between the two masters.
+    """
+
+    def __init__(self) -> None:
+        self._server_master, server_slave = os.openpty()
+        self._client_master, client_slave = os.openpty()
+        self.server_path = os.ttyname(server_slave)
+        self.client_path = os.ttyname(client_slave)
+        for fd in (server_slave, client_slave):
+            _make_raw(fd)
+        # Keep the slaves open ourselves so the masters never see a hang-up between sessions.
+        self._slaves = (server_slave, client_slave)
+        self._stop_r, self._stop_w = os.pipe()
+        self._thread = threading.Thread(target=self._copy, name="rtu-pty-bridge", daemon=True)
+        self._thread.start()
+
+    def _copy(self) -> None:
+        peer = {self._server_master: self._client_master, self._client_master: self._server_master}
+        while True:
+            ready, _, _ = select.select([*peer, self._stop_r], [], [])
+            if self._stop_r in ready:
+                return
+            for fd in ready:
+                try:
+                    data = os.read(fd, 4096)
+                except OSError:
+                    continue
+                if data:
+                    os.write(peer[fd], data)
+
+    def close(self) -> None:
+        os.write(self._stop_w, b"x")
+        self._thread.join(2.0)
+        for fd in (self._server_master, self._client_master, *self._slaves, self._stop_r,
+                   self._stop_w):
+            with contextlib.suppress(OSError):
+                os.close(fd)
+
+
+def _make_raw(fd: int) -> None:
+    import tty
+
+    tty.setraw(fd)
