@@ -315,8 +315,14 @@ class Recorder:
             buffer.raw.append(np.asarray(event.raw))
             buffer.values.append(np.asarray(event.values, dtype="<f4"))
             buffer.blocks.append(
-                (event.first_index, n, buffer.stored, event.timestamp_s, host_time_s,
-                 event.lost_before)
+                (
+                    event.first_index,
+                    n,
+                    buffer.stored,
+                    event.timestamp_s,
+                    host_time_s,
+                    event.lost_before,
+                )
             )
             buffer.stored += n
         elif isinstance(event, PulseBlock):
@@ -334,14 +340,27 @@ class Recorder:
             buffer.lost += event.length
         elif isinstance(event, DriveSetting):
             self._drive.append(
-                (event.host_time_s, event.sample_index, event.frequency_hz, event.amplitude_m,
-                 int(event.enabled), event.source)
+                (
+                    event.host_time_s,
+                    event.sample_index,
+                    event.frequency_hz,
+                    event.amplitude_m,
+                    int(event.enabled),
+                    event.source,
+                )
             )
         elif isinstance(event, StepMark):
             self._steps.append(
-                (event.step, event.direction, event.frequency_hz, event.amplitude_m,
-                 event.settle_start_index, event.dwell_start_index, event.dwell_end_index,
-                 int(event.complete))
+                (
+                    event.step,
+                    event.direction,
+                    event.frequency_hz,
+                    event.amplitude_m,
+                    event.settle_start_index,
+                    event.dwell_start_index,
+                    event.dwell_end_index,
+                    int(event.complete),
+                )
             )
         else:
             raise TypeError(f"cannot record {type(event).__name__}")

@@ -1,0 +1,342 @@
+"""The rig configuration file (TOML): devices and ports, calibrations, safety limits, rig constants.
+
+Parsed with tomllib into frozen dataclasses; every value is checked at load time and
+an error names the file, the key and what was expected.  The shipped default
+(``rig/default_rig.toml``) runs the virtual rig.
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from dataclasses import dataclass
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+DEFAULT_CONFIG_NAME = "default_rig.toml"
+RIG_KINDS = ("virtual", "real")
+SHAKER_TRANSPORTS = ("tcp", "rtu")
+
+
+class ConfigError(ValueError):
+    """A rig file that cannot be used; the message names the file, the key and what was expected."""
+
+
+@dataclass(frozen=True)
+class RigConstants:
+    """MODEL.md section 3 constants of this rig."""
+
+    m_kg: float
+    l_m: float
+    L_m: float
+    R_m: float
+    g_m_s2: float
+
+    def as_exchange(self) -> dict[str, float]:
+        """The constants under the exchange-format keys (MODEL.md section 5) plus L_m."""
+        return {
+            "m_kg": self.m_kg,
+            "l_m": self.l_m,
+            "R_m": self.R_m,
+            "g": self.g_m_s2,
+            "L_m": self.L_m,
+        }
+
+
+@dataclass(frozen=True)
+class LinearCalibration:
+    """value = (counts - zero_counts) * scale_per_count."""
+
+    zero_counts: float
+    scale_per_count: float
+
+    def as_dict(self) -> dict[str, float | str]:
+        """For the recording's metadata."""
+        return {
+            "law": "linear",
+            "zero_counts": self.zero_counts,
+            "scale_per_count": self.scale_per_count,
+        }
+
+
+@dataclass(frozen=True)
+class DaqConfig:
+    """The DAQ board: where it is, how fast it samples and which input carries what."""
+
+    port: str
+    baudrate: int
+    sample_rate_hz: float
+    angle_input: int
+    table_input: int
+    tach_bit: int
+
+
+@dataclass(frozen=True)
+class ShakerConfig:
+    """How to reach the amplifier's Modbus controller."""
+
+    transport: str
+    host: str
+    port: int
+    unit_id: int
+    serial_port: str
+
+
+@dataclass(frozen=True)
+class SafetyLimits:
+    """What the shaker refuses, whatever a procedure asks."""
+
+    max_amplitude_m: float
+    max_frequency_hz: float
+    max_ramp_rate_m_s: float
+    watchdog_s: float
+
+
+@dataclass(frozen=True)
+class VirtualRigConfig:
+    """Settings of the simulated rig (used only when the rig is virtual)."""
+
+    theta_b_rad: float
+    barrier: bool
+    release_angle_rad: float
+    noise_rad: float
+    seed: int
+
+
+@dataclass(frozen=True)
+class RigConfig:
+    """One validated rig file."""
+
+    source: str  # the file it came from (for messages)
+    text: str  # the file verbatim (kept in every recording)
+    name: str
+    kind: str
+    constants: RigConstants
+    daq: DaqConfig
+    angle_calibration: LinearCalibration
+    table_calibration: LinearCalibration
+    shaker: ShakerConfig
+    limits: SafetyLimits
+    virtual: VirtualRigConfig
+
+    @property
+    def is_virtual(self) -> bool:
+        """True when the devices are the virtual rig's emulators."""
+        return self.kind == "virtual"
+
+    def calibrations(self) -> dict[str, dict[str, Any]]:
+        """Per-channel calibrations for a recording's metadata."""
+        return {
+            "angle": self.angle_calibration.as_dict(),
+            "table": self.table_calibration.as_dict(),
+        }
+
+
+class _Section:
+    """Typed access to one TOML table, with errors that name file and key."""
+
+    def __init__(self, source: str, prefix: str, table: Any) -> None:
+        self.source = source
+        self.prefix = prefix
+        if not isinstance(table, dict):
+            raise ConfigError(f"{source}: [{prefix}] must be a table, got {type(table).__name__}")
+        self.table = table
+        self.used: set[str] = set()
+
+    def _key(self, key: str) -> str:
+        return f"{self.prefix}.{key}" if self.prefix else key
+
+    def _get(self, key: str, expected: str) -> Any:
+        self.used.add(key)
+        if key not in self.table:
+            raise ConfigError(f"{self.source}: missing key '{self._key(key)}'; expected {expected}")
+        return self.table[key]
+
+    def _bad(self, key: str, value: Any, expected: str) -> ConfigError:
+        return ConfigError(f"{self.source}: '{self._key(key)}' is {value!r}; expected {expected}")
+
+    def section(self, key: str) -> _Section:
+        return _Section(self.source, self._key(key), self._get(key, "a table"))
+
+    def number(
+        self,
+        key: str,
+        *,
+        low: float | None = None,
+        high: float | None = None,
+        low_open: bool = False,
+    ) -> float:
+        expected = "a number" + _range_words(low, high, low_open)
+        value = self._get(key, expected)
+        is_number = isinstance(value, int | float) and not isinstance(value, bool)
+        if not is_number or not math.isfinite(value):
+            raise self._bad(key, value, expected)
+        if low is not None and (value < low or (low_open and value == low)):
+            raise self._bad(key, value, expected)
+        if high is not None and value > high:
+            raise self._bad(key, value, expected)
+        return float(value)
+
+    def integer(self, key: str, *, low: int | None = None, high: int | None = None) -> int:
+        expected = "an integer" + _range_words(low, high, False)
+        value = self._get(key, expected)
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise self._bad(key, value, expected)
+        if (low is not None and value < low) or (high is not None and value > high):
+            raise self._bad(key, value, expected)
+        return value
+
+    def text(self, key: str, *, choices: tuple[str, ...] | None = None) -> str:
+        expected = "one of " + ", ".join(repr(c) for c in choices) if choices else "a string"
+        value = self._get(key, expected)
+        if not isinstance(value, str) or (choices and value not in choices):
+            raise self._bad(key, value, expected)
+        return value
+
+    def flag(self, key: str) -> bool:
+        value = self._get(key, "true or false")
+        if not isinstance(value, bool):
+            raise self._bad(key, value, "true or false")
+        return value
+
+    def finish(self) -> None:
+        """Unknown keys are mistakes (a typo would otherwise silently keep a default)."""
+        unknown = sorted(set(self.table) - self.used)
+        if unknown:
+            raise ConfigError(
+                f"{self.source}: unknown key '{self._key(unknown[0])}'; expected one of "
+                f"{', '.join(sorted(self.used))}"
+            )
+
+
+def _range_words(low: float | None, high: float | None, low_open: bool) -> str:
+    if low is not None and high is not None:
+        return f" in {'(' if low_open else '['}{low:g}, {high:g}]"
+    if low is not None:
+        return f" {'>' if low_open else '>='} {low:g}"
+    if high is not None:
+        return f" <= {high:g}"
+    return ""
+
+
+def default_config_path() -> Path:
+    """The shipped default rig file (the virtual rig)."""
+    return Path(str(resources.files("rig").joinpath(DEFAULT_CONFIG_NAME)))
+
+
+def load_config(path: str | Path | None = None) -> RigConfig:
+    """Load and validate a rig file; ``None`` loads the shipped default (the virtual rig)."""
+    path = Path(path) if path is not None else default_config_path()
+    source = str(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise ConfigError(f"{source}: rig file not found") from None
+    except (OSError, UnicodeDecodeError) as error:
+        raise ConfigError(f"{source}: cannot read the rig file ({error})") from None
+    return parse_config(text, source)
+
+
+def parse_config(text: str, source: str = "<rig file>") -> RigConfig:
+    """Validate the text of a rig file (``source`` names it in errors)."""
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as error:
+        raise ConfigError(f"{source}: not valid TOML ({error})") from None
+    top = _Section(source, "", data)
+
+    rig = top.section("rig")
+    name = rig.text("name")
+    kind = rig.text("kind", choices=RIG_KINDS)
+    constants_section = rig.section("constants")
+    constants = RigConstants(
+        m_kg=constants_section.number("m_kg", low=0, low_open=True),
+        l_m=constants_section.number("l_m", low=0, low_open=True),
+        L_m=constants_section.number("L_m", low=0, low_open=True),
+        R_m=constants_section.number("R_m", low=0, low_open=True),
+        g_m_s2=constants_section.number("g_m_s2", low=0, low_open=True),
+    )
+    constants_section.finish()
+    rig.finish()
+
+    daq_section = top.section("daq")
+    daq = DaqConfig(
+        port=daq_section.text("port"),
+        baudrate=daq_section.integer("baudrate", low=1200),
+        sample_rate_hz=daq_section.number("sample_rate_hz", low=1.0, high=1.0e6),
+        angle_input=daq_section.integer("angle_input", low=0, high=3),
+        table_input=daq_section.integer("table_input", low=0, high=3),
+        tach_bit=daq_section.integer("tach_bit", low=0, high=15),
+    )
+    if daq.angle_input == daq.table_input:
+        raise ConfigError(
+            f"{source}: 'daq.table_input' is {daq.table_input}; expected an input other than "
+            f"daq.angle_input ({daq.angle_input})"
+        )
+    daq_section.finish()
+
+    calibration = top.section("calibration")
+    calibrations = []
+    for channel in ("angle", "table"):
+        section = calibration.section(channel)
+        scale = section.number("scale_per_count")
+        if scale == 0:
+            raise ConfigError(
+                f"{source}: 'calibration.{channel}.scale_per_count' is 0; "
+                "expected a non-zero number"
+            )
+        calibrations.append(LinearCalibration(section.number("zero_counts"), scale))
+        section.finish()
+    calibration.finish()
+
+    shaker_section = top.section("shaker")
+    shaker = ShakerConfig(
+        transport=shaker_section.text("transport", choices=SHAKER_TRANSPORTS),
+        host=shaker_section.text("host"),
+        port=shaker_section.integer("port", low=0, high=65535),
+        unit_id=shaker_section.integer("unit_id", low=0, high=247),
+        serial_port=shaker_section.text("serial_port"),
+    )
+    if shaker.transport == "rtu" and not shaker.serial_port and kind == "real":
+        raise ConfigError(
+            f"{source}: 'shaker.serial_port' is ''; expected a serial device when "
+            "shaker.transport is 'rtu'"
+        )
+    shaker_section.finish()
+
+    limits_section = top.section("limits")
+    limits = SafetyLimits(
+        max_amplitude_m=limits_section.number("max_amplitude_m", low=0, high=0.05, low_open=True),
+        max_frequency_hz=limits_section.number("max_frequency_hz", low=0, high=200, low_open=True),
+        max_ramp_rate_m_s=limits_section.number(
+            "max_ramp_rate_m_s", low=0, high=0.05, low_open=True
+        ),
+        watchdog_s=limits_section.number("watchdog_s", low=0.05, high=60),
+    )
+    limits_section.finish()
+
+    virtual_section = top.section("virtual")
+    virtual = VirtualRigConfig(
+        theta_b_rad=virtual_section.number("theta_b_rad", low=-0.5, high=0.5),
+        barrier=virtual_section.flag("barrier"),
+        release_angle_rad=virtual_section.number("release_angle_rad", low=-1.5, high=1.5),
+        noise_rad=virtual_section.number("noise_rad", low=0),
+        seed=virtual_section.integer("seed", low=0),
+    )
+    virtual_section.finish()
+    top.finish()
+
+    return RigConfig(
+        source=source,
+        text=text,
+        name=name,
+        kind=kind,
+        constants=constants,
+        daq=daq,
+        angle_calibration=calibrations[0],
+        table_calibration=calibrations[1],
+        shaker=shaker,
+        limits=limits,
+        virtual=virtual,
+    )
