@@ -1,0 +1,338 @@
+"""The DAQ board as a device: declared once, its transport a backend passed in.
+
+A :class:`DaqBoard` owns one stream from one board (serial, or an in-process
+simulation: anything implementing :class:`DaqBackend`).  It checks the board's
+identity, validates the configuration against the limits the board reports,
+counts gaps in the running sample index exactly, and fans the samples out to the
+role drivers (angle sensor, laser, tachometer, see :mod:`drivers.sensors`) that
+share the stream.  Samples are never invented: a gap is reported as a gap.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+import threading
+import time
+from collections import deque
+from dataclasses import dataclass
+from typing import Protocol, runtime_checkable
+
+import numpy as np
+
+from drivers.daq_protocol import BoardConfiguration, BoardIdentity
+from drivers.interfaces import DeviceError, LimitError, StreamStatus, WrongDeviceError
+
+DEFAULT_MODEL = "IRDAQ-4"
+
+
+@dataclass(frozen=True)
+class RawChunk:
+    """Consecutive samples from the board, as counts, with their running index."""
+
+    first_index: int
+    analog: np.ndarray  # (samples, configured channels) int16 counts
+    digital: np.ndarray  # (samples,) uint16 digital lines, bit 0 = tachometer
+
+    @property
+    def n_samples(self) -> int:
+        return int(self.digital.shape[0])
+
+    @property
+    def end_index(self) -> int:
+        return self.first_index + self.n_samples
+
+
+@runtime_checkable
+class DaqBackend(Protocol):
+    """How a :class:`DaqBoard` talks to its board; serial and simulated backends implement it.
+
+    ``read_chunk`` is called from one thread only, the board's reader; it returns
+    chunks in index order (dropping anything that would go backwards) and raises
+    :class:`DeviceError` when the device is gone.
+    """
+
+    @property
+    def description(self) -> str:
+        """Where the board is, for messages: e.g. ``'serial port /dev/ttyACM0'``."""
+        ...
+
+    @property
+    def frames_rejected(self) -> int:
+        """Frames discarded so far for a bad CRC or framing (their samples show as gaps)."""
+        ...
+
+    def connect(self) -> BoardIdentity: ...
+
+    def configure(self, sample_rate_hz: float, channels: tuple[int, ...]) -> BoardConfiguration: ...
+
+    def start(self) -> None: ...
+
+    def read_chunk(self, timeout_s: float) -> RawChunk | None: ...
+
+    def stop(self) -> None: ...
+
+    def close(self) -> None: ...
+
+
+class _Subscription:
+    """One role's queue of chunks; bounded so a role nobody reads cannot eat the memory."""
+
+    def __init__(self, max_samples: int) -> None:
+        self.max_samples = max_samples
+        self.chunks: deque[tuple[RawChunk, int]] = deque()
+        self.queued_samples = 0
+        self.samples_received = 0
+        self.samples_lost = 0
+        self.condition = threading.Condition()
+
+    def push(self, chunk: RawChunk, lost_before: int) -> None:
+        with self.condition:
+            self.chunks.append((chunk, lost_before))
+            self.queued_samples += chunk.n_samples
+            self.samples_lost += lost_before
+            while self.queued_samples > self.max_samples and len(self.chunks) > 1:
+                # The role is not being read: drop its oldest samples, and say so.
+                dropped, lost = self.chunks.popleft()
+                self.queued_samples -= dropped.n_samples
+                self.samples_lost += dropped.n_samples
+                head, head_lost = self.chunks.popleft()
+                self.chunks.appendleft((head, head_lost + lost + dropped.n_samples))
+            self.condition.notify_all()
+
+    def take(self, timeout_s: float, board: DaqBoard) -> tuple[RawChunk, int] | None:
+        """Everything queued and contiguous, merged into one chunk, with its gap before."""
+        deadline = time.monotonic() + timeout_s
+        with self.condition:
+            while not self.chunks:
+                if board.failure:
+                    raise DeviceError(board.failure)
+                remaining = deadline - time.monotonic()
+                if remaining <= 0:
+                    return None
+                self.condition.wait(min(remaining, 0.05))
+            chunk, lost = self.chunks.popleft()
+            parts = [chunk]
+            while self.chunks and self.chunks[0][1] == 0:
+                parts.append(self.chunks.popleft()[0])
+            self.queued_samples -= sum(p.n_samples for p in parts)
+        if len(parts) > 1:
+            chunk = RawChunk(
+                parts[0].first_index,
+                np.concatenate([p.analog for p in parts]),
+                np.concatenate([p.digital for p in parts]),
+            )
+        self.samples_received += chunk.n_samples
+        return chunk, lost
+
+
+class DaqBoard:
+    """One DAQ board and its single stream, shared by the role drivers attached to it."""
+
+    def __init__(
+        self,
+        backend: DaqBackend,
+        *,
+        sample_rate_hz: float,
+        analog_channels: tuple[int, ...],
+        expected_model: str = DEFAULT_MODEL,
+        stall_timeout_s: float = 1.0,
+        role_buffer_s: float = 10.0,
+    ) -> None:
+        if not (math.isfinite(sample_rate_hz) and sample_rate_hz > 0):
+            raise LimitError(f"sample_rate_hz={sample_rate_hz} must be a positive number")
+        channels = tuple(int(c) for c in analog_channels)
+        if not channels:
+            raise LimitError("analog_channels is empty: enable at least one analog input")
+        if len(set(channels)) != len(channels):
+            raise LimitError(f"analog_channels={analog_channels} names a channel twice")
+        if any(c < 0 for c in channels):
+            raise LimitError(f"analog_channels={analog_channels}: channels are numbered from 0")
+        self.backend = backend
+        self.requested_rate_hz = float(sample_rate_hz)
+        self.analog_channels = tuple(sorted(channels))
+        self.expected_model = expected_model
+        self.stall_timeout_s = stall_timeout_s
+        self.role_buffer_s = role_buffer_s
+        self.identity: BoardIdentity | None = None
+        self.configuration: BoardConfiguration | None = None
+        self.failure = ""  # set when the device went away; role reads then raise
+        self._lock = threading.Lock()
+        self._subscriptions: tuple[_Subscription, ...] = ()  # replaced whole: the reader
+        # thread reads it without the lock, which stop() holds while joining that thread
+        self._thread: threading.Thread | None = None
+        self._stop_reading = threading.Event()
+        self._streaming = False
+        self._expected_index = 0
+        self._samples_received = 0
+        self._samples_lost = 0
+        self._last_data = 0.0
+        self._message = ""
+
+    # --- set-up ---------------------------------------------------------------------------
+    def open(self) -> BoardIdentity:
+        """Connect, check it is the expected board, and configure it (validated first)."""
+        if self.identity is not None:
+            return self.identity
+        identity = self.backend.connect()
+        if identity.model != self.expected_model:
+            self.backend.close()
+            raise WrongDeviceError(
+                f"{self.backend.description} is a {identity.model!r} "
+                f"(serial {identity.serial}), expected a {self.expected_model!r} DAQ board"
+            )
+        self._validate_against(identity)
+        self.configuration = self.backend.configure(self.requested_rate_hz, self.analog_channels)
+        self.identity = identity
+        return identity
+
+    def _validate_against(self, identity: BoardIdentity) -> None:
+        low, high = identity.min_rate_hz, identity.max_rate_hz
+        if not low <= self.requested_rate_hz <= high:
+            self.backend.close()
+            raise LimitError(
+                f"sample_rate_hz={self.requested_rate_hz:g} is outside the range "
+                f"{low:g}..{high:g} Hz of {identity.model} on {self.backend.description}"
+            )
+        unknown = [c for c in self.analog_channels if c >= identity.channels]
+        if unknown:
+            self.backend.close()
+            raise LimitError(
+                f"analog channel {unknown[0]} does not exist: {identity.model} has "
+                f"channels 0..{identity.channels - 1}"
+            )
+
+    @property
+    def sample_rate_hz(self) -> float:
+        """The rate the board really runs (its clock divides); the requested one before open()."""
+        if self.configuration is None:
+            return self.requested_rate_hz
+        return self.configuration.sample_rate_hz
+
+    @property
+    def volts_per_count(self) -> float:
+        """ADC scale reported by the board: counts span -range_v..+range_v."""
+        if self.identity is None:
+            raise DeviceError("the DAQ board is not open yet: call open() or start a role")
+        return self.identity.range_v / (1 << (self.identity.adc_bits - 1))
+
+    @property
+    def adc_limits(self) -> tuple[int, int]:
+        """Lowest and highest count the ADC can give (readings at a rail are saturated)."""
+        if self.identity is None:
+            raise DeviceError("the DAQ board is not open yet: call open() or start a role")
+        half = 1 << (self.identity.adc_bits - 1)
+        return -half, half - 1
+
+    def column_of(self, channel: int) -> int:
+        """Where an analog channel sits in a chunk; a clear error if it is not enabled."""
+        if channel not in self.analog_channels:
+            raise LimitError(
+                f"analog channel {channel} is not enabled on this board "
+                f"(enabled: {', '.join(map(str, self.analog_channels))})"
+            )
+        return self.analog_channels.index(channel)
+
+    # --- streaming ------------------------------------------------------------------------
+    def subscribe(self) -> _Subscription:
+        """A queue that receives every chunk from now on; starts the stream if needed."""
+        self.open()
+        subscription = _Subscription(max(1, int(self.role_buffer_s * self.sample_rate_hz)))
+        with self._lock:
+            self._subscriptions = (*self._subscriptions, subscription)
+            if not self._streaming:
+                self._start_locked()
+        return subscription
+
+    def unsubscribe(self, subscription: _Subscription) -> None:
+        """Stop feeding a role; the stream stops when the last role leaves."""
+        with self._lock:
+            self._subscriptions = tuple(s for s in self._subscriptions if s is not subscription)
+            if not self._subscriptions and self._streaming:
+                self._stop_locked()
+
+    def _start_locked(self) -> None:
+        self.failure = ""
+        self._message = ""
+        self._expected_index = 0
+        self.backend.start()
+        self._streaming = True
+        self._last_data = time.monotonic()
+        self._stop_reading.clear()
+        self._thread = threading.Thread(target=self._read_loop, name="daq-reader", daemon=True)
+        self._thread.start()
+
+    def _stop_locked(self) -> None:
+        self._streaming = False
+        try:
+            if not self.failure:
+                self.backend.stop()
+        finally:
+            self._stop_reading.set()
+            if self._thread is not None:
+                self._thread.join(timeout=5)
+            self._thread = None
+
+    def close(self) -> None:
+        """Stop streaming and release the transport; safe to call more than once."""
+        with self._lock:
+            self._subscriptions = ()
+            if self._streaming:
+                with contextlib.suppress(DeviceError):
+                    self._stop_locked()
+        self.backend.close()
+        self.identity = None
+
+    def __enter__(self) -> DaqBoard:
+        self.open()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def _read_loop(self) -> None:
+        while not self._stop_reading.is_set():
+            try:
+                chunk = self.backend.read_chunk(0.05)
+            except DeviceError as error:
+                self._fail(str(error))
+                return
+            now = time.monotonic()
+            if chunk is None:
+                silent = now - self._last_data
+                if self._streaming and silent > self.stall_timeout_s:
+                    self._message = (
+                        f"no data from the DAQ board on {self.backend.description} "
+                        f"for {silent:.1f} s (stalled?)"
+                    )
+                continue
+            self._last_data = now
+            if self._message.startswith("no data"):
+                self._message = ""
+            lost = chunk.first_index - self._expected_index
+            if lost < 0:  # backends never go backwards; guard so we can never double-count
+                continue
+            if lost:
+                self._message = f"lost {lost} samples before index {chunk.first_index}"
+            self._samples_lost += lost
+            self._samples_received += chunk.n_samples
+            self._expected_index = chunk.end_index
+            for subscription in self._subscriptions:
+                subscription.push(chunk, lost)
+
+    def _fail(self, message: str) -> None:
+        self.failure = message
+        self._message = message
+        for subscription in self._subscriptions:
+            with subscription.condition:
+                subscription.condition.notify_all()
+
+    def status(self) -> StreamStatus:
+        """Health of the board's stream as a whole."""
+        return StreamStatus(
+            running=self._streaming and not self.failure,
+            samples_received=self._samples_received,
+            samples_lost=self._samples_lost,
+            frames_rejected=self.backend.frames_rejected,
+            message=self._message,
+        )

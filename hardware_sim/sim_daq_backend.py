@@ -1,0 +1,157 @@
+"""In-process simulated DAQ backend: the board's firmware fed by a sample source, no transport.
+
+Implements :class:`drivers.daq.DaqBackend`, so a :class:`drivers.daq.DaqBoard` and its
+role drivers run unchanged on it.  It runs the same firmware model as the pty
+emulator (same limits, replies and indices) and honours the same
+:class:`~hardware_sim.daq_faults.DaqFaults`: a frame the faults damage is a chunk
+that never arrives, exactly as the serial driver would reject it.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+
+from drivers.daq import RawChunk
+from drivers.daq_protocol import (
+    COMMAND_IDENTIFY,
+    COMMAND_START,
+    COMMAND_STOP,
+    BoardConfiguration,
+    BoardIdentity,
+    Reply,
+    encode_configure,
+    parse_reply,
+)
+from drivers.interfaces import DeviceError, DeviceNotFoundError
+from hardware_sim.daq_faults import STALL, DaqFaults
+from hardware_sim.daq_firmware import DEFAULT_IDENTITY, DaqFirmware
+from hardware_sim.sample_source import SampleSource
+
+MAX_FRAMES_PER_CHUNK = 16  # hand over up to this many frames at once when behind
+
+
+class SimDaqBackend:
+    """The simulated board in this process; ``speed`` scales its clock (math.inf: no pacing)."""
+
+    def __init__(
+        self,
+        source: SampleSource,
+        *,
+        identity: BoardIdentity = DEFAULT_IDENTITY,
+        speed: float = 1.0,
+        faults: DaqFaults | None = None,
+        max_samples_per_frame: int = 256,
+        wiring: dict[int, str] | None = None,
+    ) -> None:
+        if not speed > 0:
+            raise ValueError(f"speed={speed} must be > 0 (math.inf: as fast as it is read)")
+        self.firmware = DaqFirmware(
+            source, identity=identity, wiring=wiring, max_samples_per_frame=max_samples_per_frame
+        )
+        self.speed = speed
+        self.faults = faults if faults is not None else DaqFaults()
+        self._frames_rejected = 0
+        self._clock_start = 0.0
+        self._connected = False
+
+    @property
+    def description(self) -> str:
+        return f"simulated {self.firmware.identity.model} (in-process)"
+
+    @property
+    def frames_rejected(self) -> int:
+        return self._frames_rejected
+
+    def _ask(self, line: str, command: str) -> Reply:
+        if self.faults.unplugged:
+            raise DeviceError(f"the DAQ board on {self.description} went away (unplugged)")
+        reply = parse_reply(self.firmware.handle(line))
+        if not reply.ok:
+            raise DeviceError(
+                f"the DAQ board on {self.description} refused {command}: {reply.text}"
+            )
+        return reply
+
+    def connect(self) -> BoardIdentity:
+        if self.faults.unplugged:
+            raise DeviceNotFoundError(f"{self.description} is unplugged")
+        self._connected = True
+        return BoardIdentity.from_reply(self._ask(COMMAND_IDENTIFY, COMMAND_IDENTIFY))
+
+    def configure(self, sample_rate_hz: float, channels: tuple[int, ...]) -> BoardConfiguration:
+        line = encode_configure(sample_rate_hz, channels).decode().strip()
+        return BoardConfiguration.from_reply(self._ask(line, "CONF"))
+
+    def start(self) -> None:
+        self._ask(COMMAND_START, COMMAND_START)
+        self._clock_start = time.monotonic()
+
+    def stop(self) -> None:
+        self._ask(COMMAND_STOP, COMMAND_STOP)
+
+    def close(self) -> None:
+        if self.firmware.streaming:
+            self.firmware.handle(COMMAND_STOP)
+        self._connected = False
+
+    def _due_frames(self) -> int:
+        config = self.firmware.configuration
+        if math.isinf(self.speed):
+            return MAX_FRAMES_PER_CHUNK
+        elapsed = (time.monotonic() - self._clock_start) * config.sample_rate_hz * self.speed
+        return int(elapsed - self.firmware.next_index) // config.samples_per_frame
+
+    def read_chunk(self, timeout_s: float) -> RawChunk | None:
+        deadline = time.monotonic() + timeout_s
+        while True:
+            if self.faults.unplugged:
+                raise DeviceError(f"the DAQ board on {self.description} went away (unplugged)")
+            if not self.firmware.streaming:
+                return None
+            due = self._due_frames()
+            if due and not (self.faults.stalled and math.isinf(self.speed)):
+                chunk = self._frames(min(due, MAX_FRAMES_PER_CHUNK))
+                if chunk is not None:
+                    return chunk
+                continue
+            remaining = deadline - time.monotonic()
+            if remaining <= 0:
+                return None
+            time.sleep(min(remaining, self._seconds_to_next_frame(), 0.02))
+
+    def _seconds_to_next_frame(self) -> float:
+        config = self.firmware.configuration
+        if math.isinf(self.speed):
+            return 0.005
+        due_s = (self.firmware.next_index + config.samples_per_frame) / (
+            config.sample_rate_hz * self.speed
+        )
+        return max(0.0, self._clock_start + due_s - time.monotonic())
+
+    def _frames(self, count: int) -> RawChunk | None:
+        """Acquire up to ``count`` frames; a lost frame ends the chunk (the next begins after)."""
+        per_frame = self.firmware.configuration.samples_per_frame
+        good = []
+        for _ in range(count):
+            first = self.firmware.next_index
+            if self.faults.stalled:
+                self.firmware.skip(per_frame)
+                self.faults.record(STALL, first, per_frame)
+            elif self.faults.frame_fate(first, per_frame, per_frame).damage is not None:
+                self.firmware.skip(per_frame)  # the serial driver would reject this frame
+                self._frames_rejected += 1
+            else:
+                good.append(self.firmware.acquire())
+                continue
+            if good:
+                break
+        if not good:
+            return None
+        return RawChunk(
+            good[0].first_index,
+            np.concatenate([c.analog for c in good]),
+            np.concatenate([c.digital for c in good]),
+        )
