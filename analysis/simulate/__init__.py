@@ -1,0 +1,25 @@
+"""Fast, exact simulation of the impact pendulum: single runs, a streaming stepper, ensembles."""
+
+from analysis.simulate.result import ContactEvents, SimulationResult, StickEvents, Trajectory
+from analysis.simulate.simulation import (
+    drive_period_s,
+    poincare_times,
+    record_start_s,
+    simulate,
+    simulate_packed,
+)
+from analysis.simulate.stepper import SimulationStoppedError, Stepper
+
+__all__ = [
+    "ContactEvents",
+    "SimulationResult",
+    "SimulationStoppedError",
+    "Stepper",
+    "StickEvents",
+    "Trajectory",
+    "drive_period_s",
+    "poincare_times",
+    "record_start_s",
+    "simulate",
+    "simulate_packed",
+]
