@@ -21,6 +21,7 @@ from analysis.identify.result import IdentificationError
 SPIKE_THRESHOLD = 10.0  # robust standard deviations of the second difference
 STILL_THRESHOLD = 6.0  # noise standard deviations within which the angle counts as held still
 MIN_HELD_SAMPLES = 10
+MAX_SPIKE_FRACTION = 0.002
 REST_FRACTION = 0.02  # oscillation below this fraction of the initial swing (and the noise) = rest
 
 
@@ -47,22 +48,37 @@ class PreparedSignal:
         return int(self.valid.size - np.count_nonzero(self.valid))
 
 
-def noise_and_quantum(angle: np.ndarray) -> tuple[float, float]:
-    """White-noise level (robust, from second differences) and the sensor's smallest step."""
-    finite = angle[np.isfinite(angle)]
-    steps = np.abs(np.diff(finite))
-    nonzero = steps[steps > 0]
-    quantum = float(nonzero.min()) if nonzero.size else 0.0
-    d2 = np.diff(finite, 2)
-    if d2.size < 8:
-        return max(quantum, 1e-12), quantum
-    # The second difference of a white sequence has variance 6 sigma^2; subtracting a running
-    # median removes the smooth signal's own curvature.
-    detail = d2 - median_filter(d2, size=9, mode="nearest")
+def _detail(values: np.ndarray) -> np.ndarray:
+    """Second differences minus their running median: the smooth signal's curvature removed."""
+    d2 = np.diff(values, 2)
+    return d2 - median_filter(d2, size=9, mode="nearest")
+
+
+def _detail_scale(detail: np.ndarray) -> tuple[float, float]:
+    """Robust spread of the detail and the sensor step it shows (0 for unquantised data).
+
+    A quantised sensor makes most details 0 and the rest whole steps; the typical
+    nonzero detail is then one step, which the MAD (often 0) does not see.
+    """
     mad = float(np.median(np.abs(detail - np.median(detail))))
-    noise = 1.4826 * mad / math.sqrt(6.0)
-    # A quantised signal has noise of at least quantum / sqrt(12).
-    return max(noise, quantum / math.sqrt(12.0), 1e-12), quantum
+    nonzero = np.abs(detail[detail != 0])
+    step = float(np.median(nonzero)) if nonzero.size else 0.0
+    return 1.4826 * mad, step
+
+
+def noise_and_quantum(angle: np.ndarray) -> tuple[float, float]:
+    """White-noise level (robust, from second differences) and the sensor's typical step."""
+    finite = angle[np.isfinite(angle)]
+    if finite.size < 12:
+        steps = np.abs(np.diff(finite))
+        quantum = float(steps[steps > 0].min()) if np.any(steps > 0) else 0.0
+        return max(quantum, 1e-12), quantum
+    spread, step = _detail_scale(_detail(finite))
+    # The second difference of a white sequence has variance 6 sigma^2; a quantised signal
+    # has noise of at least step / sqrt(12).
+    quantum = step if spread == 0 else min(step, spread)
+    noise = max(spread / math.sqrt(6.0), quantum / math.sqrt(12.0), 1e-12)
+    return noise, quantum
 
 
 def find_bad_samples(angle: np.ndarray) -> tuple[np.ndarray, int, int]:
@@ -73,20 +89,21 @@ def find_bad_samples(angle: np.ndarray) -> tuple[np.ndarray, int, int]:
     values = angle[index]
     n_spikes = 0
     if values.size >= 16:
-        d2 = np.diff(values, 2)
-        detail = d2 - median_filter(d2, size=9, mode="nearest")
-        mad = float(np.median(np.abs(detail - np.median(detail))))
-        steps = np.abs(np.diff(values))
-        quantum = float(steps[steps > 0].min()) if np.any(steps > 0) else 0.0
-        scale = max(1.4826 * mad, quantum, 1e-12)
+        detail = _detail(values)
+        spread, step = _detail_scale(detail)
+        scale = max(spread, step, 1e-12)
         # A spike of height s at sample i gives a second difference -2s at i and +s beside it.
         strength = np.abs(detail) / scale
         candidates = np.flatnonzero(strength > SPIKE_THRESHOLD)
-        for c in candidates:
-            lo, hi = max(c - 1, 0), min(c + 2, strength.size)
-            if strength[c] >= strength[lo:hi].max():
-                valid[index[c + 1]] = False
-                n_spikes += 1
+        spikes = [
+            c for c in candidates
+            if strength[c] >= strength[max(c - 1, 0):min(c + 2, strength.size)].max()
+        ]
+        # Glitches are rare; when many samples look like one, the noise itself is heavy
+        # tailed (timing jitter, say) and cutting its tail would bias nothing but the report.
+        if len(spikes) <= MAX_SPIKE_FRACTION * values.size:
+            valid[index[np.asarray(spikes, dtype=np.int64) + 1]] = False
+            n_spikes = len(spikes)
     return valid, int(np.count_nonzero(~finite)), n_spikes
 
 
