@@ -1,0 +1,196 @@
+"""Regime classification: periodic (with its period), quasi-periodic or chaotic.
+
+Evidence, in order: recurrence of the Poincare points (period n when every point
+comes back within a tolerance relative to the attractor's size after n drive
+periods), then the 0-1 test K on the Poincare angle and, when given, the largest
+Lyapunov exponent.  The spectrum, when given, names the sub- and superharmonics.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from types import MappingProxyType
+from typing import Any
+
+import numpy as np
+
+from analysis.dynamics.chaos01 import zero_one_test
+from analysis.dynamics.poincare import PoincareSection
+from analysis.dynamics.spectrum import Spectrum, amplitude_spectrum
+
+KINDS = ("periodic", "quasi_periodic", "chaotic")
+
+
+@dataclass(frozen=True)
+class Regime:
+    """What the motion is, and why we think so.
+
+    ``kind`` is one of 'periodic', 'quasi_periodic', 'chaotic'; ``period`` is the
+    number of drive periods of a periodic response (None otherwise); ``evidence`` holds
+    'recurrence' (normalised return distance per lag 1..n), 'K', 'lyapunov',
+    'subharmonics', 'superharmonics', 'incommensurate' when known; ``label`` is for people.
+    """
+
+    kind: str
+    period: int | None
+    label: str
+    evidence: MappingProxyType[str, Any] = field(default_factory=lambda: MappingProxyType({}))
+
+    @property
+    def short_name(self) -> str:
+        """'period-2', 'quasi-periodic' or 'chaotic' (attractor names in basin maps)."""
+        if self.kind == "periodic":
+            return f"period-{self.period}"
+        return self.kind.replace("_", "-")
+
+
+def recurrence_distances(
+    points: np.ndarray,
+    max_period: int,
+    *,
+    scale: np.ndarray | float | None = None,
+    quantile: float = 0.95,
+) -> np.ndarray:
+    """Return distance after n = 1..max_period iterations, relative to the attractor size.
+
+    Coordinates are divided by ``scale`` (default: per coordinate, the larger of the
+    points' peak-to-peak spread and their RMS, so a period-1 point is not judged by
+    its own jitter); the distance is the Chebyshev norm, summarised by ``quantile``
+    over the points so that a rare glitch in measured data does not hide a period.
+    """
+    points = _as_points(points)
+    size = _scale(points, scale)
+    normalised = points / size
+    out = np.full(max_period, np.inf)
+    for n in range(1, max_period + 1):
+        if points.shape[0] <= n + 1:
+            break
+        d = np.max(np.abs(normalised[n:] - normalised[:-n]), axis=1)
+        out[n - 1] = float(np.quantile(d, quantile))
+    return out
+
+
+def classify_regime(
+    poincare: PoincareSection | np.ndarray,
+    *,
+    spectrum: Spectrum | None = None,
+    lyapunov_exponent: float | None = None,
+    scale: np.ndarray | float | None = None,
+    tolerance: float = 1e-3,
+    max_period: int = 16,
+    chaos_threshold: float = 0.5,
+    lyapunov_threshold: float = 0.0,
+    seed: int = 0,
+) -> Regime:
+    """Classify post-transient Poincare samples (one per drive period; (n,) or (n, d) or a section).
+
+    Periodic with period n: the smallest n whose recurrence distance is within
+    ``tolerance`` of the attractor size.  Otherwise chaotic when the 0-1 test's K
+    exceeds ``chaos_threshold`` or the given Lyapunov exponent exceeds
+    ``lyapunov_threshold``, else quasi-periodic.
+    """
+    points = _as_points(poincare.points if isinstance(poincare, PoincareSection) else poincare)
+    if points.shape[0] < 3:
+        raise ValueError(f"need at least 3 Poincare samples to classify, got {points.shape[0]}")
+    max_period = max(1, min(max_period, (points.shape[0] - 2) // 2))
+    recurrence = recurrence_distances(points, max_period, scale=scale)
+    evidence: dict[str, Any] = {"recurrence": recurrence, "tolerance": tolerance}
+    if lyapunov_exponent is not None:
+        evidence["lyapunov"] = float(lyapunov_exponent)
+    harmonics = _harmonic_content(spectrum)
+    evidence.update(harmonics)
+    periodic = np.flatnonzero(recurrence <= tolerance)
+    if periodic.size:
+        period = int(periodic[0] + 1)
+        label = f"period-{period}" + _harmonic_text(harmonics)
+        return Regime("periodic", period, label, MappingProxyType(evidence))
+    if points.shape[0] >= 50:
+        K = zero_one_test(points[:, 0], seed=seed).K
+        evidence["K"] = K
+    else:
+        K = float("nan")
+    lyapunov_says_chaos = lyapunov_exponent is not None and lyapunov_exponent > lyapunov_threshold
+    if lyapunov_says_chaos or (np.isfinite(K) and K > chaos_threshold):
+        details = [f"K = {K:.2f}"] if np.isfinite(K) else []
+        if lyapunov_exponent is not None:
+            details.append(f"lambda = {lyapunov_exponent:.3g}")
+        return Regime("chaotic", None, f"chaotic ({', '.join(details)})", MappingProxyType(evidence))
+    if not np.isfinite(K):
+        raise ValueError(
+            "not periodic within the tolerance and too few samples (< 50) for the 0-1 test: "
+            "pass a Lyapunov exponent or more Poincare samples"
+        )
+    label = f"quasi-periodic (K = {K:.2f})"
+    if harmonics.get("incommensurate"):
+        label += f", lines at {', '.join(harmonics['incommensurate'])}"
+    return Regime("quasi_periodic", None, label, MappingProxyType(evidence))
+
+
+def classify_motion(
+    theta: np.ndarray,
+    fs_hz: float,
+    drive_frequency_hz: float,
+    poincare: PoincareSection | np.ndarray,
+    **options: Any,
+) -> Regime:
+    """Classify from the post-transient angle record and its Poincare samples (spectrum made here)."""
+    spectrum = amplitude_spectrum(theta, fs_hz, drive_frequency_hz=drive_frequency_hz)
+    if "scale" not in options:
+        options["scale"] = _trajectory_scale(theta, fs_hz, poincare)
+    return classify_regime(poincare, spectrum=spectrum, **options)
+
+
+def _trajectory_scale(theta: np.ndarray, fs_hz: float, poincare: PoincareSection | np.ndarray):
+    """Attractor size from the full trajectory: the angle's range, and the rate's when needed."""
+    theta = np.asarray(theta, dtype=float)
+    points = _as_points(poincare.points if isinstance(poincare, PoincareSection) else poincare)
+    angle_range = float(np.ptp(theta))
+    if points.shape[1] == 1:
+        return angle_range
+    rate_range = float(np.ptp(np.gradient(theta) * fs_hz))
+    return np.array([angle_range, rate_range] + [1.0] * (points.shape[1] - 2))
+
+
+def _harmonic_content(spectrum: Spectrum | None) -> dict[str, Any]:
+    if spectrum is None or spectrum.drive_frequency_hz is None:
+        return {}
+    sub, sup, incommensurate = [], [], []
+    for peak in spectrum.peaks:
+        if peak.harmonic is None:
+            incommensurate.append(peak.label)
+        elif peak.harmonic.denominator > 1:
+            sub.append(peak.label)
+        elif peak.harmonic > 1:
+            sup.append(peak.label)
+    return {"subharmonics": sub, "superharmonics": sup, "incommensurate": incommensurate}
+
+
+def _harmonic_text(harmonics: dict[str, Any]) -> str:
+    parts = []
+    if harmonics.get("subharmonics"):
+        parts.append("subharmonics " + ", ".join(harmonics["subharmonics"]))
+    if harmonics.get("superharmonics"):
+        parts.append("superharmonics " + ", ".join(harmonics["superharmonics"]))
+    return f" ({'; '.join(parts)})" if parts else ""
+
+
+def _as_points(points: np.ndarray) -> np.ndarray:
+    points = np.asarray(points, dtype=float)
+    if points.ndim == 1:
+        points = points[:, None]
+    if points.ndim != 2 or points.shape[0] == 0:
+        raise ValueError(f"Poincare samples must be (n,) or (n, d), got shape {points.shape}")
+    if not np.all(np.isfinite(points)):
+        raise ValueError("Poincare samples contain NaN or infinite values")
+    return points
+
+
+def _scale(points: np.ndarray, scale: np.ndarray | float | None) -> np.ndarray:
+    if scale is None:
+        spread = np.ptp(points, axis=0)
+        rms = np.sqrt(np.mean(points**2, axis=0))
+        size = np.maximum(spread, rms)
+    else:
+        size = np.broadcast_to(np.asarray(scale, dtype=float), (points.shape[1],)).copy()
+    tiny = np.finfo(float).tiny
+    return np.where(size > 0, size, tiny)
