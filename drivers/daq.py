@@ -75,6 +75,12 @@ class DaqBackend(Protocol):
     def close(self) -> None: ...
 
 
+class BoardRole(Protocol):
+    """A role driver that takes its samples from a :class:`DaqBoard` (see drivers.sensors)."""
+
+    def attach(self, *, start: bool = True) -> None: ...
+
+
 class _Subscription:
     """One role's queue of chunks; bounded so a role nobody reads cannot eat the memory."""
 
@@ -234,15 +240,27 @@ class DaqBoard:
         return self.analog_channels.index(channel)
 
     # --- streaming ------------------------------------------------------------------------
-    def subscribe(self) -> _Subscription:
-        """A queue that receives every chunk from now on; starts the stream if needed."""
+    def subscribe(self, *, start: bool = True) -> _Subscription:
+        """A queue that receives every chunk from now on; starts the stream if asked and needed."""
         self.open()
         subscription = _Subscription(max(1, int(self.role_buffer_s * self.sample_rate_hz)))
         with self._lock:
             self._subscriptions = (*self._subscriptions, subscription)
-            if not self._streaming:
+            if start and not self._streaming:
                 self._start_locked()
         return subscription
+
+    def start_roles(self, *roles: BoardRole) -> None:
+        """Start several roles on one stream so that all of them begin at sample index 0.
+
+        (Starting roles one by one also works; a role started while the board
+        already streams begins at the next chunk.)
+        """
+        for role in roles:
+            role.attach(start=False)
+        with self._lock:
+            if not self._streaming:
+                self._start_locked()
 
     def unsubscribe(self, subscription: _Subscription) -> None:
         """Stop feeding a role; the stream stops when the last role leaves."""

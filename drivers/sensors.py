@@ -123,10 +123,14 @@ class _BoardRole:
         return self.board.sample_rate_hz
 
     def start(self) -> None:
+        self.attach(start=True)
+
+    def attach(self, *, start: bool = True) -> None:
+        """Subscribe to the board's stream (and start it when ``start`` and not yet running)."""
         if self._subscription is None:
-            self._subscription = self.board.subscribe()
-            self._last = self._subscription
             self._on_start()
+            self._subscription = self.board.subscribe(start=start)
+            self._last = self._subscription
 
     def stop(self) -> None:
         if self._subscription is not None:

@@ -66,9 +66,7 @@ def test_crc_is_the_standard_crc32():
 
 def test_data_frame_encodes_to_the_reference_bytes():
     analog, digital = reference_samples()
-    assert encode_data_frame(256, (0, 1), analog, digital).hex(" ") == REFERENCE_DATA_FRAME.hex(
-        " "
-    )
+    assert encode_data_frame(256, (0, 1), analog, digital).hex(" ") == REFERENCE_DATA_FRAME.hex(" ")
 
 
 def test_index_is_sent_modulo_2_to_the_32():
@@ -144,8 +142,9 @@ def test_adjacent_frames_decode_as_one_run():
 
 
 def test_garbage_between_frames_is_skipped_without_loss():
-    frames, samples = stream_bytes(3)
-    wire = b"\x00\xff junk" + frames[0] + b"\xa5\x5a\x13" + frames[1] + bytes(range(200)) + frames[2]
+    frames, _ = stream_bytes(3)
+    partial_sync = b"\xa5\x5a\x13"
+    wire = b"\x00\xff junk" + frames[0] + partial_sync + frames[1] + bytes(range(200)) + frames[2]
     runs, _, rejected, discarded = collect(FrameParser(), [wire])
     assert rejected == 0
     assert discarded == 7 + 3 + 200
