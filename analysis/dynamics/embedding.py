@@ -1,4 +1,4 @@
-"""Delay embedding of a scalar record: delay from mutual information, dimension from false neighbours.
+"""Delay embedding of a record: delay from mutual information, dimension from false neighbours.
 
 The delay is the first minimum of the time-delayed mutual information (Fraser and
 Swinney); the dimension is the smallest one at which the false nearest neighbours of
@@ -46,7 +46,9 @@ def mutual_information(x: np.ndarray, max_lag: int, *, bins: int | None = None) 
     """I(x_t; x_{t+lag}) in nats for lag = 0..max_lag, from a 2-D histogram on equal-width bins."""
     x = _as_series(x)
     if max_lag < 1 or max_lag >= x.size // 2:
-        raise ValueError(f"max_lag = {max_lag}: need 1 <= max_lag < {x.size // 2} (half the record)")
+        raise ValueError(
+            f"max_lag = {max_lag}: need 1 <= max_lag < {x.size // 2} (half the record)"
+        )
     bins = bins or default_bins(x.size - max_lag)
     low, high = float(x.min()), float(x.max())
     if high <= low:
@@ -90,7 +92,7 @@ def first_minimum(values: np.ndarray, *, flat_fraction: float = 0.02) -> int | N
         left -= 1
     while right < smooth.size - 1 and smooth[right + 1] <= level:
         right += 1
-    return int(round(0.5 * (left + right)))
+    return round(0.5 * (left + right))
 
 
 def mutual_information_delay(
@@ -187,7 +189,7 @@ def fnn_dimension(
 def _nearest_neighbours(
     points: np.ndarray, theiler_window: int, min_distance: float
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Index and distance of each point's nearest neighbour at least ``theiler_window`` apart in time.
+    """Each point's nearest neighbour (index, distance) at least ``theiler_window`` apart in time.
 
     Duplicates (closer than ``min_distance``, i.e. equal up to round-off, as in an
     exactly periodic record) are skipped: the ratio of criterion 1 is meaningless there.

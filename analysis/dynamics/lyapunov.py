@@ -74,14 +74,19 @@ def flow_lyapunov(
     duration: float,
     transient: float = 0.0,
 ) -> LyapunovEstimate:
-    """Largest exponent [per unit time] of dy/dt = rhs(t, y, p): RK4 on the trajectory and tangent."""
+    """Largest exponent [per unit time] of dy/dt = rhs(t, y, p): RK4 on trajectory and tangent."""
     if not dt > 0 or not duration > dt:
         raise ValueError(f"need 0 < dt < duration, got dt = {dt}, duration = {duration}")
-    steps = int(round(duration / dt))
+    steps = round(duration / dt)
     y0 = np.atleast_1d(np.asarray(y0, dtype=float))
     running = _flow_tangent(
-        rhs, jacobian, y0, np.asarray(p, dtype=float), float(dt), steps,
-        int(round(transient / dt)),
+        rhs,
+        jacobian,
+        y0,
+        np.asarray(p, dtype=float),
+        float(dt),
+        steps,
+        round(transient / dt),
     )
     stride = max(1, steps // 500)
     index = np.arange(stride - 1, steps, stride)
@@ -156,7 +161,7 @@ def model_lyapunov(
     steps_per_period: int = 2000,
     t0_s: float = 0.0,
 ) -> LyapunovEstimate:
-    """Largest exponent [1/s] of the impact pendulum with packed parameters ``p`` (``Model.pack()``).
+    """Largest exponent [1/s] of the impact pendulum, packed parameters ``p`` (``Model.pack()``).
 
     Fixed-step RK4 with ``steps_per_period`` steps per drive period (or per natural
     period when undriven); 2000 resolve a 10 Hz drive's ~5 ms contacts with ~100 steps.
@@ -173,9 +178,9 @@ def model_lyapunov(
     else:
         period = 2.0 * math.pi / math.sqrt(p[P.OMEGA2])
     dt = period / steps_per_period
-    steps = int(round(duration_s / dt))
+    steps = round(duration_s / dt)
     running, final = _pendulum_tangent(
-        p, float(theta0), float(theta_dot0), float(t0_s), dt, steps, int(round(transient_s / dt))
+        p, float(theta0), float(theta_dot0), float(t0_s), dt, steps, round(transient_s / dt)
     )
     if not np.all(np.isfinite(final)):
         raise FloatingPointError("the pendulum trajectory diverged; reduce the step or the drive")
@@ -205,12 +210,20 @@ def _pendulum_tangent(p, theta0, theta_dot0, t0, dt, steps, transient_steps):
     for k in range(transient_steps + steps):
         a1, b1, c1, d1 = _pendulum_derivatives(t, th, om, v1, v2, p)
         a2, b2, c2, d2 = _pendulum_derivatives(
-            t + 0.5 * dt, th + 0.5 * dt * a1, om + 0.5 * dt * b1,
-            v1 + 0.5 * dt * c1, v2 + 0.5 * dt * d1, p,
+            t + 0.5 * dt,
+            th + 0.5 * dt * a1,
+            om + 0.5 * dt * b1,
+            v1 + 0.5 * dt * c1,
+            v2 + 0.5 * dt * d1,
+            p,
         )
         a3, b3, c3, d3 = _pendulum_derivatives(
-            t + 0.5 * dt, th + 0.5 * dt * a2, om + 0.5 * dt * b2,
-            v1 + 0.5 * dt * c2, v2 + 0.5 * dt * d2, p,
+            t + 0.5 * dt,
+            th + 0.5 * dt * a2,
+            om + 0.5 * dt * b2,
+            v1 + 0.5 * dt * c2,
+            v2 + 0.5 * dt * d2,
+            p,
         )
         a4, b4, c4, d4 = _pendulum_derivatives(
             t + dt, th + dt * a3, om + dt * b3, v1 + dt * c3, v2 + dt * d3, p
@@ -332,4 +345,4 @@ def mean_period_samples(x: np.ndarray) -> int:
     power = np.abs(np.fft.rfft(x)) ** 2
     frequency = np.fft.rfftfreq(x.size)
     mean_frequency = float(np.sum(frequency[1:] * power[1:]) / max(np.sum(power[1:]), 1e-300))
-    return int(round(1.0 / mean_frequency)) if mean_frequency > 0 else x.size
+    return round(1.0 / mean_frequency) if mean_frequency > 0 else x.size

@@ -88,7 +88,7 @@ def poincare_from_phase(
     phase_rad: float = 0.0,
     derivative_window_samples: int = 15,
 ) -> PoincareSection:
-    """Section of a uniformly sampled simulation at drive phase ``phase_rad`` (Omega t = 2 pi k + phase).
+    """Section of a uniformly sampled run at drive phase ``phase_rad`` (Omega t = 2 pi k + phase).
 
     ``theta_dot`` is used when known (simulations); otherwise it is a smoothed derivative.
     """

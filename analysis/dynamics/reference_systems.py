@@ -1,4 +1,4 @@
-"""Textbook chaotic systems with known Lyapunov exponents, as numba functions (the oracles' systems).
+"""Textbook chaotic systems with published Lyapunov exponents, as numba functions (test oracles).
 
 Each has a right-hand side (or map) and its Jacobian in the form the generic
 integrators of :mod:`analysis.dynamics.lyapunov` take: ``f(t, y, p) -> array`` and

@@ -110,11 +110,13 @@ def classify_regime(
     else:
         K = float("nan")
     lyapunov_says_chaos = lyapunov_exponent is not None and lyapunov_exponent > lyapunov_threshold
-    if lyapunov_says_chaos or (np.isfinite(K) and K > chaos_threshold):
+    if lyapunov_says_chaos or (np.isfinite(K) and chaos_threshold < K):
         details = [f"K = {K:.2f}"] if np.isfinite(K) else []
         if lyapunov_exponent is not None:
             details.append(f"lambda = {lyapunov_exponent:.3g}")
-        return Regime("chaotic", None, f"chaotic ({', '.join(details)})", MappingProxyType(evidence))
+        return Regime(
+            "chaotic", None, f"chaotic ({', '.join(details)})", MappingProxyType(evidence)
+        )
     if not np.isfinite(K):
         raise ValueError(
             "not periodic within the tolerance and too few samples (< 50) for the 0-1 test: "
@@ -133,7 +135,7 @@ def classify_motion(
     poincare: PoincareSection | np.ndarray,
     **options: Any,
 ) -> Regime:
-    """Classify from the post-transient angle record and its Poincare samples (spectrum made here)."""
+    """Classify from the post-transient angle record and its Poincare samples (makes the spectrum)."""
     spectrum = amplitude_spectrum(theta, fs_hz, drive_frequency_hz=drive_frequency_hz)
     if "scale" not in options:
         options["scale"] = _trajectory_scale(theta, fs_hz, poincare)

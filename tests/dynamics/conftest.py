@@ -18,7 +18,7 @@ LORENZ_DT = 0.01
 
 @pytest.fixture(scope="session")
 def lorenz_x() -> np.ndarray:
-    """x component of the classic Lorenz attractor, 20 000 samples at dt = 0.01 after a transient."""
+    """x of the classic Lorenz attractor, 20 000 samples at dt = 0.01 after a transient."""
     trajectory = rk4_trajectory(
         lorenz_rhs, [1.0, 1.0, 1.0], LORENZ_CLASSIC, LORENZ_DT, 20_000, transient_steps=2_000
     )

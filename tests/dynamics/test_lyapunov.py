@@ -37,7 +37,9 @@ HENON_LAMBDA = 0.41922
 
 
 def test_henon_map_exponent_matches_published_value():
-    estimate = map_lyapunov(henon_map, henon_jacobian, [0.1, 0.1], HENON_CLASSIC, iterations=200_000)
+    estimate = map_lyapunov(
+        henon_map, henon_jacobian, [0.1, 0.1], HENON_CLASSIC, iterations=200_000
+    )
     assert estimate.exponent == pytest.approx(HENON_LAMBDA, abs=0.005)
 
 
@@ -49,15 +51,22 @@ def test_logistic_map_at_r4_has_exponent_ln2():
 
 
 def test_logistic_map_in_a_periodic_window_has_negative_exponent():
-    # r = 3.2: stable period-2 orbit, multiplier r^2 (1 - 2x1)(1 - 2x2) = 0.16 -> lambda = ln(0.16)/2
-    estimate = map_lyapunov(logistic_map, logistic_jacobian, [0.3], np.array([3.2]), iterations=5_000)
+    # r = 3.2: stable period-2 orbit, multiplier r^2 (1-2x1)(1-2x2) = 0.16 -> lambda = ln(0.16)/2
+    estimate = map_lyapunov(
+        logistic_map, logistic_jacobian, [0.3], np.array([3.2]), iterations=5_000
+    )
     assert estimate.exponent == pytest.approx(0.5 * math.log(0.16), abs=1e-3)
 
 
 def test_lorenz_exponent_from_variational_equations():
     estimate = flow_lyapunov(
-        lorenz_rhs, lorenz_jacobian, [1.0, 1.0, 1.0], LORENZ_CLASSIC,
-        dt=0.01, duration=2000.0, transient=20.0,
+        lorenz_rhs,
+        lorenz_jacobian,
+        [1.0, 1.0, 1.0],
+        LORENZ_CLASSIC,
+        dt=0.01,
+        duration=2000.0,
+        transient=20.0,
     )
     assert estimate.exponent == pytest.approx(LORENZ_LAMBDA, abs=0.03)
     # the running estimate has settled: its last fifth stays near the final value

@@ -11,7 +11,9 @@ K = np.arange(600)
 
 def test_period_one_sequence():
     rng = np.random.default_rng(1)
-    points = np.column_stack([0.12 + 1e-7 * rng.normal(size=K.size), -1.5 + 1e-6 * rng.normal(size=K.size)])
+    points = np.column_stack(
+        [0.12 + 1e-7 * rng.normal(size=K.size), -1.5 + 1e-6 * rng.normal(size=K.size)]
+    )
     regime = classify_regime(points)
     assert (regime.kind, regime.period, regime.short_name) == ("periodic", 1, "period-1")
 

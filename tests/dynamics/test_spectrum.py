@@ -16,8 +16,10 @@ DRIVE = 10.0
 
 def _signal(components, duration_s=20.0, noise=0.0, seed=0):
     t = np.arange(int(duration_s * FS)) / FS
-    x = sum(a * np.sin(2 * np.pi * ratio * DRIVE * t + 0.3 * k) for k, (ratio, a) in
-            enumerate(components))
+    x = sum(
+        a * np.sin(2 * np.pi * ratio * DRIVE * t + 0.3 * k)
+        for k, (ratio, a) in enumerate(components)
+    )
     return x + noise * np.random.default_rng(seed).normal(size=t.size)
 
 
