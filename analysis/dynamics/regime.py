@@ -135,7 +135,7 @@ def classify_motion(
     poincare: PoincareSection | np.ndarray,
     **options: Any,
 ) -> Regime:
-    """Classify from the post-transient angle record and its Poincare samples (makes the spectrum)."""
+    """Classify from a post-transient angle record and its Poincare samples (spectrum made here)."""
     spectrum = amplitude_spectrum(theta, fs_hz, drive_frequency_hz=drive_frequency_hz)
     if "scale" not in options:
         options["scale"] = _trajectory_scale(theta, fs_hz, poincare)
