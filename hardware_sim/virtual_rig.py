@@ -259,14 +259,16 @@ class VirtualRig:
         """The model currently integrated."""
         return self._model
 
-    def advance(self, duration_s: float) -> None:
-        """Let time pass without anyone reading the samples (an idle board)."""
+    def advance(self, duration_s: float) -> float:
+        """Let whole sample periods pass unread (an idle board); returns the time advanced."""
         with self._lock:
-            n = round(duration_s * self._fs)
+            n = math.floor(duration_s * self._fs)
+            total = n
             while n > 0:
                 step = min(n, 1 << 16)
                 self.generate(step)
                 n -= step
+            return total / self._fs
 
     def state(self) -> tuple[float, float, float]:
         """(t, theta, theta_dot) of the physics at the stream time."""
