@@ -41,6 +41,7 @@ def make_board(backend_kind: str) -> Iterator[MakeBoard]:
         speed: float = 5.0,
         sample_rate_hz: float = 20_000.0,
         analog_channels: tuple[int, ...] = (0, 1),
+        role_buffer_s: float = 10.0,
         **emulator_options: object,
     ) -> DaqBoard:
         faults = faults if faults is not None else DaqFaults(seed=1)
@@ -55,6 +56,7 @@ def make_board(backend_kind: str) -> Iterator[MakeBoard]:
             sample_rate_hz=sample_rate_hz,
             analog_channels=analog_channels,
             stall_timeout_s=0.3,
+            role_buffer_s=role_buffer_s,
         )
         boards.append(board)
         return board

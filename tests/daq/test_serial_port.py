@@ -1,0 +1,130 @@
+"""The serial backend against ports that are missing, silent, speak something else, or vanish.
+
+Real pseudo-terminals throughout: the driver opens the slave by path, as it would
+/dev/ttyACM0.
+"""
+
+from __future__ import annotations
+
+import os
+import threading
+import time
+import tty
+
+import pytest
+
+from drivers.daq import DaqBoard
+from drivers.interfaces import DeviceError, DeviceNotFoundError, WrongDeviceError
+from drivers.sensors import PotentiometerAngleSensor, PotentiometerCalibration
+from drivers.serial_daq import SerialDaqBackend
+from hardware_sim.daq_emulator import DaqEmulator
+from hardware_sim.sample_source import CounterSource
+
+
+def test_unknown_port_is_named_in_the_error():
+    board = DaqBoard(SerialDaqBackend("/dev/ttyNOSUCH7"), sample_rate_hz=1000, analog_channels=(0,))
+    with pytest.raises(DeviceNotFoundError, match="/dev/ttyNOSUCH7"):
+        board.open()
+
+
+def test_a_path_that_is_not_a_serial_port_is_refused(tmp_path):
+    not_a_tty = tmp_path / "plain_file"
+    not_a_tty.write_bytes(b"")
+    with pytest.raises(DeviceNotFoundError, match="plain_file"):
+        SerialDaqBackend(str(not_a_tty)).connect()
+
+
+class OtherDevice:
+    """A pty whose far end answers every line with ``answer`` (None: stays silent)."""
+
+    def __init__(self, answer: bytes | None) -> None:
+        self.master, self.slave = os.openpty()
+        tty.setraw(self.slave)
+        self.port = os.ttyname(self.slave)
+        self.answer = answer
+        self.running = True
+        self.thread = threading.Thread(target=self._serve, daemon=True)
+        self.thread.start()
+
+    def _serve(self) -> None:
+        import select
+
+        while self.running:
+            readable, _, _ = select.select([self.master], [], [], 0.05)
+            if readable:
+                try:
+                    data = os.read(self.master, 1024)
+                except OSError:
+                    return
+                if self.answer is not None and b"\n" in data:
+                    os.write(self.master, self.answer)
+
+    def close(self) -> None:
+        self.running = False
+        self.thread.join()
+        os.close(self.master)
+        os.close(self.slave)
+
+
+@pytest.mark.parametrize(
+    "answer",
+    [None, b"HELLO from a GPS receiver\r\n", b"$GPGGA,123519,4807.038,N\r\n" * 40],
+    ids=["silent", "text_reply", "nmea_flood"],
+)
+def test_something_that_is_not_the_board_is_a_wrong_device(answer):
+    other = OtherDevice(answer)
+    try:
+        backend = SerialDaqBackend(other.port, reply_timeout_s=0.3)
+        board = DaqBoard(backend, sample_rate_hz=1000, analog_channels=(0,))
+        started = time.monotonic()
+        with pytest.raises(WrongDeviceError, match=rf"nothing on serial port {other.port}"):
+            board.open()
+        assert time.monotonic() - started < 2.0
+    finally:
+        other.close()
+
+
+def test_board_refusal_is_reported_with_its_reason():
+    with DaqEmulator(CounterSource(), speed=5) as emulator:
+        backend = SerialDaqBackend(emulator.port)
+        backend.connect()
+        with pytest.raises(DeviceError, match=r"refused CONF: rate 5 Hz out of range 10\.\.250000"):
+            backend.configure(5.0, (0,))
+        backend.start()
+        with pytest.raises(DeviceError, match="busy: STOP before CONF"):
+            backend.configure(1000.0, (0,))
+        backend.stop()
+        backend.close()
+
+
+def test_emulator_closing_mid_stream_fails_the_stream_without_a_hang():
+    emulator = DaqEmulator(CounterSource(), speed=5).start()
+    board = DaqBoard(SerialDaqBackend(emulator.port), sample_rate_hz=20_000, analog_channels=(0,))
+    angle = PotentiometerAngleSensor(board, 0, PotentiometerCalibration())
+    angle.start()
+    assert angle.read(1.0) is not None
+    emulator.close()
+    deadline = time.monotonic() + 5
+    with pytest.raises(DeviceError, match=f"serial port {emulator.port} went away"):
+        while time.monotonic() < deadline:
+            angle.read(0.1)
+    board.close()
+
+
+def test_a_board_left_streaming_is_stopped_and_identified():
+    with DaqEmulator(CounterSource(), speed=5) as emulator:
+        first = SerialDaqBackend(emulator.port)
+        first.connect()
+        first.configure(20_000, (0, 1))
+        first.start()
+        first.close()  # a host that crashed without STOP
+        time.sleep(0.1)
+        board = DaqBoard(
+            SerialDaqBackend(emulator.port), sample_rate_hz=20_000, analog_channels=(0,)
+        )
+        assert board.open().model == "IRDAQ-4"
+        angle = PotentiometerAngleSensor(board, 0, PotentiometerCalibration())
+        angle.start()
+        block = angle.read(1.0)
+        assert block is not None and block.first_index == 0
+        board.close()
