@@ -14,7 +14,7 @@ import math
 from collections.abc import Mapping
 
 import numpy as np
-from scipy.optimize import least_squares, minimize_scalar
+from scipy.optimize import minimize_scalar
 
 from analysis.identify.free_decay import _robust_fit
 from analysis.identify.preprocess import PreparedSignal, prepare
@@ -138,7 +138,7 @@ def fit_impact_decay(
     hold: Mapping[str, float] | None = None,
     detect_release: bool = True,
 ) -> IdentificationResult:
-    """Identify K (and E for the record's R), mu0, theta_b, initial state; L, zeta held or fitted."""
+    """Identify K (E for the record's R), mu0, theta_b, initial state; L, zeta held or fitted."""
     hold = dict(hold or {})
     unknown = sorted(set(hold) - set(FITTED))
     if unknown:
@@ -291,4 +291,4 @@ def _simulate(rig: RigParameters, theta0: float, theta_dot0: float, dt: float, n
     return theta
 
 
-__all__ = ["fit_impact_decay", "impact_events", "least_squares"]
+__all__ = ["fit_impact_decay", "impact_events"]
