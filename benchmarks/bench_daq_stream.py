@@ -1,0 +1,196 @@
+"""Sustained DAQ streaming through a pty: highest loss-free rate, and CPU per second of data.
+
+The board emulator runs in a separate process (its cost is not counted); this
+process runs the real driver stack: serial backend (sync scan, CRC, numpy
+decoding), DaqBoard (gap counting, fan-out) and five role drivers with their
+calibrations (angle, laser with range flags, two spare voltage inputs, tachometer
+edges), read by the main thread as an application would.
+
+For each rate of a ladder, stream ``--seconds`` (60 for the full run) and report
+samples received and lost, frames rejected, and the process CPU time per second
+of data.  Baseline, measured in the same run at the CPU-figure rate: a bare
+reader that only pulls the same bytes off the pty (select + os.read), so the
+ratio shows what parsing and calibration cost on top of moving the bytes.
+
+    python benchmarks/bench_daq_stream.py --seconds 5
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import select
+import subprocess
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from drivers.daq import DaqBoard  # noqa: E402
+from drivers.sensors import (  # noqa: E402
+    AnalogVoltageInput,
+    LaserCalibration,
+    LaserDisplacementSensor,
+    PotentiometerAngleSensor,
+    PotentiometerCalibration,
+    Tachometer,
+)
+from drivers.serial_daq import SerialDaqBackend  # noqa: E402
+
+CHANNELS = (0, 1, 2, 3)
+LADDER_HZ = (40_000, 100_000, 150_000, 200_000, 250_000)
+CPU_FIGURE_RATE_HZ = 40_000
+GOAL_RATE_HZ = 200_000
+GOAL_CPU_FRACTION = 0.25
+
+
+class Emulator:
+    """The board emulator in its own process (``python -m hardware_sim.daq_emulator``)."""
+
+    def __init__(self) -> None:
+        self.process = subprocess.Popen(
+            [sys.executable, "-m", "hardware_sim.daq_emulator", "--speed", "1"],
+            cwd=ROOT,
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+            text=True,
+        )
+        assert self.process.stdout is not None
+        self.port = self.process.stdout.readline().strip()
+        if not self.port.startswith("/dev/"):
+            raise RuntimeError(f"the emulator did not print its port (got {self.port!r})")
+
+    def close(self) -> None:
+        assert self.process.stdin is not None
+        self.process.stdin.close()  # the emulator exits when its stdin closes
+        try:
+            self.process.wait(timeout=5)
+        except subprocess.TimeoutExpired:
+            self.process.kill()
+            self.process.wait()
+
+
+@dataclass
+class Result:
+    rate_hz: float
+    seconds: float
+    samples: int
+    lost: int
+    rejected: int
+    cpu_s: float
+
+    @property
+    def data_seconds(self) -> float:
+        return self.samples / self.rate_hz
+
+    @property
+    def cpu_per_data_second(self) -> float:
+        return self.cpu_s / self.data_seconds if self.samples else float("nan")
+
+
+def stream(rate_hz: float, seconds: float) -> Result:
+    emulator = Emulator()
+    try:
+        board = DaqBoard(
+            SerialDaqBackend(emulator.port), sample_rate_hz=rate_hz, analog_channels=CHANNELS
+        )
+        roles = [
+            PotentiometerAngleSensor(board, 0, PotentiometerCalibration(linearity=(0.01, -0.02))),
+            LaserDisplacementSensor(board, 1, LaserCalibration()),
+            AnalogVoltageInput(board, 2),
+            AnalogVoltageInput(board, 3),
+            Tachometer(board),
+        ]
+        board.open()
+        cpu0, wall0 = time.process_time(), time.monotonic()
+        board.start_roles(*roles)
+        samples = 0
+        while time.monotonic() - wall0 < seconds:
+            for role in roles:
+                block = role.read(0.02)
+                if block is not None and role is roles[0]:
+                    samples += len(block)
+        status = board.status()
+        for role in roles:
+            role.stop()
+        cpu = time.process_time() - cpu0
+        board.close()
+        return Result(rate_hz, seconds, samples, status.samples_lost, status.frames_rejected, cpu)
+    finally:
+        emulator.close()
+
+
+def bare_read_cpu(rate_hz: float, seconds: float) -> tuple[float, int]:
+    """Baseline: CPU to pull the same stream off the pty without looking at it."""
+    emulator = Emulator()
+    try:
+        backend = SerialDaqBackend(emulator.port)
+        backend.connect()
+        backend.configure(rate_hz, CHANNELS)
+        backend.start()
+        port = backend._serial  # the open port: read its file descriptor directly
+        assert port is not None
+        fd = port.fileno()
+        received = 0
+        cpu0, wall0 = time.process_time(), time.monotonic()
+        while time.monotonic() - wall0 < seconds:
+            readable, _, _ = select.select([fd], [], [], 0.05)
+            if readable:
+                received += len(os.read(fd, 1 << 16))
+        cpu = time.process_time() - cpu0
+        backend.close()
+        return cpu, received
+    finally:
+        emulator.close()
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--seconds", type=float, default=60.0, help="per rate (full run: 60)")
+    parser.add_argument(
+        "--rates", type=float, nargs="+", default=LADDER_HZ, help="per-channel rates (Hz)"
+    )
+    args = parser.parse_args(argv)
+    print(f"4 channels + digital word, 256-sample frames, {args.seconds:g} s per rate")
+    print(f"{'rate/ch':>10} {'aggregate':>10} {'samples':>10} {'lost':>6} {'rejected':>8} "
+          f"{'cpu s/data s':>12}")  # fmt: skip
+    results = []
+    for rate in args.rates:
+        result = stream(rate, args.seconds)
+        results.append(result)
+        print(
+            f"{rate:>10,.0f} {4 * rate:>10,.0f} {result.samples:>10,} {result.lost:>6} "
+            f"{result.rejected:>8} {result.cpu_per_data_second:>12.3f}",
+            flush=True,
+        )
+    clean = [r.rate_hz for r in results if r.lost == 0 and r.rejected == 0 and r.samples]
+    best = max(clean, default=0.0)
+    print(f"highest rate with zero loss: 4 x {best:,.0f} Hz = {4 * best:,.0f} samples/s")
+
+    at_figure = next((r for r in results if r.rate_hz == CPU_FIGURE_RATE_HZ), None)
+    if at_figure is None:
+        at_figure = stream(CPU_FIGURE_RATE_HZ, args.seconds)
+    base_cpu, base_bytes = bare_read_cpu(CPU_FIGURE_RATE_HZ, args.seconds)
+    base_per_data_s = base_cpu / args.seconds
+    print(
+        f"CPU at 4 x {CPU_FIGURE_RATE_HZ:,} Hz: driver stack {at_figure.cpu_per_data_second:.3f} "
+        f"s per s of data; bare pty read {base_per_data_s:.3f} s/s ({base_bytes:,} bytes); "
+        f"ratio {at_figure.cpu_per_data_second / max(base_per_data_s, 1e-9):.1f}x"
+    )
+    goal = next((r for r in results if r.rate_hz == GOAL_RATE_HZ), None)
+    if goal is not None:
+        verdict = (
+            "met" if goal.lost == 0 and goal.cpu_per_data_second < GOAL_CPU_FRACTION else "NOT met"
+        )
+        print(
+            f"goal 4 x {GOAL_RATE_HZ:,} Hz, zero loss, < {GOAL_CPU_FRACTION:.0%} of a core: "
+            f"{verdict} (lost {goal.lost}, {goal.cpu_per_data_second:.1%} of a core)"
+        )
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
