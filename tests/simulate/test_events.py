@@ -1,4 +1,4 @@
-"""Contact events land exactly on the surface, steps never straddle it, grazing contacts are kept."""
+"""Contact events land exactly on the surface, steps never straddle it, grazing is caught."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""The simulator against analytic oracles: energy, Hertz impact, restitution, averaging, friction."""
+"""The simulator against analytic oracles: energy, Hertz, restitution, averaging, friction."""
 
 from __future__ import annotations
 
@@ -12,13 +12,13 @@ from analysis.simulate import simulate
 
 
 def _energy_per_mass(rig: RigParameters, theta_b: float, theta, theta_dot) -> np.ndarray:
-    """E / m: kinetic + gravity + contact potential, the latter integrated from the model's torque."""
-    K, l, L = rig.K_N_per_m1_5, rig.l_m, rig.L_m
+    """E / m: kinetic + gravity + contact potential (integral of the model's contact torque)."""
+    K, shaft, L = rig.K_N_per_m1_5, rig.l_m, rig.L_m
     sin_b = math.sin(theta_b)
 
     def contact_torque(th: float) -> float:
-        delta = l * (math.sin(th) - sin_b)
-        return l * K * delta**1.5 if delta > 0 else 0.0
+        delta = shaft * (math.sin(th) - sin_b)
+        return shaft * K * delta**1.5 if delta > 0 else 0.0
 
     potential = np.array(
         [quad(contact_torque, theta_b, th)[0] if th > theta_b else 0.0 for th in theta]
