@@ -241,6 +241,30 @@ def _decode_group(buf: bytes, group: list[_Located]) -> DataRun:
     )
 
 
+class IndexUnwrapper:
+    """Turns the wire's u32 first-sample indices into the running 64-bit index.
+
+    The gap to the expected index is taken modulo 2**32 (so a wrap is seamless and a
+    loss shorter than 2**31 samples is counted exactly); a frame that would step
+    backwards is refused (``None``): a board never repeats samples.
+    """
+
+    def __init__(self) -> None:
+        self.next_index = 0
+
+    def reset(self) -> None:
+        """A new stream: indices start again at 0."""
+        self.next_index = 0
+
+    def unwrap(self, wire_index: int, n_samples: int) -> int | None:
+        skipped = (wire_index - self.next_index) % INDEX_MODULUS
+        if skipped >= INDEX_MODULUS // 2:
+            return None
+        first = self.next_index + skipped
+        self.next_index = first + n_samples
+        return first
+
+
 # --- commands (host -> device): one ASCII line each, answered by one reply frame ---
 
 COMMAND_IDENTIFY = "IDN?"

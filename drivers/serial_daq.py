@@ -22,10 +22,10 @@ from drivers.daq_protocol import (
     COMMAND_IDENTIFY,
     COMMAND_START,
     COMMAND_STOP,
-    INDEX_MODULUS,
     BoardConfiguration,
     BoardIdentity,
     FrameParser,
+    IndexUnwrapper,
     ProtocolError,
     Reply,
     encode_command,
@@ -55,7 +55,7 @@ class SerialDaqBackend:
         self._pump_lock = threading.Lock()
         self._chunks: deque[RawChunk] = deque()
         self._replies: deque[str] = deque()
-        self._next_index = 0
+        self._indices = IndexUnwrapper()
         self._frames_rejected = 0
         self.bytes_discarded = 0
         self._gone = ""
@@ -110,7 +110,7 @@ class SerialDaqBackend:
 
     def start(self) -> None:
         self._chunks.clear()
-        self._next_index = 0
+        self._indices.reset()
         self._require_ok(self._command(encode_command(COMMAND_START)), COMMAND_START)
 
     def stop(self) -> None:
@@ -204,14 +204,11 @@ class SerialDaqBackend:
         self._frames_rejected += result.frames_rejected
         self.bytes_discarded += result.bytes_discarded
         for run in result.runs:
-            # Unwrap the wire's u32 index into the running index: a gap is what it skips.
-            skipped = (run.first_index_wire - self._next_index) % INDEX_MODULUS
-            if skipped >= INDEX_MODULUS // 2:  # behind us: a stale or replayed frame
+            first = self._indices.unwrap(run.first_index_wire, run.n_samples)
+            if first is None:  # behind us: a stale or repeated frame
                 self._frames_rejected += run.frames
                 continue
-            first = self._next_index + skipped
             self._chunks.append(RawChunk(first, run.analog, run.digital))
-            self._next_index = first + run.n_samples
         self._replies.extend(result.replies)
 
     def _disconnected(self, error: Exception) -> str:

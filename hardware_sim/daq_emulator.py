@@ -3,7 +3,8 @@
 The emulator owns the pty master; the slave's path (``emulator.port``) is what a
 driver opens.  It answers the ASCII commands of docs/daq_protocol.md with reply
 frames and, while streaming, sends data frames paced by the board's sample clock
-(real time, ``speed`` times faster, or as fast as the host reads).  Faults from
+(real time, ``speed`` times faster, or as fast as the host reads; by default the
+source's own ``speed_factor`` if it has one, else real time).  Faults from
 :mod:`hardware_sim.daq_faults` are applied to the bytes on the way out.
 
 Run stand-alone (prints the port, serves until interrupted)::
@@ -51,12 +52,14 @@ class DaqEmulator:
         source: SampleSource,
         *,
         identity: BoardIdentity = DEFAULT_IDENTITY,
-        speed: float = 1.0,
+        speed: float | None = None,
         faults: DaqFaults | None = None,
         fifo_bytes: int = 512 * 1024,
         max_samples_per_frame: int = 256,
         wiring: dict[int, str] | None = None,
     ) -> None:
+        if speed is None:  # the virtual rig says how fast it should be paced
+            speed = float(getattr(source, "speed_factor", 1.0))
         if not speed > 0:
             raise ValueError(f"speed={speed} must be > 0 (math.inf: as fast as the host reads)")
         self.firmware = DaqFirmware(

@@ -10,6 +10,7 @@ that never arrives, exactly as the serial driver would reject it.
 from __future__ import annotations
 
 import math
+import threading
 import time
 
 import numpy as np
@@ -34,18 +35,24 @@ MAX_FRAMES_PER_CHUNK = 16  # hand over up to this many frames at once when behin
 
 
 class SimDaqBackend:
-    """The simulated board in this process; ``speed`` scales its clock (math.inf: no pacing)."""
+    """The simulated board in this process; ``speed`` scales its clock (math.inf: no pacing).
+
+    ``speed=None`` takes the source's ``speed_factor`` when it has one (the virtual
+    rig does), else real time.
+    """
 
     def __init__(
         self,
         source: SampleSource,
         *,
         identity: BoardIdentity = DEFAULT_IDENTITY,
-        speed: float = 1.0,
+        speed: float | None = None,
         faults: DaqFaults | None = None,
         max_samples_per_frame: int = 256,
         wiring: dict[int, str] | None = None,
     ) -> None:
+        if speed is None:  # the virtual rig says how fast it should be paced
+            speed = float(getattr(source, "speed_factor", 1.0))
         if not speed > 0:
             raise ValueError(f"speed={speed} must be > 0 (math.inf: as fast as it is read)")
         self.firmware = DaqFirmware(
@@ -56,6 +63,7 @@ class SimDaqBackend:
         self._frames_rejected = 0
         self._clock_start = 0.0
         self._connected = False
+        self._lock = threading.Lock()  # the reader thread acquires while the user stops
 
     @property
     def description(self) -> str:
@@ -68,7 +76,8 @@ class SimDaqBackend:
     def _ask(self, line: str, command: str) -> Reply:
         if self.faults.unplugged:
             raise DeviceError(f"the DAQ board on {self.description} went away (unplugged)")
-        reply = parse_reply(self.firmware.handle(line))
+        with self._lock:
+            reply = parse_reply(self.firmware.handle(line))
         if not reply.ok:
             raise DeviceError(
                 f"the DAQ board on {self.description} refused {command}: {reply.text}"
@@ -93,8 +102,9 @@ class SimDaqBackend:
         self._ask(COMMAND_STOP, COMMAND_STOP)
 
     def close(self) -> None:
-        if self.firmware.streaming:
-            self.firmware.handle(COMMAND_STOP)
+        with self._lock:
+            if self.firmware.streaming:
+                self.firmware.handle(COMMAND_STOP)
         self._connected = False
 
     def _due_frames(self) -> int:
@@ -113,7 +123,8 @@ class SimDaqBackend:
                 return None
             due = self._due_frames()
             if due and not (self.faults.stalled and math.isinf(self.speed)):
-                chunk = self._frames(min(due, MAX_FRAMES_PER_CHUNK))
+                with self._lock:
+                    chunk = self._frames(min(due, MAX_FRAMES_PER_CHUNK))
                 if chunk is not None:
                     return chunk
                 continue
@@ -133,6 +144,8 @@ class SimDaqBackend:
 
     def _frames(self, count: int) -> RawChunk | None:
         """Acquire up to ``count`` frames; a lost frame ends the chunk (the next begins after)."""
+        if not self.firmware.streaming:  # stopped while we waited for the lock
+            return None
         per_frame = self.firmware.configuration.samples_per_frame
         good = []
         for _ in range(count):

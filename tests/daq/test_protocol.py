@@ -13,6 +13,7 @@ from drivers.daq_protocol import (
     BoardConfiguration,
     BoardIdentity,
     FrameParser,
+    IndexUnwrapper,
     ProtocolError,
     encode_command,
     encode_configure,
@@ -226,3 +227,14 @@ def test_channel_lists_are_validated():
         parse_channels("1,1")
     with pytest.raises(ProtocolError, match="not comma-separated integers"):
         parse_channels("0;1")
+
+
+def test_sample_index_unwraps_across_2_to_the_32():
+    indices = IndexUnwrapper()
+    indices.next_index = (1 << 32) - 512  # six hours into a 200 kHz stream
+    assert indices.unwrap((1 << 32) - 512, 256) == (1 << 32) - 512
+    assert indices.unwrap((1 << 32) - 256, 256) == (1 << 32) - 256
+    assert indices.unwrap(0, 256) == 1 << 32  # the wire wrapped; the running index did not
+    assert indices.unwrap(256 + 1000, 256) == (1 << 32) + 1256  # a gap of 1000 across it
+    assert indices.unwrap(256, 256) is None  # behind: refused, never counted twice
+    assert indices.next_index == (1 << 32) + 1512
