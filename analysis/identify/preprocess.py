@@ -22,6 +22,7 @@ SPIKE_THRESHOLD = 10.0  # robust standard deviations of the second difference
 STILL_THRESHOLD = 6.0  # noise standard deviations within which the angle counts as held still
 MIN_HELD_SAMPLES = 10
 MAX_SPIKE_FRACTION = 0.002
+MIN_SAMPLES_PER_PERIOD = 8
 REST_FRACTION = 0.02  # oscillation below this fraction of the initial swing (and the noise) = rest
 
 
@@ -170,8 +171,9 @@ def prepare(time_s: np.ndarray, angle_rad: np.ndarray, *, detect_release: bool =
             f"only {np.count_nonzero(valid)} usable samples ({n_nonfinite} not finite)"
         )
     angle = np.where(valid, angle_rad, np.nan)
-    noise, quantum = noise_and_quantum(angle)
     filled = _fill_invalid(angle)
+    _require_resolved_oscillation(time_s, filled)
+    noise, quantum = noise_and_quantum(angle)
     notes: list[str] = []
     start = 0
     if detect_release:
@@ -204,6 +206,35 @@ def prepare(time_s: np.ndarray, angle_rad: np.ndarray, *, detect_release: bool =
         noise_rad=noise,
         quantum_rad=quantum,
         notes=tuple(notes),
+    )
+
+
+def _require_resolved_oscillation(time_s: np.ndarray, filled: np.ndarray) -> None:
+    """Refuse noise-only and undersampled records before any step trusts sample-to-sample change.
+
+    A sampled oscillation is smooth from one sample to the next (lag-1 correlation
+    cos(2 pi / n) for n samples per period); if it is not, the spectrum tells a sharp
+    line sampled too sparsely from noise with no line at all.
+    """
+    centred = filled - np.median(filled)
+    if not np.any(centred):
+        raise IdentificationError("no oscillation: the angle is constant")
+    rho1 = float(np.dot(centred[1:], centred[:-1]) / np.dot(centred, centred))
+    if rho1 >= math.cos(2.0 * math.pi / MIN_SAMPLES_PER_PERIOD):
+        return
+    power = np.abs(np.fft.rfft(centred * np.hanning(centred.size))) ** 2
+    dt = (time_s[-1] - time_s[0]) / (time_s.size - 1)
+    peak = int(np.argmax(power[1:])) + 1
+    if power[peak] > 50.0 * np.median(power[1:]):
+        frequency = peak / (centred.size * dt)
+        raise IdentificationError(
+            f"too few samples per period: the oscillation at about {frequency:.3g} Hz (or an "
+            f"alias) has {1.0 / (frequency * dt):.2g} samples per period at "
+            f"{1.0 / dt:.3g} Hz; need at least {MIN_SAMPLES_PER_PERIOD}"
+        )
+    raise IdentificationError(
+        "no oscillation: the angle changes from sample to sample like noise, with no "
+        "spectral line"
     )
 
 
