@@ -43,9 +43,9 @@ class ShakerLimits:
                     f"shaker limit {f.name} = {value!r}: expected a finite number >= 0"
                 )
         device = {
-            "max_amplitude_m": DEVICE_MAX_AMPLITUDE_UM * 1e-6,
+            "max_amplitude_m": DEVICE_MAX_AMPLITUDE_UM / 1e6,
             "max_frequency_hz": DEVICE_MAX_FREQUENCY_MHZ / 1000.0,
-            "max_ramp_rate_m_s": DEVICE_MAX_RAMP_RATE_UM_S * 1e-6,
+            "max_ramp_rate_m_s": DEVICE_MAX_RAMP_RATE_UM_S / 1e6,
         }
         for name, ceiling in device.items():
             if getattr(self, name) > ceiling:

@@ -36,6 +36,11 @@ from drivers.limits import ShakerLimits
 
 T = TypeVar("T")
 
+# Exception codes that refuse one request on a working link (illegal function, address,
+# value).  Any other reply (device failure, busy ...) means the controller cannot be
+# trusted: the host stops its heartbeat so that the amplifier's watchdog stops the drive.
+REFUSALS = (0x01, 0x02, 0x03)
+
 
 class CommandRefusedError(DeviceError):
     """The amplifier answered with a Modbus exception; ``code`` is the exception code."""
@@ -375,7 +380,7 @@ class ShakerAmplifier:
             with self._lock:
                 return operation(*args)
         except DeviceError as error:
-            if not isinstance(error, CommandRefusedError):
+            if not (isinstance(error, CommandRefusedError) and error.code in REFUSALS):
                 self._link_failure = error
                 self._heartbeat_stop.set()  # the amplifier's watchdog backs us up
             self._make_safe()

@@ -260,8 +260,10 @@ class AmplifierEmulator:
                 registers[offset : offset + count] = self.firmware.read_input(address, count)
             elif function_code == _READ_HOLDING:
                 registers[offset : offset + count] = self.firmware.read_holding(address, count)
-            elif function_code in _WRITES and set_values is not None:
-                self.firmware.write(address, [int(v) for v in set_values])
+            elif function_code in _WRITES:
+                if set_values is not None:
+                    self.firmware.write(address, [int(v) for v in set_values])
+                # else: pymodbus reads back what was written to echo it (FC6 reply)
             else:
                 return ExcCodes.ILLEGAL_FUNCTION
         except RegisterAccessError as error:

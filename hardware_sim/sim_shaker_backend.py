@@ -22,6 +22,7 @@ class SimShakerBackend:
         self.firmware = firmware or AmplifierFirmware()
         self.description = "simulated shaker amplifier (in-process)"
         self._open = False
+        self.writes: list[tuple[int, tuple[int, ...]]] = []  # every write received, in order
 
     def open(self) -> None:
         self._open = True
@@ -36,6 +37,8 @@ class SimShakerBackend:
         return self._call(self.firmware.read_holding, address, count)
 
     def write_registers(self, address: int, values: Sequence[int]) -> None:
+        if self._open:
+            self.writes.append((address, tuple(values)))
         self._call(self.firmware.write, address, list(values))
 
     def _call(self, operation: Callable[..., Any], *args: Any) -> Any:
