@@ -72,10 +72,14 @@ class DaqFirmware:
         self.identity = identity
         self.wiring = dict(DEFAULT_WIRING if wiring is None else wiring)
         self.max_samples_per_frame = max_samples_per_frame
-        self.configuration = self._configuration_for(1000.0, (0,))
+        # Power-up: input 0 at the source's own rate (within the board's limits), so that
+        # merely building the board does not retime a source that is already running.
+        rate = min(max(float(source.sample_rate_hz), identity.min_rate_hz), identity.max_rate_hz)
+        self.configuration = self._configuration_for(rate, (0,))
         self.streaming = False
         self.next_index = 0
-        self.source.configure(self.configuration.sample_rate_hz)
+        if self.configuration.sample_rate_hz != source.sample_rate_hz:
+            self.source.configure(self.configuration.sample_rate_hz)
         self._low = -(1 << (identity.adc_bits - 1))
         self._high = (1 << (identity.adc_bits - 1)) - 1
 
