@@ -24,6 +24,7 @@ from analysis.records import Record
 
 CONTACT_TIME_CONSTANT = 3.2181
 FITTED = ("L_m", "zeta")
+MIN_SHORTFALL = 0.03  # impacts must stop the swing this fraction below its free height
 
 
 def _segments(angle: np.ndarray, level: float) -> tuple[np.ndarray, np.ndarray]:
@@ -83,6 +84,18 @@ def impact_events(
     w = float(found.x)
     _, coef, _ = segment_fit(w)
     offset = float(coef[0])
+    # A barrier stops the swing short of the height the free flight before it would reach;
+    # without impacts the upper turning points sit on the free-flight sinusoid.
+    shortfall = []
+    for k in range(len(pieces) - 1):
+        reach = offset + math.hypot(coef[1 + 2 * k], coef[2 + 2 * k])
+        top = filled[pieces[k][1]:pieces[k + 1][0]].max()
+        shortfall.append((reach - top) / max(reach - offset, 1e-12))
+    if np.median(shortfall) < MIN_SHORTFALL:
+        raise IdentificationError(
+            "no impacts found: the swings reach the height of free flight (median shortfall "
+            f"{100 * np.median(shortfall):.2g} % of the amplitude); is the barrier in place?"
+        )
     L = rig.l_m
     m_eff = rig.m_kg * rig.L_m**2 / rig.l_m**2
     theta_b = float(np.median(peaks)) - offset
