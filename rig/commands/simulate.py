@@ -1,0 +1,398 @@
+"""``impact-rig simulate``: simulate the impact pendulum and write a record (CSV + JSON or HDF5).
+
+The CSV output is the exchange format of MODEL.md section 5 (``time_s``, ``angle_rad``,
+and for forced runs ``table_m`` and ``tach``; the JSON sidecar beside it), so every
+analysis command reads a simulated record like a measured one.
+
+HDF5 output (``.h5``/``.hdf5``) uses a minimal layout until the recorder's own layout
+replaces it: one-dimensional float64 datasets ``time_s``, ``angle_rad``, ``table_m``
+(forced runs) and an int8 dataset ``tach`` (forced runs) at the root, and a root
+attribute ``metadata`` holding the same JSON text as the CSV sidecar.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+from rig.cli import CommandError
+
+EXPERIMENTS = ("free_decay", "impact_decay", "forced")
+DRIVE_PARAMETERS = {
+    "f_drive_hz": "drive frequency [Hz]",
+    "A_m": "table displacement amplitude [m]",
+    "beta": "amplitude as a fraction of L (A = beta L)",
+}
+NONDIMENSIONAL_PARAMETERS = {
+    "eta": "omega / Omega (sets L, needs the drive frequency)",
+    "mu": "mu0 l Omega (sets mu0)",
+    "gamma": "K l^2.5 / (m Omega^2 L^2) (sets E for the rig's R)",
+}
+MAX_SAMPLES = 50_000_000
+
+DESCRIPTION = """\
+Simulate the impact pendulum (MODEL.md section 2) and write the record.
+
+Parameters start from the paper's rig (MODEL.md section 3) or, with --case, from the
+paper's nondimensional values for that forced case; --param changes any of them.
+The experiment decides barrier and drive:
+  free_decay    no barrier, no drive (the pendulum swings freely from --theta0)
+  impact_decay  barrier, no drive (released at --theta0, it rattles to rest)
+  forced        barrier and table drive (needs f_drive_hz and A_m or beta, or --case)
+
+Output: FILE.csv + FILE.json (exchange format) or FILE.h5 (datasets time_s, angle_rad,
+table_m, tach and a JSON 'metadata' attribute). time_s starts at 0 at the end of the
+skipped transient; for forced runs that is a whole number of drive periods, so the
+drive phase is Omega time_s and tach = 1 on the sample nearest each phase-0 instant.
+The angle is the noise-free model angle unless a measurement model is asked for
+(--noise-rad, --quantization-rad, or a sensor cause such as sensor_offset).
+"""
+
+EPILOG = """\
+parameters (--param NAME=VALUE, SI units in the names):
+  rig        m_kg l_m L_m R_m g_m_s2 zeta E_Pa mu0_s_per_m theta_b_rad
+  drive      f_drive_hz A_m beta
+  paper      eta mu gamma (with the drive frequency; applied after the rig values)
+  causes     parameters of the named causes of MODEL.md section 6, e.g. Tc_N_m
+             (coulomb_friction), c2_per_rad, n and K_n, c_N_s_per_m, h2 phi2_rad, eps,
+             offset_rad, k3, tau_s; giving one switches its cause on (as --cause does)
+
+examples:
+  impact-rig simulate --case h --skip 10 --duration 20 --fs 2000 --out case_h.csv
+  impact-rig simulate --experiment impact_decay --theta0 -1.2 --duration 5 --fs 20000 \\
+      --out impacts.csv
+  impact-rig simulate --experiment free_decay --theta0 0.1 --param zeta=0.01 --out decay.h5
+  impact-rig simulate --experiment forced --param f_drive_hz=10 --param beta=0.03 \\
+      --cause coulomb_friction --param Tc_N_m=1e-5 --noise-rad 2e-4 --seed 1 --out run.csv
+"""
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add the ``simulate`` sub-command."""
+    parser = subparsers.add_parser(
+        "simulate",
+        help="simulate the pendulum and write CSV + JSON or HDF5",
+        description=DESCRIPTION,
+        epilog=EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    parser.add_argument(
+        "--experiment",
+        choices=EXPERIMENTS,
+        help="free_decay, impact_decay or forced (default: forced with --case or drive "
+        "parameters, else impact_decay)",
+    )
+    parser.add_argument("--case", help="one of the paper's forced cases a..i (implies forced)")
+    parser.add_argument(
+        "--param",
+        action="append",
+        default=[],
+        metavar="NAME=VALUE",
+        help="set a parameter (repeatable; names below)",
+    )
+    parser.add_argument(
+        "--cause",
+        action="append",
+        default=[],
+        metavar="NAME",
+        help="switch on a named cause of MODEL.md section 6 (repeatable)",
+    )
+    parser.add_argument("--theta0", type=float, default=-0.3, help="initial angle [rad] (-0.3)")
+    parser.add_argument(
+        "--omega0", type=float, default=0.0, help="initial angular velocity theta' [rad/s] (0)"
+    )
+    parser.add_argument("--duration", type=float, default=10.0, help="recorded time [s] (10)")
+    parser.add_argument("--fs", type=float, default=1000.0, help="sample rate [Hz] (1000)")
+    parser.add_argument(
+        "--skip",
+        type=float,
+        default=0.0,
+        metavar="SECONDS",
+        help="transient simulated and discarded first, rounded up to whole drive periods (0)",
+    )
+    parser.add_argument(
+        "--out", type=Path, required=True, help="output FILE.csv (+ FILE.json) or FILE.h5"
+    )
+    parser.add_argument("--noise-rad", type=float, default=0.0, help="angle noise std [rad]")
+    parser.add_argument(
+        "--quantization-rad", type=float, default=0.0, help="angle quantization step [rad]"
+    )
+    parser.add_argument("--seed", type=int, help="seed of the measurement noise")
+    parser.add_argument(
+        "--rtol", type=float, default=1e-9, help="integrator relative tolerance (1e-9)"
+    )
+    parser.set_defaults(func=run)
+
+
+# --------------------------------------------------------------------------- parameters
+
+
+def parse_assignments(items: list[str]) -> dict[str, float]:
+    """``["NAME=VALUE", ...]`` -> {NAME: float}, with clear errors."""
+    values: dict[str, float] = {}
+    for item in items:
+        name, sep, text = item.partition("=")
+        name = name.strip()
+        if not sep or not name:
+            raise CommandError(f"--param {item!r}: expected NAME=VALUE, e.g. L_m=0.046")
+        try:
+            value = float(text)
+        except ValueError:
+            raise CommandError(f"--param {name}: {text.strip()!r} is not a number") from None
+        if not math.isfinite(value):
+            raise CommandError(f"--param {name}: {text.strip()!r} is not a finite number")
+        values[name] = value
+    return values
+
+
+def build_model(
+    case: str | None, experiment: str | None, params: dict[str, float], causes: list[str]
+) -> tuple[Any, str]:
+    """The Model and experiment name the options describe (CommandError when inconsistent)."""
+    from dataclasses import fields, replace
+
+    from analysis.extensions import CAUSES
+    from analysis.model import (
+        Drive,
+        Model,
+        ParameterError,
+        RigParameters,
+        from_nondimensional,
+        paper_case,
+        to_nondimensional,
+    )
+
+    rig_names = [f.name for f in fields(RigParameters)]
+    cause_of = {
+        spec.name: c.name
+        for c in CAUSES.values()
+        for spec in c.parameters
+        if spec.name not in rig_names
+    }
+    valid = [*rig_names, *DRIVE_PARAMETERS, *NONDIMENSIONAL_PARAMETERS, *sorted(cause_of)]
+    unknown = [name for name in params if name not in valid]
+    if unknown:
+        raise CommandError(
+            f"unknown parameter(s) {', '.join(unknown)}; valid names: {', '.join(valid)}"
+        )
+    for name in causes:
+        if name not in CAUSES:
+            raise CommandError(f"unknown cause {name!r}; known: {', '.join(sorted(CAUSES))}")
+    drive_given = any(name in params for name in DRIVE_PARAMETERS)
+    if experiment is None:
+        experiment = "forced" if (case or drive_given) else "impact_decay"
+    if case and experiment != "forced":
+        raise CommandError(f"--case {case} is a forced case; it cannot run as {experiment}")
+    if experiment != "forced" and (
+        drive_given or any(n in params for n in NONDIMENSIONAL_PARAMETERS)
+    ):
+        raise CommandError(
+            f"drive or nondimensional parameters given for the unforced {experiment} experiment"
+        )
+    try:
+        rig, frequency, amplitude = RigParameters(), 0.0, 0.0
+        if case:
+            rig, drive = paper_case(case).dimensional()
+            frequency, amplitude = drive.frequency_hz, drive.amplitude_m
+        rig = rig.with_values(**{k: v for k, v in params.items() if k in rig_names})
+        frequency = params.get("f_drive_hz", frequency)
+        nondimensional = {k: v for k, v in params.items() if k in NONDIMENSIONAL_PARAMETERS}
+        if nondimensional:
+            if frequency <= 0:
+                raise CommandError("eta, mu and gamma need the drive frequency (f_drive_hz)")
+            beta = amplitude / rig.L_m
+            nd = replace(to_nondimensional(rig, Drive(0.0, frequency)), **nondimensional)
+            rig, _ = from_nondimensional(nd, frequency, rig)
+            amplitude = beta * rig.L_m
+        if "beta" in params:
+            amplitude = params["beta"] * rig.L_m
+        amplitude = params.get("A_m", amplitude)
+        if experiment == "forced":
+            if frequency <= 0 or amplitude <= 0:
+                raise CommandError(
+                    "a forced run needs a drive: --case, or --param f_drive_hz=... with "
+                    "--param A_m=... or --param beta=..."
+                )
+            drive = Drive(amplitude_m=amplitude, frequency_hz=frequency)
+        else:
+            drive = Drive()
+        extensions: dict[str, dict[str, float]] = {name: {} for name in causes}
+        for name, value in params.items():
+            if name in cause_of:
+                extensions.setdefault(cause_of[name], {})[name] = value
+        model = Model(rig, drive, barrier=experiment != "free_decay")
+        for name, values in extensions.items():
+            model = model.with_extension(name, **values)
+    except ParameterError as error:
+        raise CommandError(str(error)) from None
+    return model, experiment
+
+
+# --------------------------------------------------------------------------- output
+
+
+def _metadata(model: Any, experiment: str, args: argparse.Namespace, extra: dict) -> Any:
+    from analysis.exchange import ExchangeMeta
+
+    rig = model.rig
+    drive = None
+    if experiment == "forced":
+        drive = {
+            "frequency_hz": model.drive.frequency_hz,
+            "amplitude_m": model.drive.amplitude_m,
+        }
+    return ExchangeMeta(
+        experiment=experiment,
+        rig={"m_kg": rig.m_kg, "l_m": rig.l_m, "R_m": rig.R_m, "g": rig.g_m_s2},
+        drive=drive,
+        notes=f"simulated by impact-rig simulate ({' '.join(sys.argv[1:]) or 'library call'})",
+        extra={"simulation": extra},
+    )
+
+
+def _write_hdf5(path: Path, columns: dict[str, Any], metadata: dict) -> None:
+    import h5py
+    import numpy as np
+
+    with h5py.File(path, "w") as handle:
+        for name, values in columns.items():
+            if values is None:
+                continue
+            dtype = np.int8 if name == "tach" else np.float64
+            handle.create_dataset(name, data=np.asarray(values, dtype=dtype))
+        handle.attrs["metadata"] = json.dumps(metadata)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Build the model, simulate, apply the measurement model, write the record."""
+    import numpy as np
+
+    from analysis.exchange import ExchangeRecord, write_exchange
+    from analysis.measurement import MeasurementModel, has_measurement_causes
+    from analysis.model import P, ParameterError
+    from analysis.simulate import simulate
+
+    suffix = args.out.suffix.lower()
+    if suffix not in (".csv", ".h5", ".hdf5"):
+        raise CommandError(f"--out {args.out}: expected a .csv or .h5 file name")
+    if not args.out.parent.exists():
+        raise CommandError(f"--out {args.out}: folder {args.out.parent} does not exist")
+    for name in ("duration", "fs"):
+        value = getattr(args, name)
+        if not (math.isfinite(value) and value > 0):
+            raise CommandError(f"--{name} {value!r}: must be a positive number")
+    if not (math.isfinite(args.skip) and args.skip >= 0):
+        raise CommandError(f"--skip {args.skip!r}: must be >= 0")
+    if args.duration * args.fs > MAX_SAMPLES:
+        raise CommandError(
+            f"--duration {args.duration} s at --fs {args.fs} Hz is "
+            f"{args.duration * args.fs:.3g} samples; the limit is {MAX_SAMPLES:.0e}"
+        )
+    model, experiment = build_model(
+        args.case, args.experiment, parse_assignments(args.param), args.cause
+    )
+    try:
+        measurement = MeasurementModel(args.noise_rad, args.quantization_rad, args.seed)
+    except ParameterError as error:
+        raise CommandError(str(error)) from None
+
+    print(
+        f"simulating {experiment} ({(args.case and 'paper case ' + args.case) or 'custom'}) "
+        f"for {args.skip:g} s + {args.duration:g} s ...",
+        file=sys.stderr,
+    )
+    started = time.perf_counter()
+    try:
+        result = simulate(
+            model,
+            args.theta0,
+            args.omega0,
+            duration_s=args.duration,
+            fs_hz=args.fs,
+            skip_s=args.skip,
+            poincare_phase=None,
+            rtol=args.rtol,
+            atol=args.rtol * 1e-2,
+        )
+    except ValueError as error:
+        raise CommandError(str(error)) from None
+    wall = time.perf_counter() - started
+    if not result.ok:
+        print(
+            f"warning: the simulation stopped early ({result.status}) at "
+            f"t = {result.final_state[0]:.4g} s; writing the {result.t.size} samples before",
+            file=sys.stderr,
+        )
+    if result.t.size < 2:
+        raise CommandError(f"the simulation produced too few samples ({result.status})")
+
+    time_s = np.arange(result.t.size) / args.fs  # = result.t - record start, without rounding
+    angle = result.theta
+    measured = not measurement.is_ideal or has_measurement_causes(model)
+    if measured:
+        angle = measurement.apply(result.t, result.theta, model)
+    table = tach = None
+    p = model.pack()
+    if experiment == "forced":
+        phase = p[P.OMEGA_DRIVE] * result.t + p[P.PHASE0]
+        table = p[P.A1] * np.sin(phase) + p[P.A2] * np.sin(2.0 * phase + p[P.PHI2])
+        tach = _tach(result.t, p, args.fs)
+    extra = {
+        "rig": model.rig.as_dict(),
+        "drive": {
+            "frequency_hz": model.drive.frequency_hz,
+            "amplitude_m": model.drive.amplitude_m,
+            "phase_at_time_zero_rad": 0.0,
+        },
+        "barrier": model.barrier,
+        "extensions": {k: dict(v) for k, v in model.extensions.items()},
+        "paper_case": args.case,
+        "theta0_rad": args.theta0,
+        "theta_dot0_rad_s": args.omega0,
+        "skip_s": result.record_start_s,
+        "sample_rate_hz": args.fs,
+        "rtol": args.rtol,
+        "measurement": {
+            "noise_std_rad": measurement.noise_std_rad,
+            "quantization_rad": measurement.quantization_rad,
+            "seed": measurement.seed,
+            "applied": measured,
+        },
+        "status": result.status,
+        "contacts": result.contacts.count,
+    }
+    meta = _metadata(model, experiment, args, extra)
+    if suffix == ".csv":
+        record = ExchangeRecord(time_s, angle, meta, table_m=table, tach=tach)
+        csv_path, json_path = write_exchange(args.out, record)
+        written = f"{csv_path} + {json_path.name}"
+    else:
+        columns = {"time_s": time_s, "angle_rad": angle, "table_m": table, "tach": tach}
+        _write_hdf5(args.out, columns, meta.as_json())
+        written = str(args.out)
+    print(
+        f"simulate: {result.t.size} samples, {result.contacts.count} contacts, "
+        f"{wall:.3f} s wall, status {result.status} -> {written}"
+    )
+    return 0 if result.ok else 1
+
+
+def _tach(t: Any, p: Any, fs_hz: float) -> Any:
+    """1 on the sample nearest each instant of drive phase 0 (Omega t + phase0 = 2 pi k)."""
+    import numpy as np
+
+    from analysis.model import P
+
+    omega = p[P.OMEGA_DRIVE]
+    tach = np.zeros(t.size, dtype=np.int64)
+    k_first = math.ceil((omega * (t[0] - 0.5 / fs_hz) + p[P.PHASE0]) / (2 * math.pi))
+    k_last = math.floor((omega * (t[-1] + 0.5 / fs_hz) + p[P.PHASE0]) / (2 * math.pi))
+    instants = (2 * math.pi * np.arange(k_first, k_last + 1) - p[P.PHASE0]) / omega
+    index = np.rint((instants - t[0]) * fs_hz).astype(np.int64)
+    tach[index[(index >= 0) & (index < t.size)]] = 1
+    return tach
