@@ -136,7 +136,10 @@ class VirtualRig:
     def __init__(self, settings: VirtualRigSettings | None = None) -> None:
         self.settings = s = settings or VirtualRigSettings()
         self._lock = threading.RLock()
-        self._rng = np.random.default_rng(s.seed)
+        # one noise stream per channel, so that block sizes never change the samples
+        self._angle_rng, self._table_rng = (
+            np.random.default_rng(child) for child in np.random.SeedSequence(s.seed).spawn(2)
+        )
         self._model = s.model
         self._base_p, self._drive_gains = _packed_parts(s.model)
         self.shaker = ShakerResponse(s.shaker, t0_s=0.0)
@@ -356,13 +359,13 @@ class VirtualRig:
             else:
                 measured = c.measurement(t, measured, values)
         if s.angle_noise_rad > 0:
-            measured = measured + self._rng.normal(0.0, s.angle_noise_rad, measured.size)
+            measured = measured + self._angle_rng.normal(0.0, s.angle_noise_rad, measured.size)
         return s.adc.counts(s.potentiometer.volts(measured))
 
     def _table_counts(self, x: np.ndarray) -> np.ndarray:
         s = self.settings
         if s.table_noise_m > 0:
-            x = x + self._rng.normal(0.0, s.table_noise_m, x.size)
+            x = x + self._table_rng.normal(0.0, s.table_noise_m, x.size)
         return s.adc.counts(s.laser.volts(x))
 
     def _lag(self, theta: np.ndarray, tau_s: float) -> np.ndarray:
