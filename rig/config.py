@@ -9,10 +9,13 @@ from __future__ import annotations
 
 import math
 import tomllib
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 from importlib import resources
 from pathlib import Path
 from typing import Any
+
+from drivers.limits import LimitsConfigError, ShakerLimits
+from drivers.sensors import LaserCalibration, PotentiometerCalibration, TachometerCalibration
 
 DEFAULT_CONFIG_NAME = "default_rig.toml"
 RIG_KINDS = ("virtual", "real")
@@ -45,22 +48,6 @@ class RigConstants:
 
 
 @dataclass(frozen=True)
-class LinearCalibration:
-    """value = (counts - zero_counts) * scale_per_count."""
-
-    zero_counts: float
-    scale_per_count: float
-
-    def as_dict(self) -> dict[str, float | str]:
-        """For the recording's metadata."""
-        return {
-            "law": "linear",
-            "zero_counts": self.zero_counts,
-            "scale_per_count": self.scale_per_count,
-        }
-
-
-@dataclass(frozen=True)
 class DaqConfig:
     """The DAQ board: where it is, how fast it samples and which input carries what."""
 
@@ -84,16 +71,6 @@ class ShakerConfig:
 
 
 @dataclass(frozen=True)
-class SafetyLimits:
-    """What the shaker refuses, whatever a procedure asks."""
-
-    max_amplitude_m: float
-    max_frequency_hz: float
-    max_ramp_rate_m_s: float
-    watchdog_s: float
-
-
-@dataclass(frozen=True)
 class VirtualRigConfig:
     """Settings of the simulated rig (used only when the rig is virtual)."""
 
@@ -114,10 +91,12 @@ class RigConfig:
     kind: str
     constants: RigConstants
     daq: DaqConfig
-    angle_calibration: LinearCalibration
-    table_calibration: LinearCalibration
+    angle_calibration: PotentiometerCalibration
+    table_calibration: LaserCalibration
+    tach_calibration: TachometerCalibration
     shaker: ShakerConfig
-    limits: SafetyLimits
+    limits: ShakerLimits
+    watchdog_s: float
     virtual: VirtualRigConfig
 
     @property
@@ -128,8 +107,9 @@ class RigConfig:
     def calibrations(self) -> dict[str, dict[str, Any]]:
         """Per-channel calibrations for a recording's metadata."""
         return {
-            "angle": self.angle_calibration.as_dict(),
-            "table": self.table_calibration.as_dict(),
+            "angle": {"law": "potentiometer", **asdict(self.angle_calibration)},
+            "table": {"law": "laser", **asdict(self.table_calibration)},
+            "tach": {"law": "digital line", **asdict(self.tach_calibration)},
         }
 
 
@@ -166,17 +146,38 @@ class _Section:
         low: float | None = None,
         high: float | None = None,
         low_open: bool = False,
+        nonzero: bool = False,
     ) -> float:
-        expected = "a number" + _range_words(low, high, low_open)
+        expected = ("a non-zero number" if nonzero else "a number") + _range_words(
+            low, high, low_open
+        )
         value = self._get(key, expected)
         is_number = isinstance(value, int | float) and not isinstance(value, bool)
         if not is_number or not math.isfinite(value):
             raise self._bad(key, value, expected)
         if low is not None and (value < low or (low_open and value == low)):
             raise self._bad(key, value, expected)
-        if high is not None and value > high:
+        if (high is not None and value > high) or (nonzero and value == 0):
             raise self._bad(key, value, expected)
         return float(value)
+
+    def numbers(self, key: str) -> list[float]:
+        """A list of finite numbers (may be empty)."""
+        expected = "a list of numbers, e.g. [] or [0.01, -0.002]"
+        value = self._get(key, expected)
+        if not isinstance(value, list) or not all(
+            isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
+            for v in value
+        ):
+            raise self._bad(key, value, expected)
+        return [float(v) for v in value]
+
+    def interval(self, key: str) -> tuple[float, float]:
+        """A [low, high] pair with low < high."""
+        values = self.numbers(key)
+        if len(values) != 2 or not values[0] < values[1]:
+            raise self._bad(key, values, "[low, high] with low < high")
+        return values[0], values[1]
 
     def integer(self, key: str, *, low: int | None = None, high: int | None = None) -> int:
         expected = "an integer" + _range_words(low, high, False)
@@ -277,18 +278,23 @@ def parse_config(text: str, source: str = "<rig file>") -> RigConfig:
     daq_section.finish()
 
     calibration = top.section("calibration")
-    calibrations = []
-    for channel in ("angle", "table"):
-        section = calibration.section(channel)
-        scale = section.number("scale_per_count")
-        if scale == 0:
-            raise ConfigError(
-                f"{source}: 'calibration.{channel}.scale_per_count' is 0; "
-                "expected a non-zero number"
-            )
-        calibrations.append(LinearCalibration(section.number("zero_counts"), scale))
-        section.finish()
+    angle = calibration.section("angle")
+    angle_calibration = PotentiometerCalibration(
+        offset_v=angle.number("offset_v"),
+        gain_rad_per_v=angle.number("gain_rad_per_v", nonzero=True),
+        linearity=tuple(angle.numbers("linearity")),
+    )
+    angle.finish()
+    table = calibration.section("table")
+    table_calibration = LaserCalibration(
+        zero_m=table.number("zero_m"),
+        m_per_unit=table.number("m_per_unit", nonzero=True),
+        unit=table.text("unit", choices=("V", "count")),
+        measuring_range_m=table.interval("measuring_range_m"),
+    )
+    table.finish()
     calibration.finish()
+    tach_calibration = TachometerCalibration(line=daq.tach_bit)
 
     shaker_section = top.section("shaker")
     shaker = ShakerConfig(
@@ -306,15 +312,22 @@ def parse_config(text: str, source: str = "<rig file>") -> RigConfig:
     shaker_section.finish()
 
     limits_section = top.section("limits")
-    limits = SafetyLimits(
-        max_amplitude_m=limits_section.number("max_amplitude_m", low=0, high=0.05, low_open=True),
-        max_frequency_hz=limits_section.number("max_frequency_hz", low=0, high=200, low_open=True),
-        max_ramp_rate_m_s=limits_section.number(
-            "max_ramp_rate_m_s", low=0, high=0.05, low_open=True
-        ),
-        watchdog_s=limits_section.number("watchdog_s", low=0.05, high=60),
-    )
+    limit_values = {
+        key: limits_section.number(key, low=0)
+        for key in (
+            "max_amplitude_m",
+            "min_frequency_hz",
+            "max_frequency_hz",
+            "min_ramp_rate_m_s",
+            "max_ramp_rate_m_s",
+        )
+    }
+    watchdog_s = limits_section.number("watchdog_s", low=0.05, high=60)
     limits_section.finish()
+    try:
+        limits = ShakerLimits(**limit_values)
+    except LimitsConfigError as error:
+        raise ConfigError(f"{source}: [limits] {error}") from None
 
     virtual_section = top.section("virtual")
     virtual = VirtualRigConfig(
@@ -334,9 +347,11 @@ def parse_config(text: str, source: str = "<rig file>") -> RigConfig:
         kind=kind,
         constants=constants,
         daq=daq,
-        angle_calibration=calibrations[0],
-        table_calibration=calibrations[1],
+        angle_calibration=angle_calibration,
+        table_calibration=table_calibration,
+        tach_calibration=tach_calibration,
         shaker=shaker,
         limits=limits,
+        watchdog_s=watchdog_s,
         virtual=virtual,
     )

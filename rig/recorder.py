@@ -32,6 +32,7 @@ FORMAT_VERSION = 1
 DEFAULT_FLUSH_INTERVAL_S = 0.5
 MAX_FLUSH_INTERVAL_S = 1.0
 STOP_REASON_BYTES = 256
+DISK_RESERVE_BYTES = 1 << 20  # kept free besides what the next flush may need
 
 SAMPLE_BLOCK_DTYPE = np.dtype(
     [
@@ -93,6 +94,10 @@ class RecordingError(RuntimeError):
 
 class RecordingExistsError(RecordingError):
     """The output file exists and overwriting was not asked for."""
+
+
+class DiskFullError(RecordingError):
+    """The disk is (almost) full: recording stopped before a write could fail half-way."""
 
 
 @dataclass(frozen=True)
@@ -222,6 +227,10 @@ class Recorder:
         self._last_flush = time.monotonic()
         self._failed: RecordingError | None = None
         self._closed = False
+        self._chunk_bytes = sum(
+            _chunk_length(spec.sample_rate_hz) * (4 + np.dtype(spec.raw_dtype).itemsize)
+            for spec in channels
+        )
         if overwrite and self.path.exists():
             self.path.unlink()
         try:
@@ -378,9 +387,34 @@ class Recorder:
             )
         return buffer
 
+    @property
+    def error(self) -> RecordingError | None:
+        """The failure that stopped the recording, or None."""
+        return self._failed
+
+    def _pending_bytes(self) -> int:
+        total = 0
+        for buffer in self._buffers.values():
+            total += sum(a.nbytes for a in buffer.raw) + sum(a.nbytes for a in buffer.values)
+            total += sum(a.nbytes for a in buffer.edges) * 2 + 64 * len(buffer.blocks)
+        return total + 64 * (len(self._drive) + len(self._steps))
+
+    def _check_room(self) -> None:
+        """Stop cleanly while there is still room, rather than let HDF5 fail mid-write."""
+        need = 2 * self._pending_bytes() + self._chunk_bytes + DISK_RESERVE_BYTES
+        free = shutil.disk_usage(self.path.parent).free
+        if free < need:
+            self._failed = DiskFullError(
+                f"{self.path}: disk almost full ({free / 1e6:.2f} MB free, the next write needs "
+                f"about {need / 1e6:.2f} MB); recording stopped, the data recorded so far "
+                "are kept"
+            )
+            raise self._failed
+
     def flush(self) -> None:
         """Append everything pending and flush the file, so a reader (or a crash) sees it."""
         self._check_usable()
+        self._check_room()
         try:
             for buffer in self._buffers.values():
                 self._write_channel(buffer)
@@ -429,14 +463,25 @@ class Recorder:
     def close(self, stop_reason: str = "completed") -> None:
         """Flush what is pending, mark the file closed with ``stop_reason`` and release it.
 
-        After a write failure the file is released without further writes (what was
-        flushed before stays readable) and the failure is raised again.
+        After a failure already reported (``error``) nothing more is appended: a full
+        disk still gets its status row (closed, with the reason); after a write error
+        the file is released as it is (what was flushed before stays readable).
+        Raises only for a new failure while closing.
         """
         if self._closed:
             return
+        if isinstance(self._failed, DiskFullError):
+            try:
+                self._write_status(closed=True, reason=str(self._failed))
+                self._file.flush()
+                self._file.close()
+            except (OSError, ValueError, RuntimeError):
+                self._abandon()
+            self._closed = True
+            return
         if self._failed is not None:
             self._abandon()
-            raise self._failed
+            return
         try:
             self.flush()
             self._write_status(closed=True, reason=stop_reason)
@@ -544,3 +589,23 @@ class RecorderThread(threading.Thread):
             self.error = error
             if self.on_error is not None:
                 self.on_error(error)
+
+
+class RecordingSubscriber(Protocol):
+    """The part of the acquisition engine a recording needs (see ``rig.engine``)."""
+
+    def subscribe(self, name: str, *, privileged: bool = ...) -> Any: ...
+
+    def fail(self, error: BaseException) -> None: ...
+
+
+def attach_recorder(engine: RecordingSubscriber, recorder: Recorder) -> RecorderThread:
+    """Subscribe ``recorder`` to ``engine`` as the privileged subscriber and start writing.
+
+    Call before ``engine.start()`` so that the first block is recorded.  A write error
+    fails the engine (which stops acquisition and tells its failure callbacks).
+    """
+    subscription = engine.subscribe("recorder", privileged=True)
+    thread = RecorderThread(recorder, subscription, on_error=engine.fail)
+    thread.start()
+    return thread

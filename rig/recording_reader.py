@@ -171,6 +171,11 @@ class Recording:
         top = "channels" if name in self.channel_names else "pulses"
         return float(self._group(top, name).attrs["sample_rate_hz"])
 
+    def unit(self, name: str) -> str:
+        """The SI unit of a channel's calibrated values ('' for pulse channels)."""
+        top = "channels" if name in self.channel_names else "pulses"
+        return str(self._group(top, name).attrs["unit"])
+
     def complete_blocks(self, name: str) -> np.ndarray:
         """Rows of a sampled channel's block table whose samples are fully stored."""
         group = self._group("channels", name)

@@ -1,0 +1,170 @@
+"""Replay drivers: a recording played back through the ``InputStream`` interface.
+
+The engine, the GUI and live analysis run unchanged on a recording: each channel of
+the file becomes a stream delivering the blocks as the driver once delivered them
+(same sample indices, device timestamps and gaps), paced in real time, ``speed``
+times faster, or as fast as the reader takes them (``speed=math.inf``).
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+from drivers.interfaces import PulseBlock, SampleBlock, StreamStatus
+from rig.recording_reader import Recording, open_recording
+
+
+class ReplayClock:
+    """Shared pacing of the streams of one replay: index ``i`` is due at ``(i - i0) / fs / speed``.
+
+    All channels of a board share the running index, so pacing on it keeps them together.
+    """
+
+    def __init__(self, speed: float, sample_rate_hz: float, first_index: int) -> None:
+        if not speed > 0:
+            raise ValueError(f"replay speed is {speed}; expected a positive number (inf: no wait)")
+        self.speed = speed
+        self.sample_rate_hz = sample_rate_hz
+        self.first_index = first_index
+        self._start: float | None = None
+        self._lock = threading.Lock()
+
+    def start(self) -> None:
+        """Begin the replay's time at the first call (later calls keep it)."""
+        with self._lock:
+            if self._start is None:
+                self._start = time.monotonic()
+
+    def wait_s(self, end_index: int) -> float:
+        """Seconds until the sample before ``end_index`` is due (<= 0: due now)."""
+        if math.isinf(self.speed) or self._start is None:
+            return 0.0
+        due = self._start + (end_index - self.first_index) / self.sample_rate_hz / self.speed
+        return due - time.monotonic()
+
+
+class ReplayStream:
+    """One recorded channel as an ``InputStream`` (sampled or pulse channel)."""
+
+    def __init__(
+        self,
+        recording: Recording,
+        channel: str,
+        clock: ReplayClock,
+        *,
+        max_block_samples: int = 4096,
+    ) -> None:
+        self.recording = recording
+        self.channel = channel
+        self.clock = clock
+        self.max_block_samples = max_block_samples
+        self.is_pulse = channel in recording.pulse_names
+        if not self.is_pulse and channel not in recording.channel_names:
+            raise ValueError(
+                f"{recording.path}: no channel {channel!r}; it has "
+                f"{recording.channel_names + recording.pulse_names}"
+            )
+        self.unit = recording.unit(channel)
+        self._rate = recording.sample_rate_hz(channel)
+        self._blocks: Iterator[SampleBlock | PulseBlock] | None = None
+        self._pending: SampleBlock | PulseBlock | None = None
+        self._received = 0
+        self._lost = 0
+        self._running = False
+        self.finished = False
+
+    @property
+    def sample_rate_hz(self) -> float:
+        """The recorded channel's nominal rate."""
+        return self._rate
+
+    def start(self) -> None:
+        """Start (or restart) playing from the beginning of the recording."""
+        if self.is_pulse:
+            self._blocks = self.recording.iter_pulse_blocks(self.channel)
+        else:
+            self._blocks = self.recording.iter_sample_blocks(self.channel, self.max_block_samples)
+        self._pending = None
+        self._running = True
+        self.finished = False
+        self.clock.start()
+
+    def stop(self) -> None:
+        """Stop playing."""
+        self._running = False
+
+    def read(self, timeout_s: float = 0.1) -> SampleBlock | PulseBlock | None:
+        """The next recorded block once it is due, or None (nothing due, stopped or finished)."""
+        if not self._running or self._blocks is None:
+            time.sleep(timeout_s)
+            return None
+        if self._pending is None:
+            self._pending = next(self._blocks, None)
+            if self._pending is None:
+                self.finished = True
+                time.sleep(timeout_s)
+                return None
+        wait = self.clock.wait_s(self._pending.end_index)
+        if wait > timeout_s:
+            time.sleep(timeout_s)
+            return None
+        if wait > 0:
+            time.sleep(wait)
+        block, self._pending = self._pending, None
+        self._received += block.end_index - block.first_index
+        self._lost += block.lost_before
+        return block
+
+    def status(self) -> StreamStatus:
+        """Samples played and gaps passed on so far."""
+        message = "end of recording" if self.finished else ""
+        return StreamStatus(self._running, self._received, self._lost, 0, message)
+
+
+class Replay:
+    """A recording opened for replay: its streams share one clock; close it when done."""
+
+    def __init__(
+        self,
+        path: str | Path,
+        *,
+        speed: float = 1.0,
+        channels: list[str] | None = None,
+        max_block_samples: int = 4096,
+    ) -> None:
+        self.recording = open_recording(path)
+        names = channels or self.recording.channel_names + self.recording.pulse_names
+        first = [
+            int(b["first_index"][0])
+            for b in (self.recording.complete_blocks(c) for c in self.recording.channel_names)
+            if b.size
+        ]
+        rates = [self.recording.sample_rate_hz(c) for c in names] or [1.0]
+        self.clock = ReplayClock(speed, max(rates), min(first) if first else 0)
+        try:
+            self.streams = [
+                ReplayStream(self.recording, name, self.clock, max_block_samples=max_block_samples)
+                for name in names
+            ]
+        except ValueError:
+            self.recording.close()
+            raise
+
+    @property
+    def finished(self) -> bool:
+        """True when every stream has played its last block."""
+        return all(stream.finished for stream in self.streams)
+
+    def close(self) -> None:
+        """Release the file."""
+        self.recording.close()
+
+    def __enter__(self) -> Replay:
+        return self
+
+    def __exit__(self, *exc_info) -> None:
+        self.close()

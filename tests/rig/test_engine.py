@@ -1,0 +1,147 @@
+"""The acquisition engine: fan-out without blocking, per-subscriber losses, gaps, alignment."""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import pytest
+
+from drivers.interfaces import PulseBlock, SampleBlock
+from rig.alignment import ChannelAligner
+from rig.engine import AcquisitionEngine, SubscriberOverrunError
+from rig.events import Gap
+from tests.rig.streams import CounterStream, TachStream
+
+
+def _drain(subscription, until_closed=True):
+    out = []
+    while True:
+        batch = subscription.get_many(timeout_s=0.05)
+        out.extend(batch)
+        if not batch and subscription.closed:
+            return out
+
+
+def _wait_until(predicate, timeout_s=10.0):
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        if predicate():
+            return True
+        time.sleep(0.01)
+    return False
+
+
+def test_every_sample_reaches_a_keeping_subscriber_and_gaps_are_reported_before_the_block():
+    reported = CounterStream("angle", total=20_000, gaps={5_000: 700}, block=333)
+    silent = CounterStream("table", total=20_000, gaps={12_000: 55}, report_gaps=False, gain=2e-3)
+    engine = AcquisitionEngine([reported, silent])
+    keeper = engine.subscribe("recorder", privileged=True)
+    engine.start()
+    assert _wait_until(lambda: reported.next_index >= 20_000 and silent.next_index >= 20_000)
+    time.sleep(0.2)
+    engine.stop()
+    deliveries = [event for _, event in _drain(keeper)]
+    for channel, gap_at, gap_len in (("angle", 5_000, 700), ("table", 12_000, 55)):
+        events = [e for e in deliveries if getattr(e, "channel", None) == channel]
+        blocks = [e for e in events if isinstance(e, SampleBlock)]
+        indices = np.concatenate([np.arange(b.first_index, b.end_index) for b in blocks])
+        expected = np.setdiff1d(np.arange(20_000), np.arange(gap_at, gap_at + gap_len))
+        np.testing.assert_array_equal(indices, expected)
+        np.testing.assert_array_equal(np.concatenate([b.raw for b in blocks]), expected)
+        gaps = [e for e in events if isinstance(e, Gap)]
+        assert gaps == [Gap(channel, gap_at, gap_len)]
+        # the gap comes just before the block that follows it
+        position = events.index(gaps[0])
+        assert events[position + 1].first_index == gap_at + gap_len
+    stats = engine.stats()
+    assert stats.channels["angle"].samples_lost == 700
+    assert stats.channels["table"].samples_lost == 55
+    assert stats.channels["angle"].gaps == 1
+
+
+def test_a_slow_viewer_loses_only_its_own_view_and_the_loss_is_counted():
+    stream = CounterStream("angle", total=50_000, block=100)
+    engine = AcquisitionEngine([stream])
+    keeper = engine.subscribe("recorder", privileged=True)
+    viewer = engine.subscribe("gui", max_items=10)  # never read while acquiring
+    engine.start()
+    assert _wait_until(lambda: stream.next_index >= 50_000)
+    time.sleep(0.2)
+    engine.stop()
+    kept = [e for _, e in _drain(keeper) if isinstance(e, SampleBlock)]
+    seen = [e for _, e in _drain(viewer) if isinstance(e, SampleBlock)]
+    assert sum(len(b) for b in kept) == 50_000
+    assert len(seen) == 10
+    # the viewer keeps the newest blocks
+    assert seen[-1].end_index == 50_000
+    stats = {s.name: s for s in engine.stats().subscribers}
+    assert stats["gui"].dropped_items == 490
+    assert stats["gui"].dropped_samples == 49_000
+    assert stats["recorder"].dropped_items == 0
+
+
+def test_a_privileged_subscriber_that_falls_behind_stops_acquisition_loudly():
+    stream = CounterStream("angle", block=1000)
+    engine = AcquisitionEngine([stream])
+    failures = []
+    engine.on_failure(failures.append)
+    engine.subscribe("recorder", privileged=True, max_backlog_samples=20_000)
+    engine.start()
+    assert _wait_until(lambda: engine.error is not None)
+    engine.stop()
+    assert isinstance(engine.error, SubscriberOverrunError)
+    assert "recorder" in str(engine.error)
+    assert failures == [engine.error]
+    with pytest.raises(SubscriberOverrunError):
+        engine.raise_if_failed()
+
+
+def test_live_quantities_rate_tach_and_drive():
+    stream = CounterStream("angle", sample_rate_hz=5_000, block=100, realtime=True)
+    tach = TachStream(sample_rate_hz=5_000, block=100, period=500)
+    engine = AcquisitionEngine([stream, tach])
+    engine.start()
+    time.sleep(1.0)
+    setting = engine.note_drive(10.0, 0.002, True)
+    stats = engine.stats()
+    engine.stop()
+    assert stats.channels["angle"].sample_rate_hz == pytest.approx(5_000, rel=0.1)
+    assert stats.channels["tach"].tach_frequency_hz == pytest.approx(10.0)
+    assert stats.drive == setting
+    assert setting.sample_index > 0
+
+
+def test_aligner_joins_channels_on_the_index_and_never_fills_a_gap():
+    aligner = ChannelAligner(["angle", "table"])
+
+    def block(channel, first, n, scale):
+        index = np.arange(first, first + n)
+        return SampleBlock(channel, first, first / 100, 100.0, index, index * scale)
+
+    aligner.add(block("angle", 0, 30, 1.0))
+    aligner.add(block("table", 0, 10, 2.0))
+    aligner.add(block("table", 10, 5, 2.0))
+    aligner.add(block("table", 20, 20, 2.0))  # table lost 15..19
+    out = aligner.pop()
+    assert [(a.first_index, len(a)) for a in out] == [(0, 15), (20, 10)]
+    for aligned in out:
+        index = np.arange(aligned.first_index, aligned.first_index + len(aligned))
+        np.testing.assert_array_equal(aligned.values["angle"], index * 1.0)
+        np.testing.assert_array_equal(aligned.values["table"], index * 2.0)
+    assert aligner.unaligned_samples == 5
+    aligner.add(block("angle", 30, 10, 1.0))
+    assert [(a.first_index, len(a)) for a in aligner.pop()] == [(30, 10)]
+
+
+def test_pulse_blocks_are_fanned_out_with_their_edges():
+    tach = TachStream(total=5_000, period=1_000, block=300)
+    engine = AcquisitionEngine([tach])
+    sub = engine.subscribe("analysis", max_items=1000)
+    engine.start()
+    assert _wait_until(lambda: tach.next_index >= 5_000)
+    time.sleep(0.1)
+    engine.stop()
+    pulses = [e for _, e in _drain(sub) if isinstance(e, PulseBlock)]
+    edges = np.concatenate([p.edge_indices for p in pulses])
+    np.testing.assert_array_equal(edges, [0, 1000, 2000, 3000, 4000])

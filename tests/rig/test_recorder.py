@@ -1,0 +1,262 @@
+"""The HDF5 recorder: everything recorded comes back, readable while written and after a kill."""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+
+from rig.engine import AcquisitionEngine
+from rig.events import DriveSetting, StepMark
+from rig.recorder import (
+    ChannelSpec,
+    DiskFullError,
+    Recorder,
+    RecordingError,
+    RecordingExistsError,
+    RecordingMetadata,
+    attach_recorder,
+)
+from rig.recording_reader import open_recording
+from tests.rig.streams import CounterStream, TachStream
+
+REPO = Path(__file__).resolve().parents[2]
+SPECS = [
+    ChannelSpec("angle", unit="rad", sample_rate_hz=10_000.0, device="counter"),
+    ChannelSpec("table", unit="m", sample_rate_hz=10_000.0, device="counter"),
+    ChannelSpec("tach", kind="pulses", sample_rate_hz=10_000.0),
+]
+META = RecordingMetadata(
+    experiment="forced",
+    notes="operator: test",
+    rig={"m_kg": 0.0326, "l_m": 0.05},
+    calibrations={"angle": {"law": "counter", "gain": 1e-3}},
+    devices={"daq": {"serial": "T1"}},
+    config_toml="[rig]\nname = 'x'\n",
+    drive={"frequency_hz": 10.0, "amplitude_m": 0.002},
+    roles={"angle": "angle", "table": "table", "tach": "tach"},
+)
+
+
+def _wait_until(predicate, timeout_s=15.0):
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        if predicate():
+            return True
+        time.sleep(0.02)
+    return False
+
+
+def _record(path, streams, until, *, flush_interval_s=0.5, extra=()):
+    engine = AcquisitionEngine(streams)
+    recorder = Recorder(path, SPECS, META, flush_interval_s=flush_interval_s)
+    thread = attach_recorder(engine, recorder)
+    engine.start()
+    for action in extra:
+        action(engine)
+    _wait_until(lambda: until(engine))
+    engine.stop()
+    thread.join(10)
+    return engine, recorder, thread
+
+
+def test_recording_round_trip_keeps_samples_gaps_pulses_drive_marks_and_metadata(tmp_path):
+    path = tmp_path / "run.h5"
+    angle = CounterStream("angle", total=30_000, gaps={10_000: 1_234}, block=400)
+    table = CounterStream("table", total=30_000, gaps={20_000: 99}, report_gaps=False, gain=2e-3)
+    tach = TachStream(total=30_000, period=1000, block=300)
+
+    def drive_and_mark(engine):
+        engine.note_drive(10.0, 0.002, True)
+        engine.mark_step(StepMark(0, 1, 10.0, 0.002, 0, 100, 200, True))
+
+    _engine, recorder, thread = _record(
+        path,
+        [angle, table, tach],
+        lambda e: min(angle.next_index, table.next_index, tach.next_index) >= 30_000,
+        extra=[drive_and_mark],
+    )
+    recorder.close()
+    assert thread.error is None
+    with open_recording(path) as rec:
+        for name, gap_at, gap_len, gain in (
+            ("angle", 10_000, 1_234, 1e-3),
+            ("table", 20_000, 99, 2e-3),
+        ):
+            data = rec.channel(name)
+            expected = np.setdiff1d(np.arange(30_000), np.arange(gap_at, gap_at + gap_len))
+            np.testing.assert_array_equal(data.indices, expected)
+            np.testing.assert_array_equal(data.raw, expected)
+            np.testing.assert_allclose(data.values, expected * gain, rtol=1e-7)
+            np.testing.assert_allclose(data.times_s, expected / 10_000.0)
+            assert [tuple(g) for g in data.gaps] == [(gap_at, gap_len)]
+        np.testing.assert_array_equal(rec.pulses("tach").edge_indices, np.arange(0, 30_000, 1000))
+        drive = rec.drive_log()
+        assert drive.size == 1 and drive["frequency_hz"][0] == 10.0 and drive["enabled"][0] == 1
+        steps = rec.sweep_steps()
+        assert steps.size == 1 and steps["dwell_end_index"][0] == 200
+        assert rec.info.experiment == "forced"
+        assert rec.info.rig == {"m_kg": 0.0326, "l_m": 0.05}
+        assert rec.info.devices == {"daq": {"serial": "T1"}}
+        assert rec.info.drive == {"frequency_hz": 10.0, "amplitude_m": 0.002}
+        assert rec.info.config_toml.startswith("[rig]")
+        assert rec.info.notes == "operator: test"
+        assert rec.info.start_time_utc
+        status = rec.status()
+        assert status.closed and status.stop_reason == "completed"
+        assert status.samples_written == 2 * 30_000 - 1_234 - 99
+        assert status.samples_lost == 1_234 + 99
+
+
+def test_a_reader_sees_the_data_while_it_is_written(tmp_path):
+    path = tmp_path / "live.h5"
+    stream = CounterStream("angle", sample_rate_hz=10_000, block=200, realtime=True)
+    engine = AcquisitionEngine([stream])
+    recorder = Recorder(path, SPECS[:1], META, flush_interval_s=0.2)
+    thread = attach_recorder(engine, recorder)
+    engine.start()
+    try:
+        with open_recording(path) as live:
+            seen = []
+
+            def more_data():
+                live.refresh()
+                seen.append(len(live.channel("angle")))
+                return seen[-1] >= 5_000
+
+            assert _wait_until(more_data)
+            data = live.channel("angle")
+            np.testing.assert_array_equal(data.raw, np.arange(len(data)))
+            assert not live.status().closed
+    finally:
+        engine.stop()
+        thread.join(10)
+        recorder.close()
+
+
+def test_a_recording_killed_with_sigkill_keeps_a_consistent_prefix(tmp_path):
+    path = tmp_path / "killed.h5"
+    process = subprocess.Popen(
+        [sys.executable, "-m", "tests.rig.record_forever", str(path)],
+        cwd=REPO,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        assert process.stdout.readline().strip() == "recording", process.stderr.read()
+
+        def reader_sees_data():
+            if not path.exists():
+                return False
+            try:
+                with open_recording(path) as live:
+                    return len(live.channel("angle")) >= 20_000
+            except (OSError, ValueError):
+                return False
+
+        assert _wait_until(reader_sees_data, 30)
+    finally:
+        os.kill(process.pid, signal.SIGKILL)
+        process.wait(10)
+    assert process.returncode == -signal.SIGKILL
+    with open_recording(path) as rec:
+        status = rec.status()
+        assert not status.closed  # it was cut short, and the file says so
+        for name, gain in (("angle", 1e-3), ("table", 2e-3)):
+            data = rec.channel(name)
+            assert len(data) >= 20_000
+            np.testing.assert_array_equal(data.indices, np.arange(len(data)))
+            np.testing.assert_array_equal(data.raw, data.indices)
+            np.testing.assert_allclose(data.values, data.indices * gain, rtol=1e-7)
+        edges = rec.pulses("tach").edge_indices
+        assert edges.size >= 10
+        np.testing.assert_array_equal(edges, np.arange(edges.size) * 2000)
+        assert rec.info.notes == "kill me"
+
+
+def test_an_existing_recording_is_never_overwritten_unless_asked(tmp_path):
+    path = tmp_path / "precious.h5"
+    path.write_bytes(b"yesterday's data")
+    with pytest.raises(RecordingExistsError, match="--overwrite"):
+        Recorder(path, SPECS, META)
+    assert path.read_bytes() == b"yesterday's data"
+    Recorder(path, SPECS, META, overwrite=True).close()
+    assert h5py.is_hdf5(path)
+
+
+def test_an_unwritable_folder_is_refused_before_recording(read_only_folder):
+    with pytest.raises(RecordingError, match="not writable"):
+        Recorder(read_only_folder / "run.h5", SPECS, META)
+    with pytest.raises(RecordingError, match="does not exist"):
+        Recorder(read_only_folder / "missing" / "run.h5", SPECS, META)
+
+
+def test_not_enough_free_space_is_refused_before_recording(tiny_filesystem):
+    with pytest.raises(RecordingError, match="MB free"):
+        Recorder(tiny_filesystem / "run.h5", SPECS, META, min_free_bytes=50_000_000)
+    assert not (tiny_filesystem / "run.h5").exists()
+
+
+def _incompressible(stream, seed):
+    """Wrap a stream so its raw counts are pseudo-random: the disk then fills quickly."""
+    rng = np.random.default_rng(seed)
+    original = stream.read
+
+    def read(timeout_s=0.1):
+        block = original(timeout_s)
+        if block is None:
+            return None
+        noise = rng.integers(-(2**30), 2**30, size=len(block)).astype(np.int32)
+        return dataclasses.replace(block, raw=noise, values=noise.astype(float))
+
+    stream.read = read
+    return stream
+
+
+def test_a_full_disk_stops_acquisition_with_a_clear_error_and_keeps_what_was_flushed(
+    tiny_filesystem,
+):
+    path = tiny_filesystem / "run.h5"
+    streams = [
+        _incompressible(CounterStream(n, sample_rate_hz=200_000, block=2000, realtime=True), k)
+        for k, n in enumerate(("angle", "table"))
+    ]
+    engine = AcquisitionEngine(streams)
+    failures = []
+    engine.on_failure(failures.append)
+    recorder = Recorder(path, SPECS, META, flush_interval_s=0.2)
+    thread = attach_recorder(engine, recorder)
+    engine.start()
+    assert _wait_until(lambda: engine.error is not None, 30)
+    engine.stop()
+    thread.join(10)
+    assert isinstance(engine.error, DiskFullError)
+    assert "disk almost full" in str(engine.error) and str(path) in str(engine.error)
+    assert failures == [engine.error]  # the procedure's callback (drive to zero) ran
+    recorder.close()
+    assert recorder.error is engine.error
+    with open_recording(path) as rec:
+        data = rec.channel("angle")
+        assert len(data) > 100_000
+        np.testing.assert_array_equal(data.indices, np.arange(len(data)))
+        status = rec.status()
+        assert status.closed and "disk almost full" in status.stop_reason
+
+
+def test_recorder_refuses_blocks_of_an_undeclared_channel(tmp_path):
+    recorder = Recorder(tmp_path / "r.h5", SPECS[:1], META)
+    stray = CounterStream("pressure", total=10)
+    stray.start()
+    with pytest.raises(RecordingError, match="pressure"):
+        recorder.add(stray.read(), 0.0)
+    recorder.add(DriveSetting(0.0, 0, 1.0, 0.001, True), 0.0)
+    recorder.close()
