@@ -30,7 +30,8 @@ EXCEPTION_NAMES = {
 }
 
 # pymodbus logs each failed request itself; our DeviceError already says it all.
-logging.getLogger("pymodbus").setLevel(logging.CRITICAL)
+if logging.getLogger("pymodbus").level == logging.NOTSET:  # unless the application chose
+    logging.getLogger("pymodbus").setLevel(logging.CRITICAL)
 
 
 class _ModbusBackend:

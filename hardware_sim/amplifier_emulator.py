@@ -31,7 +31,8 @@ _WRITES = (6, 16)
 
 # pymodbus logs every refused request and deprecation at WARNING/ERROR; an emulator
 # answering exceptions on purpose should not flood the console.
-logging.getLogger("pymodbus").setLevel(logging.CRITICAL)
+if logging.getLogger("pymodbus").level == logging.NOTSET:  # unless the application chose
+    logging.getLogger("pymodbus").setLevel(logging.CRITICAL)
 
 
 class TransportFault(enum.Enum):
