@@ -1,6 +1,20 @@
 """Nonlinear-dynamics tools: spectra, Poincare sections, embedding, Lyapunov exponents, 0-1 test,
 regime classification, bifurcation diagrams and basins of attraction."""
 
+from analysis.dynamics.basins import (
+    NO_ATTRACTOR,
+    Attractor,
+    BasinMap,
+    basins_of_attraction,
+    identify_attractors,
+    plot_basins,
+)
+from analysis.dynamics.bifurcation import (
+    BifurcationDiagram,
+    bifurcation_from_recording,
+    plot_bifurcation,
+    simulate_bifurcation,
+)
 from analysis.dynamics.chaos01 import ZeroOneResult, zero_one_test
 from analysis.dynamics.embedding import (
     DelayChoice,
@@ -26,36 +40,52 @@ from analysis.dynamics.poincare import (
     poincare_from_pulses,
     smoothed_derivative,
 )
-from analysis.dynamics.regime import Regime, classify_motion, classify_regime
+from analysis.dynamics.regime import Regime, classify_motion, classify_regime, recurrence_distances
 from analysis.dynamics.spectrum import SpectralPeak, Spectrum, amplitude_spectrum, harmonic_label
+from analysis.dynamics.sweeps import PoincareRuns, continue_along, model_at_beta, run_poincare
 
 __all__ = [
+    "NO_ATTRACTOR",
+    "Attractor",
+    "BasinMap",
+    "BifurcationDiagram",
     "DelayChoice",
     "DimensionChoice",
     "LyapunovEstimate",
+    "PoincareRuns",
     "PoincareSection",
     "Regime",
     "SpectralPeak",
     "Spectrum",
     "ZeroOneResult",
     "amplitude_spectrum",
+    "basins_of_attraction",
+    "bifurcation_from_recording",
     "classify_motion",
     "classify_regime",
+    "continue_along",
     "delay_embed",
     "delayed_map",
     "false_nearest_neighbours",
     "flow_lyapunov",
     "fnn_dimension",
     "harmonic_label",
+    "identify_attractors",
     "iterate_map",
     "map_lyapunov",
+    "model_at_beta",
     "model_lyapunov",
     "mutual_information",
     "mutual_information_delay",
+    "plot_basins",
+    "plot_bifurcation",
     "poincare_from_phase",
     "poincare_from_pulses",
+    "recurrence_distances",
     "rk4_trajectory",
     "rosenstein_lyapunov",
+    "run_poincare",
+    "simulate_bifurcation",
     "smoothed_derivative",
     "zero_one_test",
 ]

@@ -1,0 +1,252 @@
+"""Basins of attraction on a grid of initial states (theta0, theta_dot0).
+
+Every grid point is simulated past its transient; its final Poincare orbit is matched
+against a catalogue of the attractors found so far (same period and the same cycle
+points for periodic orbits; overlapping point clouds otherwise).  An orbit that
+matches nothing is classified (:func:`analysis.dynamics.regime.classify_regime`) and
+added to the catalogue under a name such as "period-2" or "chaotic".
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.colors import ListedColormap
+from matplotlib.figure import Figure
+from scipy.spatial import cKDTree
+
+from analysis.dynamics.regime import Regime, classify_regime, recurrence_distances
+from analysis.dynamics.sweeps import run_poincare
+from analysis.model import Model
+
+NO_ATTRACTOR = -1  # the run left the model's regime (over the top) or failed
+
+
+@dataclass(frozen=True)
+class Attractor:
+    """One attractor of the catalogue: its name, its regime and Poincare points (theta, theta')."""
+
+    name: str
+    regime: Regime
+    points: np.ndarray  # (k, 2): the cycle for periodic attractors, a cloud otherwise
+    basin_fraction: float
+
+
+@dataclass(frozen=True)
+class BasinMap:
+    """Attractor index per initial state: ``labels[i, j]`` for theta_dot0[i], theta0[j].
+
+    ``labels`` holds indices into ``attractors`` or ``NO_ATTRACTOR`` (-1).
+    """
+
+    theta0: np.ndarray
+    theta_dot0: np.ndarray
+    labels: np.ndarray
+    attractors: tuple[Attractor, ...]
+
+
+def basins_of_attraction(
+    model: Model,
+    theta0_values: Sequence[float] | np.ndarray,
+    theta_dot0_values: Sequence[float] | np.ndarray,
+    *,
+    transient_periods: int = 200,
+    record_periods: int = 64,
+    tolerance: float = 1e-3,
+    match_tolerance: float = 0.02,
+    rtol: float = 1e-8,
+    atol: float = 1e-10,
+    workers: int | None = None,
+) -> BasinMap:
+    """Which attractor each initial state (at drive phase 0) settles on.
+
+    ``tolerance`` (relative to the attractor size) decides periodicity as in the
+    classifier; ``match_tolerance`` (relative to the size of all orbits together)
+    decides that two orbits are the same attractor.
+    """
+    theta0 = np.asarray(theta0_values, dtype=float).ravel()
+    theta_dot0 = np.asarray(theta_dot0_values, dtype=float).ravel()
+    if theta0.size == 0 or theta_dot0.size == 0:
+        raise ValueError("the grid of initial states is empty")
+    if record_periods < 50:
+        raise ValueError(
+            f"record_periods = {record_periods}: non-periodic attractors are named by the 0-1 "
+            "test, which needs at least 50 Poincare samples"
+        )
+    if model.drive.frequency_hz <= 0 or not model.drive.is_forced:
+        raise ValueError("basins need a forced model (drive amplitude and frequency > 0)")
+    grid_theta, grid_rate = np.meshgrid(theta0, theta_dot0)
+    initial = np.column_stack([grid_theta.ravel(), grid_rate.ravel()])
+    packed = np.tile(model.pack(), (initial.shape[0], 1))
+    runs = run_poincare(
+        packed,
+        initial,
+        transient_periods=transient_periods,
+        record_periods=record_periods,
+        rtol=rtol,
+        atol=atol,
+        workers=workers,
+    )
+    ok = np.array([status == "ok" for status in runs.status])
+    labels, attractors = identify_attractors(
+        runs.theta, runs.theta_dot, ok=ok, tolerance=tolerance, match_tolerance=match_tolerance
+    )
+    return BasinMap(theta0, theta_dot0, labels.reshape(grid_theta.shape), attractors)
+
+
+def identify_attractors(
+    theta: np.ndarray,
+    theta_dot: np.ndarray,
+    *,
+    ok: np.ndarray | None = None,
+    tolerance: float = 1e-3,
+    match_tolerance: float = 0.02,
+) -> tuple[np.ndarray, tuple[Attractor, ...]]:
+    """Group settled Poincare orbits (rows of (n, k) arrays) by the attractor they lie on.
+
+    Returns a label per orbit (index into the catalogue, ``NO_ATTRACTOR`` for rows
+    marked not ``ok`` or containing NaN) and the catalogue, in order of discovery.
+    Non-periodic orbits need k >= 50 samples for the 0-1 test that names them.
+    """
+    theta = np.atleast_2d(np.asarray(theta, dtype=float))
+    theta_dot = np.atleast_2d(np.asarray(theta_dot, dtype=float))
+    if theta.shape != theta_dot.shape:
+        raise ValueError(f"theta {theta.shape} and theta_dot {theta_dot.shape} differ in shape")
+    ok = np.ones(theta.shape[0], dtype=bool) if ok is None else np.asarray(ok, dtype=bool)
+    labels, catalogue = _identify(theta, theta_dot, ok, tolerance, match_tolerance)
+    counts = np.bincount(labels[labels >= 0], minlength=len(catalogue))
+    attractors = tuple(
+        Attractor(entry.name, entry.regime, entry.points, float(counts[k]) / labels.size)
+        for k, entry in enumerate(catalogue)
+    )
+    return labels, attractors
+
+
+@dataclass
+class _Entry:
+    name: str
+    regime: Regime
+    points: np.ndarray
+    tree: cKDTree
+
+
+def _identify(theta, theta_dot, ok, tolerance, match_tolerance):
+    """Label each orbit with a catalogue index, building the catalogue on the way."""
+    n = theta.shape[0]
+    labels = np.full(n, NO_ATTRACTOR, dtype=np.int64)
+    finite = ok & np.all(np.isfinite(theta), axis=1) & np.all(np.isfinite(theta_dot), axis=1)
+    if not finite.any():
+        return labels, []
+    # One scale for all orbits, so that "same attractor" means the same thing everywhere.
+    # (spread or RMS, whichever is larger: a single period-1 attractor has no spread)
+    everything = np.column_stack([theta[finite].ravel(), theta_dot[finite].ravel()])
+    scale = np.maximum(np.ptp(everything, axis=0), np.sqrt(np.mean(everything**2, axis=0)))
+    scale = np.where(scale > 0, scale, 1.0)
+    catalogue: list[_Entry] = []
+    for i in np.flatnonzero(finite):
+        orbit = np.column_stack([theta[i], theta_dot[i]])
+        normalised = orbit / scale
+        recurrence = recurrence_distances(normalised, max_period=16, scale=1.0)
+        periodic = np.flatnonzero(recurrence <= tolerance)
+        period = int(periodic[0] + 1) if periodic.size else None
+        candidate = normalised[-period:] if period else normalised
+        found = _match(candidate, period, catalogue, match_tolerance)
+        if found is None:
+            regime = classify_regime(orbit, tolerance=tolerance, scale=scale)
+            name = _unique_name(regime.short_name, catalogue)
+            catalogue.append(_Entry(name, regime, candidate * scale, cKDTree(candidate)))
+            found = len(catalogue) - 1
+        labels[i] = found
+    return labels, catalogue
+
+
+def _match(candidate, period, catalogue, match_tolerance):
+    """Catalogue index of the attractor the normalised orbit lies on, or None."""
+    for k, entry in enumerate(catalogue):
+        entry_period = entry.regime.period if entry.regime.kind == "periodic" else None
+        if entry_period != period:
+            continue
+        distance, _ = entry.tree.query(candidate)
+        if period is not None:
+            if np.max(distance) <= match_tolerance:
+                return k
+        elif np.median(distance) <= match_tolerance:
+            # a cloud: most new points fall among the known ones
+            return k
+    return None
+
+
+def _unique_name(base: str, catalogue: list[_Entry]) -> str:
+    taken = {entry.name for entry in catalogue}
+    if base not in taken:
+        return base
+    suffix = 2
+    while f"{base} ({suffix})" in taken:
+        suffix += 1
+    return f"{base} ({suffix})"
+
+
+def plot_basins(
+    basin_map: BasinMap, *, title: str | None = None, path: str | Path | None = None
+) -> Figure:
+    """Colour map of the basins with a legend of attractor names (Agg); PNG when ``path`` given."""
+    figure = Figure(figsize=(7.0, 5.5), dpi=120)
+    FigureCanvasAgg(figure)
+    axes = figure.add_subplot()
+    count = len(basin_map.attractors)
+    palette = ["#d0d0d0"] + [_COLOURS[k % len(_COLOURS)] for k in range(max(count, 1))]
+    extent = (
+        basin_map.theta0[0],
+        basin_map.theta0[-1],
+        basin_map.theta_dot0[0],
+        basin_map.theta_dot0[-1],
+    )
+    axes.imshow(
+        basin_map.labels + 1,
+        origin="lower",
+        extent=extent,
+        aspect="auto",
+        interpolation="nearest",
+        cmap=ListedColormap(palette[: count + 1]),
+        vmin=-0.5,
+        vmax=count + 0.5,
+    )
+    for k, attractor in enumerate(basin_map.attractors):
+        points = attractor.points
+        axes.plot(points[:, 0], points[:, 1], "o", color="black", markersize=3)
+        axes.plot(
+            [],
+            [],
+            "s",
+            color=palette[k + 1],
+            label=f"{attractor.name} ({100 * attractor.basin_fraction:.0f} %)",
+        )
+    if np.any(basin_map.labels == NO_ATTRACTOR):
+        axes.plot([], [], "s", color=palette[0], label="left the model (over the top)")
+    axes.set_xlabel("theta0 [rad]")
+    axes.set_ylabel("theta_dot0 [rad/s]")
+    if title:
+        axes.set_title(title)
+    axes.legend(loc="upper right", fontsize="small")
+    figure.tight_layout()
+    if path is not None:
+        figure.savefig(Path(path), format="png")
+    return figure
+
+
+_COLOURS = [
+    "#1f77b4",
+    "#ff7f0e",
+    "#2ca02c",
+    "#d62728",
+    "#9467bd",
+    "#8c564b",
+    "#e377c2",
+    "#17becf",
+    "#bcbd22",
+    "#7f7f7f",
+]

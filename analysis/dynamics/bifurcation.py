@@ -1,0 +1,180 @@
+"""Bifurcation diagrams over the drive amplitude ratio beta = A / L: simulated and recorded.
+
+Simulated sweeps come in two kinds (``mode``):
+
+* ``"continuation"`` (default) mimics the experiment: the up sweep starts each beta
+  from the final state of the previous one, the down sweep likewise from the top, so
+  hysteresis and coexisting attractors show as differences between the two.  Each
+  direction is sequential; the two directions run in parallel processes.
+* ``"fixed"``: every beta starts from the same initial state; all runs are
+  independent and spread over all cores.  Cheaper per core, but it shows whichever
+  attractor that one initial state falls into.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+
+from analysis.dynamics.poincare import PoincareSection
+from analysis.dynamics.sweeps import continue_along, model_at_beta, process_pool, run_poincare
+from analysis.model import Model
+
+DIRECTIONS = ("up", "down", "fixed", "recorded")
+
+
+@dataclass(frozen=True)
+class BifurcationDiagram:
+    """Poincare angles per parameter step of one sweep.
+
+    ``theta`` and ``theta_dot`` are (steps, samples) arrays (NaN where a step has fewer
+    samples or its run stopped); ``direction`` is 'up', 'down', 'fixed' or 'recorded'.
+    """
+
+    parameter: np.ndarray
+    theta: np.ndarray
+    theta_dot: np.ndarray
+    direction: str
+    parameter_name: str = "beta"
+
+    def scatter(self) -> tuple[np.ndarray, np.ndarray]:
+        """(parameter, theta) pairs of every finite sample, ready for a scatter plot."""
+        repeated = np.broadcast_to(self.parameter[:, None], self.theta.shape)
+        finite = np.isfinite(self.theta)
+        return repeated[finite], self.theta[finite]
+
+
+def simulate_bifurcation(
+    model: Model,
+    beta_values: Sequence[float] | np.ndarray,
+    *,
+    periods: int = 500,
+    record_periods: int = 100,
+    mode: str = "continuation",
+    initial_state: tuple[float, float] = (0.0, 0.0),
+    rtol: float = 1e-8,
+    atol: float = 1e-10,
+    workers: int | None = None,
+) -> tuple[BifurcationDiagram, ...]:
+    """Bifurcation diagram(s) of ``model`` over ``beta_values`` (sorted ascending here).
+
+    Each beta runs ``periods`` drive periods, of which the last ``record_periods`` give
+    the Poincare samples (drive phase 0).  Returns (up, down) diagrams for
+    ``mode="continuation"`` and a single 'fixed' diagram for ``mode="fixed"``.
+    """
+    betas = np.sort(np.asarray(beta_values, dtype=float).ravel())
+    if betas.size == 0:
+        raise ValueError("beta_values is empty")
+    if not 1 <= record_periods <= periods:
+        raise ValueError(f"need 1 <= record_periods ({record_periods}) <= periods ({periods})")
+    packed = np.array([model_at_beta(model, beta).pack() for beta in betas])
+    transient = periods - record_periods
+    settings = dict(
+        transient_periods=transient, record_periods=record_periods, rtol=rtol, atol=atol
+    )
+    if mode == "fixed":
+        initial = np.tile(np.asarray(initial_state, dtype=float), (betas.size, 1))
+        runs = run_poincare(packed, initial, workers=workers, **settings)
+        return (BifurcationDiagram(betas, runs.theta, runs.theta_dot, "fixed"),)
+    if mode != "continuation":
+        raise ValueError(f"mode = {mode!r}: choose 'continuation' or 'fixed'")
+    orders = {"up": np.arange(betas.size), "down": np.arange(betas.size)[::-1]}
+    if (workers or 2) >= 2 and betas.size >= 8:
+        with process_pool(2) as pool:
+            futures = {
+                name: pool.submit(continue_along, packed[order], initial_state, **settings)
+                for name, order in orders.items()
+            }
+            runs = {name: future.result() for name, future in futures.items()}
+    else:
+        runs = {
+            name: continue_along(packed[order], initial_state, **settings)
+            for name, order in orders.items()
+        }
+    diagrams = []
+    for name, order in orders.items():
+        back = np.argsort(order)  # results back in ascending beta
+        diagrams.append(
+            BifurcationDiagram(betas, runs[name].theta[back], runs[name].theta_dot[back], name)
+        )
+    return tuple(diagrams)
+
+
+def bifurcation_from_recording(
+    parameter_values: Sequence[float] | np.ndarray,
+    sections: Sequence[PoincareSection | np.ndarray],
+    *,
+    parameter_name: str = "beta",
+    last: int | None = None,
+) -> BifurcationDiagram:
+    """Diagram of a recorded sweep: one Poincare section (or array of angles) per step.
+
+    ``last`` keeps only the final samples of each step (the settled part after the
+    step change).
+    """
+    values = np.asarray(parameter_values, dtype=float).ravel()
+    if values.size != len(sections):
+        raise ValueError(
+            f"{values.size} parameter values but {len(sections)} Poincare sections: "
+            "need one section per sweep step"
+        )
+    thetas, rates = [], []
+    for section in sections:
+        if isinstance(section, PoincareSection):
+            theta, rate = section.theta, section.theta_dot
+        else:
+            theta = np.asarray(section, dtype=float).ravel()
+            rate = np.full(theta.size, np.nan)
+        if last is not None:
+            theta, rate = theta[-last:], rate[-last:]
+        thetas.append(theta)
+        rates.append(rate)
+    width = max((t.size for t in thetas), default=0)
+    theta_grid = np.full((values.size, width), np.nan)
+    rate_grid = np.full((values.size, width), np.nan)
+    for i, (theta, rate) in enumerate(zip(thetas, rates, strict=True)):
+        theta_grid[i, : theta.size] = theta
+        rate_grid[i, : rate.size] = rate
+    return BifurcationDiagram(values, theta_grid, rate_grid, "recorded", parameter_name)
+
+
+_STYLE = {
+    "up": dict(color="tab:blue", label="simulation, sweep up"),
+    "down": dict(color="tab:orange", label="simulation, sweep down"),
+    "fixed": dict(color="tab:green", label="simulation, fixed initial state"),
+    "recorded": dict(color="black", label="measured"),
+}
+
+
+def plot_bifurcation(
+    *diagrams: BifurcationDiagram,
+    title: str | None = None,
+    path: str | Path | None = None,
+) -> Figure:
+    """Draw diagrams on one axis (Agg, no window); saved as PNG when ``path`` is given."""
+    if not diagrams:
+        raise ValueError("nothing to plot: pass at least one BifurcationDiagram")
+    figure = Figure(figsize=(8.0, 5.0), dpi=120)
+    FigureCanvasAgg(figure)
+    axes = figure.add_subplot()
+    for diagram in diagrams:
+        x, y = diagram.scatter()
+        style = _STYLE.get(diagram.direction, dict(color="gray", label=diagram.direction))
+        size = 6.0 if diagram.direction == "recorded" else 0.8
+        axes.scatter(x, y, s=size, marker=".", linewidths=0, alpha=0.8, **style)
+    axes.set_xlabel(diagrams[0].parameter_name)
+    axes.set_ylabel("theta at drive phase 0 [rad]")
+    if title:
+        axes.set_title(title)
+    legend = axes.legend(loc="best", markerscale=8)
+    for handle in legend.legend_handles:
+        handle.set_alpha(1.0)
+    figure.tight_layout()
+    if path is not None:
+        figure.savefig(Path(path), format="png")
+    return figure
