@@ -42,6 +42,8 @@ from drivers.serial_daq import SerialDaqBackend  # noqa: E402
 
 CHANNELS = (0, 1, 2, 3)
 LADDER_HZ = (40_000, 100_000, 150_000, 200_000, 250_000)
+BOARD_MAX_RATE_HZ = 250_000  # the IRDAQ-4's limit; rates above it emulate a faster board
+HEADROOM_HZ = (400_000, 600_000, 800_000)
 CPU_FIGURE_RATE_HZ = 40_000
 GOAL_RATE_HZ = 200_000
 GOAL_CPU_FRACTION = 0.25
@@ -50,9 +52,10 @@ GOAL_CPU_FRACTION = 0.25
 class Emulator:
     """The board emulator in its own process (``python -m hardware_sim.daq_emulator``)."""
 
-    def __init__(self) -> None:
+    def __init__(self, max_rate_hz: float) -> None:
+        command = [sys.executable, "-m", "hardware_sim.daq_emulator", "--speed", "1"]
         self.process = subprocess.Popen(
-            [sys.executable, "-m", "hardware_sim.daq_emulator", "--speed", "1"],
+            [*command, "--max-rate-hz", f"{max_rate_hz:g}"],
             cwd=ROOT,
             stdin=subprocess.PIPE,
             stdout=subprocess.PIPE,
@@ -92,7 +95,7 @@ class Result:
 
 
 def stream(rate_hz: float, seconds: float) -> Result:
-    emulator = Emulator()
+    emulator = Emulator(max(BOARD_MAX_RATE_HZ, rate_hz))
     try:
         board = DaqBoard(
             SerialDaqBackend(emulator.port), sample_rate_hz=rate_hz, analog_channels=CHANNELS
@@ -125,7 +128,7 @@ def stream(rate_hz: float, seconds: float) -> Result:
 
 def bare_read_cpu(rate_hz: float, seconds: float) -> tuple[float, int]:
     """Baseline: CPU to pull the same stream off the pty without looking at it."""
-    emulator = Emulator()
+    emulator = Emulator(BOARD_MAX_RATE_HZ)
     try:
         backend = SerialDaqBackend(emulator.port)
         backend.connect()
@@ -153,7 +156,15 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--rates", type=float, nargs="+", default=LADDER_HZ, help="per-channel rates (Hz)"
     )
+    parser.add_argument(
+        "--headroom",
+        action="store_true",
+        help=f"also try {', '.join(f'{r:,}' for r in HEADROOM_HZ)} Hz on an emulated faster "
+        "board, to find where the host (or the Python emulator) gives out",
+    )
     args = parser.parse_args(argv)
+    if args.headroom:
+        args.rates = [*args.rates, *HEADROOM_HZ]
     print(f"4 channels + digital word, 256-sample frames, {args.seconds:g} s per rate")
     print(f"{'rate/ch':>10} {'aggregate':>10} {'samples':>10} {'lost':>6} {'rejected':>8} "
           f"{'cpu s/data s':>12}")  # fmt: skip

@@ -84,8 +84,11 @@ class BoardRole(Protocol):
 class _Subscription:
     """One role's queue of chunks; bounded so a role nobody reads cannot eat the memory."""
 
-    def __init__(self, max_samples: int) -> None:
+    def __init__(self, max_samples: int, wait_when_full: bool, stopping: threading.Event) -> None:
         self.max_samples = max_samples
+        self.wait_when_full = wait_when_full
+        self.stopping = stopping
+        self.closed = False  # its role left: nothing waits for it any more
         self.chunks: deque[tuple[RawChunk, int]] = deque()
         self.queued_samples = 0
         self.samples_received = 0
@@ -94,6 +97,13 @@ class _Subscription:
 
     def push(self, chunk: RawChunk, lost_before: int) -> None:
         with self.condition:
+            while (
+                self.wait_when_full
+                and self.queued_samples >= self.max_samples
+                and not self.stopping.is_set()
+                and not self.closed
+            ):
+                self.condition.wait(0.05)  # back-pressure: the device drops, and says so
             self.chunks.append((chunk, lost_before))
             self.queued_samples += chunk.n_samples
             self.samples_lost += lost_before
@@ -122,6 +132,7 @@ class _Subscription:
             while self.chunks and self.chunks[0][1] == 0:
                 parts.append(self.chunks.popleft()[0])
             self.queued_samples -= sum(p.n_samples for p in parts)
+            self.condition.notify_all()  # room again for a reader waiting on a full queue
         if len(parts) > 1:
             chunk = RawChunk(
                 parts[0].first_index,
@@ -133,7 +144,15 @@ class _Subscription:
 
 
 class DaqBoard:
-    """One DAQ board and its single stream, shared by the role drivers attached to it."""
+    """One DAQ board and its single stream, shared by the role drivers attached to it.
+
+    Each role queues up to ``role_buffer_s`` of samples.  When a role's queue is
+    full, ``when_role_full='drop'`` (the default, right for hardware: one idle role
+    must not stall the others) drops that role's oldest samples and reports them
+    lost; ``'wait'`` holds the reader back instead, so the device side drops (and
+    the index gap says how many) or, for a simulation run as fast as possible,
+    simply waits: nothing is lost.
+    """
 
     def __init__(
         self,
@@ -144,6 +163,7 @@ class DaqBoard:
         expected_model: str = DEFAULT_MODEL,
         stall_timeout_s: float = 1.0,
         role_buffer_s: float = 10.0,
+        when_role_full: str = "drop",
     ) -> None:
         if not (math.isfinite(sample_rate_hz) and sample_rate_hz > 0):
             raise LimitError(f"sample_rate_hz={sample_rate_hz} must be a positive number")
@@ -154,12 +174,15 @@ class DaqBoard:
             raise LimitError(f"analog_channels={analog_channels} names a channel twice")
         if any(c < 0 for c in channels):
             raise LimitError(f"analog_channels={analog_channels}: channels are numbered from 0")
+        if when_role_full not in ("drop", "wait"):
+            raise LimitError(f"when_role_full={when_role_full!r} must be 'drop' or 'wait'")
         self.backend = backend
         self.requested_rate_hz = float(sample_rate_hz)
         self.analog_channels = tuple(sorted(channels))
         self.expected_model = expected_model
         self.stall_timeout_s = stall_timeout_s
         self.role_buffer_s = role_buffer_s
+        self.when_role_full = when_role_full
         self.identity: BoardIdentity | None = None
         self.configuration: BoardConfiguration | None = None
         self.failure = ""  # set when the device went away; role reads then raise
@@ -243,7 +266,11 @@ class DaqBoard:
     def subscribe(self, *, start: bool = True) -> _Subscription:
         """A queue that receives every chunk from now on; starts the stream if asked and needed."""
         self.open()
-        subscription = _Subscription(max(1, int(self.role_buffer_s * self.sample_rate_hz)))
+        subscription = _Subscription(
+            max(1, int(self.role_buffer_s * self.sample_rate_hz)),
+            wait_when_full=self.when_role_full == "wait",
+            stopping=self._stop_reading,
+        )
         with self._lock:
             self._subscriptions = (*self._subscriptions, subscription)
             if start and not self._streaming:
@@ -264,6 +291,9 @@ class DaqBoard:
 
     def unsubscribe(self, subscription: _Subscription) -> None:
         """Stop feeding a role; the stream stops when the last role leaves."""
+        with subscription.condition:
+            subscription.closed = True
+            subscription.condition.notify_all()
         with self._lock:
             self._subscriptions = tuple(s for s in self._subscriptions if s is not subscription)
             if not self._subscriptions and self._streaming:

@@ -24,6 +24,7 @@ import sys
 import threading
 import time
 import tty
+from dataclasses import replace
 
 from drivers.daq_protocol import (
     MAX_COMMAND_BYTES,
@@ -224,9 +225,16 @@ def _main(argv: list[str] | None = None) -> int:
     parser.add_argument("--speed", type=float, default=1.0, help="clock speed factor (inf: ASAP)")
     parser.add_argument("--samples-per-frame", type=int, default=256)
     parser.add_argument("--fifo-bytes", type=int, default=512 * 1024)
+    parser.add_argument(
+        "--max-rate-hz",
+        type=float,
+        default=DEFAULT_IDENTITY.max_rate_hz,
+        help="the board's top sample rate (raise it to measure a host's headroom)",
+    )
     args = parser.parse_args(argv)
     emulator = DaqEmulator(
         CounterSource(),
+        identity=replace(DEFAULT_IDENTITY, max_rate_hz=args.max_rate_hz),
         speed=args.speed,
         fifo_bytes=args.fifo_bytes,
         max_samples_per_frame=args.samples_per_frame,

@@ -7,6 +7,7 @@ firmware model and the same fault injector.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Iterator
 
 import pytest
@@ -57,6 +58,8 @@ def make_board(backend_kind: str) -> Iterator[MakeBoard]:
             analog_channels=analog_channels,
             stall_timeout_s=0.3,
             role_buffer_s=role_buffer_s,
+            # As fast as possible: the consumer sets the pace, a full queue waits.
+            when_role_full="wait" if math.isinf(speed) else "drop",
         )
         boards.append(board)
         return board

@@ -8,6 +8,7 @@ what the board's fault log says it damaged.
 from __future__ import annotations
 
 import itertools
+import math
 import time
 
 import numpy as np
@@ -16,6 +17,7 @@ import pytest
 from drivers.daq import DaqBoard
 from drivers.interfaces import (
     DeviceError,
+    InputStream,
     LimitError,
     PulseBlock,
     SampleBlock,
@@ -73,6 +75,7 @@ def test_three_roles_share_one_exact_stream(make_board):
     angle = PotentiometerAngleSensor(board, 0, angle_cal)
     laser = LaserDisplacementSensor(board, 1, laser_cal)
     tach = Tachometer(board)
+    assert all(isinstance(role, InputStream) for role in (angle, laser, tach))
     board.start_roles(angle, laser, tach)
     end = 30_000
     angle_blocks = read_until(angle, end)
@@ -122,6 +125,16 @@ def test_tach_edges_on_frame_boundaries_are_found(make_board):
     edges = np.concatenate([b.edge_indices for b in blocks])
     assert np.array_equal(edges, source.expected_rising_edges(0, blocks[-1].end_index))
     assert len(edges) >= 29
+
+
+def test_as_fast_as_possible_stream_is_exact(make_board):
+    board = make_board(CounterSource(), speed=math.inf)
+    angle = PotentiometerAngleSensor(board, 0, PotentiometerCalibration())
+    angle.start()
+    blocks = read_until(angle, 60_000)
+    assert blocks[0].first_index == 0 and all(b.lost_before == 0 for b in blocks)
+    assert_indices_account(blocks)
+    assert_never_invented(blocks, expected_angle_counts)
 
 
 FAULTS = {
