@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -60,6 +61,13 @@ def test_sim_rig_serves_its_endpoints_and_stops_on_ctrl_c(
         shaker.enabled = True
         settled = shaker.wait_settled(timeout_s=10.0)  # the world clock moves the shaker
         assert settled.amplitude_m == pytest.approx(0.002)
+        assert process.stdin is not None and process.stdout is not None
+        process.stdin.write("status\n")
+        process.stdin.flush()
+        reply = re.search(r"table=(\S+) m at (\S+) Hz", process.stdout.readline())
+        assert reply is not None
+        assert float(reply[1]) == pytest.approx(0.002, rel=1e-3)
+        assert float(reply[2]) == pytest.approx(5.0, rel=1e-6)
 
         rtu = ModbusRtuBackend(endpoints["modbus-rtu"], timeout_s=1.0)
         rtu.open()

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import math
 import threading
 
@@ -9,7 +10,7 @@ import numpy as np
 import pytest
 from scipy.optimize import curve_fit
 
-from analysis.model import Drive, Model
+from analysis.model import Drive, Model, RigParameters
 from drivers.limits import ShakerLimits
 from drivers.shaker import ShakerAmplifier
 from hardware_sim.amplifier_firmware import AmplifierFirmware
@@ -214,3 +215,32 @@ def test_commands_from_another_thread_while_generating() -> None:
         worker.join()
     assert errors == []
     assert total == 40_000 and rig.samples_generated == 40_000
+
+
+def test_coulomb_friction_from_configuration_decays_linearly() -> None:
+    # oracle: with dry friction only (zeta = 0), each half swing loses 2 Tc / (m L^2 omega^2)
+    tc = 2e-4
+    rp = RigParameters(zeta=0.0)
+    model = Model(rig=rp, barrier=False).with_extension("coulomb_friction", Tc_N_m=tc)
+    settings = VirtualRigSettings(model=model, sample_rate_hz=2000.0)
+    rig = VirtualRig(settings)
+    rig.release(0.15)
+    angle = _angle_rad(settings, rig.generate(4000)["angle"])
+    crossings = np.flatnonzero(np.diff(np.sign(angle)) != 0)
+    extremes = [np.abs(angle[a:b]).max() for a, b in itertools.pairwise(crossings)]
+    loss = 2 * tc / (rp.m_kg * rp.L_m**2 * rp.omega_rad_s**2)
+    steps = -np.diff([0.15, *extremes])
+    assert len(steps) >= 3
+    np.testing.assert_allclose(steps, loss, rtol=0.01)
+
+
+def test_potentiometer_linearity_and_adc_saturation() -> None:
+    pot = PotentiometerCalibration(offset_v=0.2, gain_v_per_rad=3.0, linearity_v=(0.0, 0.5))
+    settings = VirtualRigSettings(potentiometer=pot)
+    rig = VirtualRig(settings)
+    lsb = settings.adc.lsb_v
+    rig.hold(0.3)
+    expected = math.floor((0.2 + 3.0 * 0.3 + 0.5 * 0.3**3) / lsb + 0.5)
+    assert set(rig.generate(10)["angle"]) == {expected}
+    rig.hold(4.0)  # 12.2 V: beyond the +-10 V converter
+    assert set(rig.generate(10)["angle"]) == {2**15 - 1}
