@@ -32,6 +32,8 @@ OUTLIER_SIGMAS = 6.0  # residuals beyond this many robust standard deviations ar
 MAX_OUTLIER_FRACTION = 0.01  # more "outliers" than this is model misfit, not bad samples
 POOR_FIT_RATIO = 3.0  # residual rms this many times the noise: the model misses structure
 ROBUST_PASS_SAMPLES = 6000
+CONTINUATION_START_PERIODS = 4.0
+CONTINUATION_GROWTH = 3.0
 METHODS = ("auto", "averaging", "simulation")
 
 
@@ -135,7 +137,9 @@ def fit_free_decay(
     else:
         theta0_guess, theta_dot0_guess = _initial_state(signal, guess)
         # The small-angle guess underestimates omega for large swings; widen the bounds.
-        omega_small = guess.omega_rad_s / _period_factor(guess.amplitude_rad)
+        # The period from the turning points belongs to their median swing.
+        typical = float(np.median(guess.turning_amplitudes_rad))
+        omega_small = guess.omega_rad_s * _period_factor(typical)
         names = ("theta0_rad", "theta_dot0_rad_s", "zeta", "omega_rad_s", "offset_rad")
         x0 = [theta0_guess, theta_dot0_guess, guess.zeta, omega_small, guess.offset_rad]
         lower = [-math.pi, -math.inf, 0.0, 0.5 * omega_small, -math.inf]
@@ -144,7 +148,9 @@ def fit_free_decay(
         def curve(t: np.ndarray, x: np.ndarray) -> np.ndarray:
             return simulated_free_decay(t, x[0], x[1], x[2], x[3], g) + x[4]
 
-    x, cov, quality, excluded = _robust_fit(signal, curve, x0, lower, upper)
+    x, cov, quality, excluded = _robust_fit(
+        signal, curve, x0, lower, upper, 2.0 * math.pi / guess.omega_rad_s
+    )
     values = dict(zip(names, x, strict=True))
     omega, zeta = values["omega_rad_s"], values["zeta"]
     i_omega, i_zeta = names.index("omega_rad_s"), names.index("zeta")
@@ -216,6 +222,7 @@ def _robust_fit(
     x0: Sequence[float],
     lower: Sequence[float],
     upper: Sequence[float],
+    period_s: float,
 ) -> tuple[np.ndarray, Covariance, FitQuality, int]:
     """Robust (soft L1) fit, exclusion of isolated outliers, final least squares and intervals."""
     t = signal.time_s
@@ -234,9 +241,28 @@ def _robust_fit(
         keep = np.zeros(t.size, dtype=bool)
         keep[::stride] = True
         thin &= keep
+    # Plain least squares first, so that the robust loss is scaled to the residuals the
+    # model really leaves (on real data far above the sensor noise) and not to the noise.
+    # On a long record the cost is a comb in omega; fitting a few periods first and
+    # then ever longer spans keeps each step inside the basin of the true minimum.
+    x_start = x0
+    span = CONTINUATION_START_PERIODS * period_s
+    while span < t[-1]:
+        window = thin & (t <= span)
+        x_start = least_squares(
+            residual, x_start, bounds=(lower, upper), method="trf", x_scale="jac",
+            args=(window,), max_nfev=100,
+        ).x
+        span *= CONTINUATION_GROWTH
+    plain = least_squares(
+        residual, x_start, bounds=(lower, upper), method="trf", x_scale="jac", args=(thin,),
+    )
+    r = plain.fun
+    spread = 1.4826 * float(np.median(np.abs(r - np.median(r))))
     robust = least_squares(
-        residual, x0, bounds=(lower, upper), method="trf", loss="soft_l1",
-        f_scale=3.0 * signal.noise_rad, x_scale="jac", args=(thin,),
+        residual, plain.x, bounds=(lower, upper), method="trf", loss="soft_l1",
+        f_scale=3.0 * max(spread, signal.noise_rad), x_scale="jac", args=(thin,),
+        max_nfev=200,
     )
     r = residual(robust.x, use)
     sigma = 1.4826 * float(np.median(np.abs(r - np.median(r))))

@@ -199,7 +199,9 @@ def fit_impact_decay(
         return _simulate(rig, values["theta0_rad"], values["theta_dot0_rad_s"], dt, n_samples) \
             + values["offset_rad"]
 
-    x, cov, quality, excluded = _robust_fit(signal, curve, x0, lower, upper)
+    x, cov, quality, excluded = _robust_fit(
+        signal, curve, x0, lower, upper, 2.0 * math.pi / omega0
+    )
     values = dict(zip(names, x, strict=True))
     i_k = names.index("log_K")
     K = math.exp(values["log_K"])

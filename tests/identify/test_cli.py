@@ -1,0 +1,79 @@
+"""``impact-rig identify`` end to end on real exchange files written to a temporary folder."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from analysis.exchange import ExchangeMeta, ExchangeRecord, write_exchange
+from rig.cli import main
+from tests.identify.oracle import free_decay
+
+MODEL_KEYS = {"L_m", "omega_rad_s", "zeta", "theta0_rad"}
+
+
+@pytest.fixture
+def decay_csv(tmp_path):
+    t, theta = free_decay(0.12, 0.015, 0.25, duration_s=10.0, fs_hz=300.0)
+    theta = theta + np.random.default_rng(4).normal(0.0, 5e-4, t.size)
+    meta = ExchangeMeta("free_decay", rig={"m_kg": None, "l_m": None, "R_m": None, "g": 9.81})
+    path, _ = write_exchange(tmp_path / "decay.csv", ExchangeRecord(t, theta, meta))
+    return path
+
+
+def test_identify_writes_the_json_report(decay_csv, tmp_path, capsys):
+    out = tmp_path / "report.json"
+    assert main(["identify", str(decay_csv), "--json", str(out)]) == 0
+    report = json.loads(out.read_text())
+    assert report["experiment"] == "free_decay"
+    assert set(report["parameters"]) >= MODEL_KEYS
+    L = report["parameters"]["L_m"]
+    assert L["ci95"][0] < 0.25 < L["ci95"][1]
+    assert L["ci95"][0] < L["value"] < L["ci95"][1]
+    printed = capsys.readouterr().out
+    assert "L_m" in printed and "95% CI" in printed
+
+
+def test_identify_runs_as_a_console_command(decay_csv, tmp_path):
+    out = tmp_path / "report.json"
+    proc = subprocess.run(
+        [sys.executable, "-m", "rig.cli", "identify", str(decay_csv), "--json", str(out)],
+        capture_output=True, text=True, timeout=120,
+    )
+    assert proc.returncode == 0, proc.stderr
+    assert "zeta" in json.loads(out.read_text())["parameters"]
+
+
+def test_missing_column_is_a_clear_error(tmp_path, capsys):
+    bad = tmp_path / "bad.csv"
+    bad.write_text("time_s,angle_deg\n0,1\n0.1,2\n")
+    (tmp_path / "bad.json").write_text(json.dumps({"experiment": "free_decay"}))
+    assert main(["identify", str(bad)]) != 0
+    err = capsys.readouterr().err
+    assert "angle_rad" in err and "bad.csv" in err
+
+
+def test_missing_sidecar_is_a_clear_error(decay_csv, capsys):
+    decay_csv.with_suffix(".json").unlink()
+    assert main(["identify", str(decay_csv)]) != 0
+    assert "metadata file not found" in capsys.readouterr().err
+
+
+def test_hdf5_is_refused_until_the_recorder_loader_is_registered(tmp_path, capsys):
+    h5 = tmp_path / "run.h5"
+    h5.write_bytes(b"")
+    assert main(["identify", str(h5)]) != 0
+    assert "not yet supported" in capsys.readouterr().err
+
+
+def test_unfittable_record_names_the_reason(tmp_path, capsys):
+    t = np.arange(2000) / 200.0
+    flat = np.full(t.size, 0.01) + np.random.default_rng(0).normal(0.0, 1e-4, t.size)
+    meta = ExchangeMeta("free_decay", rig={})
+    path, _ = write_exchange(tmp_path / "flat.csv", ExchangeRecord(t, flat, meta))
+    assert main(["identify", str(path)]) != 0
+    assert "no oscillation" in capsys.readouterr().err

@@ -1,0 +1,42 @@
+"""Drive amplitude and phase of a forced record from its table channel."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from analysis.identify import IdentificationError, fit_drive
+from analysis.records import Record
+
+
+def _forced(rng, amplitude, phase, f_true, f_stated, noise=2e-5, duration_s=5.0, fs=1000.0):
+    t = np.arange(int(duration_s * fs)) / fs
+    table = amplitude * np.sin(2 * math.pi * f_true * t + phase) + 3e-4
+    table = table + rng.normal(0.0, noise, t.size)
+    return Record(t, np.zeros(t.size), "forced", drive={"frequency_hz": f_stated},
+                  table_m=table)
+
+
+def test_amplitude_and_phase_within_their_intervals():
+    rng = np.random.default_rng(8)
+    covered = 0
+    for _ in range(10):
+        amplitude, phase = rng.uniform(1e-3, 8e-3), rng.uniform(-3.0, 3.0)
+        result = fit_drive(_forced(rng, amplitude, phase, 7.3, 7.3))
+        covered += result["amplitude_m"].contains(amplitude) and result["phase_rad"].contains(phase)
+    assert covered >= 8
+
+
+def test_frequency_refined_when_the_stated_one_is_off():
+    rng = np.random.default_rng(9)
+    result = fit_drive(_forced(rng, 5e-3, 0.4, 10.02, 10.0), estimate_frequency=True)
+    assert result["frequency_hz"].value == pytest.approx(10.02, abs=1e-4)
+    assert result["amplitude_m"].value == pytest.approx(5e-3, rel=1e-3)
+
+
+def test_forced_record_without_table_channel_is_refused():
+    record = Record(np.arange(100) / 100.0, np.zeros(100), "forced", drive={"frequency_hz": 2.0})
+    with pytest.raises(IdentificationError, match="table_m"):
+        fit_drive(record)
