@@ -224,8 +224,8 @@ class ShakerAmplifier:
                     f"{self.expected_model_code:04X}, map {MAP_VERSION} "
                     "(check the address, port and device id)"
                 )
-            self.identity = AmplifierIdentity(model, f"{firmware >> 8}.{firmware & 0xFF}",
-                                              map_version)
+            version = f"{firmware >> 8}.{firmware & 0xFF}"
+            self.identity = AmplifierIdentity(model, version, map_version)
             self.backend.write_registers(
                 int(Holding.WATCHDOG_MS), [round(self.watchdog_s * 1000)]
             )
@@ -249,9 +249,9 @@ class ShakerAmplifier:
         if self._link_failure is None:
             self._make_safe()
         self._heartbeat_stop.set()
-        if self._heartbeat_thread is not None and self._heartbeat_thread is not \
-                threading.current_thread():
-            self._heartbeat_thread.join(5.0)
+        beat = self._heartbeat_thread
+        if beat is not None and beat is not threading.current_thread():
+            beat.join(5.0)
         with self._lock:
             self.backend.close()
             self._connected = False
