@@ -1,5 +1,6 @@
 """Fast, exact simulation of the impact pendulum: single runs, a streaming stepper, ensembles."""
 
+from analysis.simulate.ensemble import EnsembleResult, simulate_ensemble
 from analysis.simulate.result import ContactEvents, SimulationResult, StickEvents, Trajectory
 from analysis.simulate.simulation import (
     drive_period_s,
@@ -12,6 +13,7 @@ from analysis.simulate.stepper import SimulationStoppedError, Stepper
 
 __all__ = [
     "ContactEvents",
+    "EnsembleResult",
     "SimulationResult",
     "SimulationStoppedError",
     "Stepper",
@@ -21,5 +23,6 @@ __all__ = [
     "poincare_times",
     "record_start_s",
     "simulate",
+    "simulate_ensemble",
     "simulate_packed",
 ]

@@ -145,7 +145,10 @@ def simulate_packed(
         np.empty((1024 if dense else 0, 3)),
         0,
     )
+    # contacts and stick intervals that ended during the record (not in the transient, nor
+    # in the part of the last step beyond its end)
     rows = events[:n_events]
+    rows = rows[(rows[:, ig.EV_T_OUT] >= t_rec) & (rows[:, ig.EV_T_OUT] <= t_final)]
     pc_t = pc_t0 + np.arange(pc_written) * pc_dt
     trajectory = None
     if dense:

@@ -169,14 +169,21 @@ class Stepper:
         self._t = float(times[-1])
         return theta, theta_dot
 
+    def _pop_rows(self) -> np.ndarray:
+        """Event rows that ended by the current time; later ones (the integrator may have
+        stepped past ``t``) stay for the next pop."""
+        rows = self._events[: self._n_events].copy()
+        done = rows[:, ig.EV_T_OUT] <= self._t
+        pending = rows[~done]
+        self._events[: pending.shape[0]] = pending
+        self._n_events = pending.shape[0]
+        return rows[done]
+
     def pop_contacts(self) -> ContactEvents:
         """Contacts completed since the last pop (stick intervals are dropped with them)."""
-        rows = self._events[: self._n_events].copy()
-        self._n_events = 0
-        return ContactEvents.from_rows(rows)
+        return ContactEvents.from_rows(self._pop_rows())
 
     def pop_events(self) -> tuple[ContactEvents, StickEvents]:
         """Contacts and stick intervals completed since the last pop."""
-        rows = self._events[: self._n_events].copy()
-        self._n_events = 0
+        rows = self._pop_rows()
         return ContactEvents.from_rows(rows), StickEvents.from_rows(rows)
