@@ -30,8 +30,15 @@ def _cases() -> dict[str, tuple[Model, float]]:
 
 
 def _time_rig(model: Model, theta0: float, block: int) -> float:
-    rig = VirtualRig(VirtualRigSettings(model=model, sample_rate_hz=RATE_HZ, theta0_rad=theta0,
-                                        angle_noise_rad=2e-4, table_noise_m=2e-6))
+    rig = VirtualRig(
+        VirtualRigSettings(
+            model=model,
+            sample_rate_hz=RATE_HZ,
+            theta0_rad=theta0,
+            angle_noise_rad=2e-4,
+            table_noise_m=2e-6,
+        )
+    )
     rig.generate(block)  # compile / warm up
     n_blocks = int(DURATION_S * RATE_HZ) // block
     start = time.perf_counter()

@@ -39,8 +39,9 @@ class _ModbusBackend:
 
     description = "Modbus device"
 
-    def __init__(self, client: ModbusTcpClient | ModbusSerialClient, device_id: int,
-                 timeout_s: float) -> None:
+    def __init__(
+        self, client: ModbusTcpClient | ModbusSerialClient, device_id: int, timeout_s: float
+    ) -> None:
         self._client = client
         self.device_id = device_id
         self.timeout_s = timeout_s
@@ -51,21 +52,27 @@ class _ModbusBackend:
     def read_input_registers(self, address: int, count: int) -> list[int]:
         reply = self._request(
             f"FC4 read of {count} input register(s) at {address}",
-            self._client.read_input_registers, address, count=count,
+            self._client.read_input_registers,
+            address,
+            count=count,
         )
         return list(reply.registers)
 
     def read_holding_registers(self, address: int, count: int) -> list[int]:
         reply = self._request(
             f"FC3 read of {count} holding register(s) at {address}",
-            self._client.read_holding_registers, address, count=count,
+            self._client.read_holding_registers,
+            address,
+            count=count,
         )
         return list(reply.registers)
 
     def write_registers(self, address: int, values: Sequence[int]) -> None:
         self._request(
             f"FC16 write of {list(values)} at {address}",
-            self._client.write_registers, address, list(values),
+            self._client.write_registers,
+            address,
+            list(values),
         )
 
     def _request(self, what: str, call: Callable[..., Any], *args: Any, **kwargs: Any) -> Any:
@@ -104,7 +111,11 @@ class ModbusTcpBackend(_ModbusBackend):
         retries: int = 1,
     ) -> None:
         client = ModbusTcpClient(
-            host, port=port, timeout=timeout_s, retries=retries, reconnect_delay=0,
+            host,
+            port=port,
+            timeout=timeout_s,
+            retries=retries,
+            reconnect_delay=0,
         )
         super().__init__(client, device_id, timeout_s)
         self.description = f"shaker amplifier at Modbus TCP {host}:{port}"
@@ -138,8 +149,13 @@ class ModbusRtuBackend(_ModbusBackend):
         retries: int = 1,
     ) -> None:
         client = ModbusSerialClient(
-            port, baudrate=baudrate, parity=parity, stopbits=stopbits, timeout=timeout_s,
-            retries=retries, reconnect_delay=0,
+            port,
+            baudrate=baudrate,
+            parity=parity,
+            stopbits=stopbits,
+            timeout=timeout_s,
+            retries=retries,
+            reconnect_delay=0,
         )
         super().__init__(client, device_id, timeout_s)
         self.port = port

@@ -226,9 +226,7 @@ class ShakerAmplifier:
                 )
             version = f"{firmware >> 8}.{firmware & 0xFF}"
             self.identity = AmplifierIdentity(model, version, map_version)
-            self.backend.write_registers(
-                int(Holding.WATCHDOG_MS), [round(self.watchdog_s * 1000)]
-            )
+            self.backend.write_registers(int(Holding.WATCHDOG_MS), [round(self.watchdog_s * 1000)])
         except DeviceError:
             self.backend.close()
             raise
@@ -273,8 +271,9 @@ class ShakerAmplifier:
     @property
     def enabled(self) -> bool:
         """Drive on (True) or ramping to / resting at zero (False)."""
-        (value,) = self._io("read enable", self.backend.read_holding_registers,
-                            int(Holding.ENABLE), 1)
+        (value,) = self._io(
+            "read enable", self.backend.read_holding_registers, int(Holding.ENABLE), 1
+        )
         return bool(value)
 
     @enabled.setter
@@ -292,23 +291,30 @@ class ShakerAmplifier:
         With ``wait_s > 0``, also wait (at most that long) until the measured
         amplitude is zero.  Safe to call at any time and more than once.
         """
-        self._io("write amplitude_m", self.backend.write_registers,
-                 int(Holding.AMPLITUDE_UM), [0])
+        self._io("write amplitude_m", self.backend.write_registers, int(Holding.AMPLITUDE_UM), [0])
         self._io("disable", self.backend.write_registers, int(Holding.ENABLE), [0])
         if wait_s > 0:
             self.wait_until(lambda m: m.at_zero, wait_s, "the output reached zero")
 
     def clear_faults(self) -> None:
         """Clear latched faults whose cause is gone (the drive stays off until enabled)."""
-        self._io("clear faults", self.backend.write_registers, int(Holding.COMMAND),
-                 [int(Command.CLEAR_FAULTS)])
+        self._io(
+            "clear faults",
+            self.backend.write_registers,
+            int(Holding.COMMAND),
+            [int(Command.CLEAR_FAULTS)],
+        )
 
     # ------------------------------------------------------------------ readings
 
     def measured(self) -> MeasuredDrive:
         """Measured frequency and amplitude, state bits and faults, in one request."""
-        regs = self._io("read measurements", self.backend.read_input_registers,
-                        int(Input.STATUS), int(Input.MEASURED_AMPLITUDE_UM) - int(Input.STATUS) + 1)
+        regs = self._io(
+            "read measurements",
+            self.backend.read_input_registers,
+            int(Input.STATUS),
+            int(Input.MEASURED_AMPLITUDE_UM) - int(Input.STATUS) + 1,
+        )
         status = Status(regs[0])
         return MeasuredDrive(
             frequency_hz=join_u32(regs[2], regs[3]) / 1000.0,
@@ -321,8 +327,7 @@ class ShakerAmplifier:
 
     def faults(self) -> tuple[str, ...]:
         """Plain-word names of the latched faults (empty when healthy)."""
-        (bits,) = self._io("read faults", self.backend.read_input_registers,
-                           int(Input.FAULTS), 1)
+        (bits,) = self._io("read faults", self.backend.read_input_registers, int(Input.FAULTS), 1)
         return fault_words(bits)
 
     def status(self) -> ActuatorStatus:
@@ -330,8 +335,9 @@ class ShakerAmplifier:
         if not self._connected:
             return ActuatorStatus(connected=False, enabled=False)
         if self._link_failure is not None:
-            return ActuatorStatus(False, False, faults=(f"communication lost: "
-                                                        f"{self._link_failure}",))
+            return ActuatorStatus(
+                False, False, faults=(f"communication lost: {self._link_failure}",)
+            )
         try:
             m = self.measured()
         except DeviceError as error:
@@ -344,7 +350,10 @@ class ShakerAmplifier:
         )
 
     def wait_until(
-        self, condition: Callable[[MeasuredDrive], bool], timeout_s: float, what: str,
+        self,
+        condition: Callable[[MeasuredDrive], bool],
+        timeout_s: float,
+        what: str,
         poll_s: float = 0.02,
     ) -> MeasuredDrive:
         """Poll the measurements until ``condition`` holds; DeviceError after ``timeout_s``."""
@@ -411,4 +420,3 @@ class ShakerAmplifier:
                 self._link_failure = error
                 self._make_safe()
                 return
-

@@ -309,8 +309,13 @@ class _PtyBridge:
     def close(self) -> None:
         os.write(self._stop_w, b"x")
         self._thread.join(2.0)
-        for fd in (self._server_master, self._client_master, *self._slaves, self._stop_r,
-                   self._stop_w):
+        for fd in (
+            self._server_master,
+            self._client_master,
+            *self._slaves,
+            self._stop_r,
+            self._stop_w,
+        ):
             with contextlib.suppress(OSError):
                 os.close(fd)
 

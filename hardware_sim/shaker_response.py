@@ -142,12 +142,20 @@ class ShakerResponse:
             if dt > 0:
                 d = self.dynamics
                 self._amp_ref, self._amp_out = _lagged_ramp(
-                    self._amp_ref, self._amp_out, self._amp_target, self._ramp_rate,
-                    d.amplitude_tau_s, dt,
+                    self._amp_ref,
+                    self._amp_out,
+                    self._amp_target,
+                    self._ramp_rate,
+                    d.amplitude_tau_s,
+                    dt,
                 )
                 self._freq_ref, self._freq_out = _lagged_ramp(
-                    self._freq_ref, self._freq_out, self._freq_target, d.frequency_slew_hz_s,
-                    d.frequency_tau_s, dt,
+                    self._freq_ref,
+                    self._freq_out,
+                    self._freq_target,
+                    d.frequency_slew_hz_s,
+                    d.frequency_tau_s,
+                    dt,
                 )
                 self._t = t_s
             return self._output()

@@ -36,8 +36,13 @@ commands read from stdin while running:
 class _CauseAction(argparse.Action):
     """--cause NAME starts a cause; --param NAME=VALUE adds to the last one (order matters)."""
 
-    def __call__(self, parser: argparse.ArgumentParser, namespace: argparse.Namespace,
-                 value: Any, option: str | None = None) -> None:
+    def __call__(
+        self,
+        parser: argparse.ArgumentParser,
+        namespace: argparse.Namespace,
+        value: Any,
+        option: str | None = None,
+    ) -> None:
         causes: list[tuple[str, dict[str, float]]] = getattr(namespace, "causes", None) or []
         if option == "--cause":
             causes.append((value, {}))
@@ -67,29 +72,56 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         epilog=CAUSE_HELP,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    parser.add_argument("--host", default="127.0.0.1",
-                        help="address the Modbus TCP server binds (default: loopback only)")
-    parser.add_argument("--port", type=int, default=5020,
-                        help="Modbus TCP port (default 5020; 0 = any free port)")
+    parser.add_argument(
+        "--host",
+        default="127.0.0.1",
+        help="address the Modbus TCP server binds (default: loopback only)",
+    )
+    parser.add_argument(
+        "--port", type=int, default=5020, help="Modbus TCP port (default 5020; 0 = any free port)"
+    )
     parser.add_argument("--rtu", action="store_true", help="also serve Modbus RTU on a pty")
     parser.add_argument("--no-daq", action="store_true", help="do not start the DAQ board")
-    parser.add_argument("--speed", type=float, default=1.0,
-                        help="clock speed factor: 10 runs ten times faster than real time")
-    parser.add_argument("--theta0", type=float, default=0.0, metavar="RAD",
-                        help="initial pendulum angle (rad)")
+    parser.add_argument(
+        "--speed",
+        type=float,
+        default=1.0,
+        help="clock speed factor: 10 runs ten times faster than real time",
+    )
+    parser.add_argument(
+        "--theta0", type=float, default=0.0, metavar="RAD", help="initial pendulum angle (rad)"
+    )
     parser.add_argument("--no-barrier", action="store_true", help="start with the barrier out")
-    parser.add_argument("--angle-noise", type=float, default=2e-4, metavar="RAD",
-                        help="angle sensor noise, standard deviation (rad)")
-    parser.add_argument("--table-noise", type=float, default=2e-6, metavar="M",
-                        help="laser noise, standard deviation (m)")
+    parser.add_argument(
+        "--angle-noise",
+        type=float,
+        default=2e-4,
+        metavar="RAD",
+        help="angle sensor noise, standard deviation (rad)",
+    )
+    parser.add_argument(
+        "--table-noise",
+        type=float,
+        default=2e-6,
+        metavar="M",
+        help="laser noise, standard deviation (m)",
+    )
     parser.add_argument("--seed", type=int, default=1, help="noise seed")
-    parser.add_argument("--cause", action=_CauseAction, metavar="NAME",
-                        help="switch on a named cause (repeatable)")
-    parser.add_argument("--param", action=_CauseAction, metavar="NAME=VALUE",
-                        help="parameter of the preceding --cause")
-    parser.add_argument("--fault", default="none",
-                        choices=["none", "no_reply", "device_failure", "busy"],
-                        help="amplifier communication fault at start")
+    parser.add_argument(
+        "--cause", action=_CauseAction, metavar="NAME", help="switch on a named cause (repeatable)"
+    )
+    parser.add_argument(
+        "--param",
+        action=_CauseAction,
+        metavar="NAME=VALUE",
+        help="parameter of the preceding --cause",
+    )
+    parser.add_argument(
+        "--fault",
+        default="none",
+        choices=["none", "no_reply", "device_failure", "busy"],
+        help="amplifier communication fault at start",
+    )
     parser.set_defaults(func=run, causes=[])
 
 
@@ -108,8 +140,12 @@ def _build(args: argparse.Namespace) -> Any:
         for name, values in args.causes:
             model = model.with_extension(name, **values)
         settings = VirtualRigSettings(
-            model=model, theta0_rad=args.theta0, speed_factor=args.speed,
-            angle_noise_rad=args.angle_noise, table_noise_m=args.table_noise, seed=args.seed,
+            model=model,
+            theta0_rad=args.theta0,
+            speed_factor=args.speed,
+            angle_noise_rad=args.angle_noise,
+            table_noise_m=args.table_noise,
+            seed=args.seed,
         )
     except (ParameterError, ValueError) as error:
         raise CommandError(str(error)) from None

@@ -19,8 +19,11 @@ from hardware_sim.sim_shaker_backend import SimShakerBackend
 # Quick mechanics so that tests settle in a fraction of a second.
 FAST = ShakerDynamics(frequency_slew_hz_s=200.0, amplitude_tau_s=0.01, frequency_tau_s=0.01)
 LIMITS = ShakerLimits(
-    max_amplitude_m=0.005, min_frequency_hz=0.5, max_frequency_hz=40.0,
-    min_ramp_rate_m_s=1e-5, max_ramp_rate_m_s=0.05,
+    max_amplitude_m=0.005,
+    min_frequency_hz=0.5,
+    max_frequency_hz=40.0,
+    min_ramp_rate_m_s=1e-5,
+    max_ramp_rate_m_s=0.05,
 )
 
 

@@ -21,8 +21,9 @@ FAULT_WATCHDOG = 8
 
 
 def _client(emulator: AmplifierEmulator) -> ModbusClient:
-    client = ModbusClient(host="127.0.0.1", port=emulator.port, unit_id=1, timeout=1.0,
-                          auto_open=True)
+    client = ModbusClient(
+        host="127.0.0.1", port=emulator.port, unit_id=1, timeout=1.0, auto_open=True
+    )
     assert client.open(), client.last_error_as_txt
     return client
 

@@ -77,8 +77,10 @@ def test_timeout_fails_cleanly_and_the_amplifier_ends_at_zero(emulator: Amplifie
 
 @pytest.mark.parametrize(
     ("fault", "code", "words"),
-    [(TransportFault.DEVICE_FAILURE, 0x04, "slave device failure"),
-     (TransportFault.BUSY, 0x06, "busy")],
+    [
+        (TransportFault.DEVICE_FAILURE, 0x04, "slave device failure"),
+        (TransportFault.BUSY, 0x06, "busy"),
+    ],
 )
 def test_exception_reply_fails_cleanly_and_the_amplifier_ends_at_zero(
     emulator: AmplifierEmulator, fault: TransportFault, code: int, words: str

@@ -48,9 +48,7 @@ def test_documented_frames(link: socket.socket, emulator: AmplifierEmulator) -> 
     )
     assert emulator.firmware.read_holding(3, 1) == [1000]
     # an amplitude beyond the device's own range: exception 0x03, nothing changed
-    assert _exchange(link, "00 05 00 00 00 06 01 06 00 02 EA 60") == (
-        "00 05 00 00 00 03 01 86 03"
-    )
+    assert _exchange(link, "00 05 00 00 00 06 01 06 00 02 EA 60") == ("00 05 00 00 00 03 01 86 03")
     assert emulator.firmware.read_holding(2, 1) == [0]
 
 

@@ -38,8 +38,15 @@ def test_lagged_ramp_matches_an_independent_ode_solution() -> None:
     def command(t: float) -> float:
         return min(rate * t, target)
 
-    ode = solve_ivp(lambda t, y: [(command(t) - y[0]) / tau], (0, 0.6), [0.0],
-                    t_eval=times, rtol=1e-10, atol=1e-13, max_step=1e-3)
+    ode = solve_ivp(
+        lambda t, y: [(command(t) - y[0]) / tau],
+        (0, 0.6),
+        [0.0],
+        t_eval=times,
+        rtol=1e-10,
+        atol=1e-13,
+        max_step=1e-3,
+    )
     np.testing.assert_allclose(ours, ode.y[0], atol=1e-9)
 
 

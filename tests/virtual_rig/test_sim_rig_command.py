@@ -25,10 +25,25 @@ ROOT = Path(__file__).resolve().parents[2]
 @pytest.fixture
 def sim_rig() -> Iterator[tuple[subprocess.Popen[str], dict[str, str]]]:
     process = subprocess.Popen(
-        [sys.executable, "-m", "rig.cli", "sim-rig", "--port", "0", "--rtu",
-         "--angle-noise", "0", "--table-noise", "0"],
-        cwd=ROOT, stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-        text=True, env={**os.environ, "PYTHONPATH": str(ROOT)},
+        [
+            sys.executable,
+            "-m",
+            "rig.cli",
+            "sim-rig",
+            "--port",
+            "0",
+            "--rtu",
+            "--angle-noise",
+            "0",
+            "--table-noise",
+            "0",
+        ],
+        cwd=ROOT,
+        stdin=subprocess.PIPE,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env={**os.environ, "PYTHONPATH": str(ROOT)},
     )
     endpoints: dict[str, str] = {}
     try:

@@ -139,8 +139,9 @@ def test_free_decay_matches_the_linear_damped_solution() -> None:
     rp = settings.model.rig
     w, z = rp.omega_rad_s, rp.zeta
     wd = w * math.sqrt(1 - z * z)
-    exact = theta0 * np.exp(-z * w * t) * (np.cos(wd * t) + z / math.sqrt(1 - z * z)
-                                           * np.sin(wd * t))
+    exact = (
+        theta0 * np.exp(-z * w * t) * (np.cos(wd * t) + z / math.sqrt(1 - z * z) * np.sin(wd * t))
+    )
     per_count = settings.angle_counts_to_rad()[1]
     assert np.max(np.abs(angle - exact)) < 1.5 * per_count
 
@@ -178,8 +179,9 @@ def test_hold_then_release() -> None:
 
 def test_block_size_does_not_change_the_stream() -> None:
     model = Model(drive=Drive(0.003, 6.0)).with_extension("sensor_lag", tau_s=0.01)
-    settings = VirtualRigSettings(model=model, sample_rate_hz=3000.0, angle_noise_rad=1e-3,
-                                  table_noise_m=1e-5, seed=7)
+    settings = VirtualRigSettings(
+        model=model, sample_rate_hz=3000.0, angle_noise_rad=1e-3, table_noise_m=1e-5, seed=7
+    )
     whole = VirtualRig(settings).generate(3000)
     pieces_rig = VirtualRig(settings)
     parts = [pieces_rig.generate(n) for n in (7, 1500, 1, 1492)]
