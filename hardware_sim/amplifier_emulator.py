@@ -15,6 +15,8 @@ import logging
 import os
 import select
 import threading
+import tty
+from collections import deque
 from dataclasses import dataclass
 
 from pymodbus.constants import ExcCodes
@@ -26,6 +28,7 @@ from drivers.amplifier_registers import HOLDING_COUNT, INPUT_COUNT
 from hardware_sim.amplifier_firmware import AmplifierFirmware, RegisterAccessError
 
 WATCHDOG_POLL_S = 0.02
+LOG_LENGTH = 10_000  # requests kept for inspection
 _READ_INPUT, _READ_HOLDING = 4, 3
 _WRITES = (6, 16)
 
@@ -91,8 +94,9 @@ class AmplifierEmulator:
         self.port: int | None = None
         self.rtu_path: str | None = None
         self.fault = TransportFault.NONE
-        self._requests: list[ReceivedRequest] = []
-        self._raw: list[bytes] = []
+        # bounded: a sim-rig left running for days must not grow without end
+        self._requests: deque[ReceivedRequest] = deque(maxlen=LOG_LENGTH)
+        self._raw: deque[bytes] = deque(maxlen=LOG_LENGTH)
         self._log_lock = threading.Lock()
         self._loop: asyncio.AbstractEventLoop | None = None
         self._thread: threading.Thread | None = None
@@ -145,7 +149,7 @@ class AmplifierEmulator:
 
     @property
     def requests(self) -> list[ReceivedRequest]:
-        """Every request PDU received so far, oldest first."""
+        """The requests received (the last LOG_LENGTH), oldest first."""
         with self._log_lock:
             return list(self._requests)
 
@@ -285,7 +289,7 @@ class _PtyBridge:
         self.server_path = os.ttyname(server_slave)
         self.client_path = os.ttyname(client_slave)
         for fd in (server_slave, client_slave):
-            _make_raw(fd)
+            tty.setraw(fd)  # no echo or line editing: Modbus bytes pass untouched
         # Keep the slaves open ourselves so the masters never see a hang-up between sessions.
         self._slaves = (server_slave, client_slave)
         self._stop_r, self._stop_w = os.pipe()
@@ -318,9 +322,3 @@ class _PtyBridge:
         ):
             with contextlib.suppress(OSError):
                 os.close(fd)
-
-
-def _make_raw(fd: int) -> None:
-    import tty
-
-    tty.setraw(fd)
