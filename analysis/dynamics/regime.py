@@ -154,10 +154,11 @@ def _trajectory_scale(theta: np.ndarray, fs_hz: float, poincare: PoincareSection
 
 
 def _harmonic_content(spectrum: Spectrum | None) -> dict[str, Any]:
+    """Peak labels sorted into sub-, super- and incommensurate lines, by ascending frequency."""
     if spectrum is None or spectrum.drive_frequency_hz is None:
         return {}
     sub, sup, incommensurate = [], [], []
-    for peak in spectrum.peaks:
+    for peak in sorted(spectrum.peaks, key=lambda peak: peak.frequency_hz):
         if peak.harmonic is None:
             incommensurate.append(peak.label)
         elif peak.harmonic.denominator > 1:
@@ -167,12 +168,14 @@ def _harmonic_content(spectrum: Spectrum | None) -> dict[str, Any]:
     return {"subharmonics": sub, "superharmonics": sup, "incommensurate": incommensurate}
 
 
-def _harmonic_text(harmonics: dict[str, Any]) -> str:
+def _harmonic_text(harmonics: dict[str, Any], shown: int = 4) -> str:
+    """' (subharmonics 1/2 f, 3/2 f; superharmonics 2 f, 3 f, ...)', or '' without a spectrum."""
     parts = []
-    if harmonics.get("subharmonics"):
-        parts.append("subharmonics " + ", ".join(harmonics["subharmonics"]))
-    if harmonics.get("superharmonics"):
-        parts.append("superharmonics " + ", ".join(harmonics["superharmonics"]))
+    for kind in ("subharmonics", "superharmonics"):
+        labels = harmonics.get(kind) or []
+        if labels:
+            more = ", ..." if len(labels) > shown else ""
+            parts.append(f"{kind} {', '.join(labels[:shown])}{more}")
     return f" ({'; '.join(parts)})" if parts else ""
 
 
