@@ -101,11 +101,11 @@ def test_leaving_the_with_block_ramps_the_drive_to_zero(bench: Bench) -> None:
 
 
 def test_heartbeat_keeps_the_watchdog_quiet(bench: Bench) -> None:
-    with bench.shaker(watchdog_s=0.2) as shaker:
+    with bench.shaker(watchdog_s=0.5, heartbeat_period_s=0.05) as shaker:
         shaker.frequency_hz = 5.0
         shaker.amplitude_m = 0.001
         shaker.enabled = True
-        time.sleep(0.8)  # four watchdog periods
+        time.sleep(1.6)  # three watchdog periods
         assert shaker.faults() == ()
         assert shaker.enabled
         echo = bench.firmware.read_input(Input.HEARTBEAT_ECHO, 1)[0]

@@ -20,7 +20,7 @@ from drivers.limits import ShakerLimits
 from drivers.modbus_shaker import ModbusTcpBackend
 from drivers.shaker import ShakerAmplifier
 shaker = ShakerAmplifier(ModbusTcpBackend("127.0.0.1", int(sys.argv[1]), timeout_s=0.5),
-                         ShakerLimits(max_ramp_rate_m_s=0.05), watchdog_s=0.3).connect()
+                         ShakerLimits(max_ramp_rate_m_s=0.05), watchdog_s=0.5).connect()
 shaker.ramp_rate_m_s = 0.05
 shaker.frequency_hz = 10.0
 shaker.amplitude_m = 0.002
