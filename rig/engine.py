@@ -397,6 +397,13 @@ class AcquisitionEngine:
         """Publish a sweep step mark."""
         self._publish(self.host_time_s(), mark)
 
+    def publish(self, event: DriveSetting | StepMark) -> None:
+        """Publish a drive setting or step mark as it is (e.g. replayed from a recording)."""
+        if isinstance(event, DriveSetting):
+            with self._lock:
+                self._drive = event
+        self._publish(self.host_time_s(), event)
+
     # -- live quantities ----------------------------------------------------------------------
 
     @property

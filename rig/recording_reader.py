@@ -176,6 +176,10 @@ class Recording:
         top = "channels" if name in self.channel_names else "pulses"
         return str(self._group(top, name).attrs["unit"])
 
+    def channel_dtype(self, name: str) -> np.dtype:
+        """The stored dtype of a sampled channel's raw counts."""
+        return self._group("channels", name)["raw"].dtype
+
     def complete_blocks(self, name: str) -> np.ndarray:
         """Rows of a sampled channel's block table whose samples are fully stored."""
         group = self._group("channels", name)
@@ -248,21 +252,34 @@ class Recording:
 
     # -- block-wise access (replay) -----------------------------------------------------------
 
-    def iter_sample_blocks(self, name: str, max_samples: int = 4096) -> Iterator[SampleBlock]:
-        """The channel's stored blocks as the driver delivered them, large blocks split."""
+    def iter_sample_blocks(
+        self, name: str, max_samples: int = 4096, slab_samples: int = 1 << 18
+    ) -> Iterator[SampleBlock]:
+        """The channel's stored blocks as the driver delivered them, large blocks split.
+
+        The file is read in slabs of ``slab_samples`` so that small blocks cost no
+        HDF5 call each.
+        """
         group = self._group("channels", name)
         fs = float(group.attrs["sample_rate_hz"])
+        slab_start, raw, values = 0, group["raw"][:0], group["values"][:0]
         for row in self.complete_blocks(name):
             start, n = int(row["stored_start"]), int(row["n_samples"])
+            if start + n > slab_start + raw.size:
+                slab_start = start
+                stop = start + max(n, slab_samples)
+                raw, values = group["raw"][start:stop], group["values"][start:stop]
+            base = start - slab_start
             for offset in range(0, n, max_samples):
                 count = min(max_samples, n - offset)
+                part = slice(base + offset, base + offset + count)
                 yield SampleBlock(
                     channel=name,
                     first_index=int(row["first_index"]) + offset,
                     timestamp_s=float(row["timestamp_s"]) + offset / fs,
                     sample_rate_hz=fs,
-                    raw=group["raw"][start + offset : start + offset + count],
-                    values=group["values"][start + offset : start + offset + count].astype(float),
+                    raw=raw[part],
+                    values=values[part].astype(float),
                     lost_before=int(row["lost_before"]) if offset == 0 else 0,
                 )
 

@@ -13,8 +13,10 @@ import threading
 import time
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Protocol
 
 from drivers.interfaces import PulseBlock, SampleBlock, StreamStatus
+from rig.events import DriveSetting, StepMark
 from rig.recording_reader import Recording, open_recording
 
 
@@ -125,6 +127,17 @@ class ReplayStream:
         return StreamStatus(self._running, self._received, self._lost, 0, message)
 
 
+class AnnotationSink(Protocol):
+    """Where replayed drive settings and step marks go (the acquisition engine)."""
+
+    def publish(self, event: DriveSetting | StepMark) -> None: ...
+
+
+def _annotation_index(event: DriveSetting | StepMark) -> int:
+    """The sample index at which a drive setting or step mark was made."""
+    return event.sample_index if isinstance(event, DriveSetting) else event.dwell_end_index
+
+
 class Replay:
     """A recording opened for replay: its streams share one clock; close it when done."""
 
@@ -145,6 +158,8 @@ class Replay:
         ]
         rates = [self.recording.sample_rate_hz(c) for c in names] or [1.0]
         self.clock = ReplayClock(speed, max(rates), min(first) if first else 0)
+        self._annotations: threading.Thread | None = None
+        self._closing = threading.Event()
         try:
             self.streams = [
                 ReplayStream(self.recording, name, self.clock, max_block_samples=max_block_samples)
@@ -156,11 +171,60 @@ class Replay:
 
     @property
     def finished(self) -> bool:
-        """True when every stream has played its last block."""
-        return all(stream.finished for stream in self.streams)
+        """True when every stream has played its last block (and the annotations theirs)."""
+        annotations_done = self._annotations is None or not self._annotations.is_alive()
+        return annotations_done and all(stream.finished for stream in self.streams)
+
+    def annotations(self) -> list[DriveSetting | StepMark]:
+        """The recording's drive settings and sweep step marks, in sample-index order."""
+        drive = [
+            DriveSetting(
+                float(r["host_time_s"]),
+                int(r["sample_index"]),
+                float(r["frequency_hz"]),
+                float(r["amplitude_m"]),
+                bool(r["enabled"]),
+                int(r["source"]),
+            )
+            for r in self.recording.drive_log()
+        ]
+        steps = [
+            StepMark(
+                int(r["step"]),
+                int(r["direction"]),
+                float(r["frequency_hz"]),
+                float(r["amplitude_m"]),
+                int(r["settle_start_index"]),
+                int(r["dwell_start_index"]),
+                int(r["dwell_end_index"]),
+                bool(r["complete"]),
+            )
+            for r in self.recording.sweep_steps()
+        ]
+        return sorted(drive + steps, key=_annotation_index)
+
+    def publish_annotations(self, engine: AnnotationSink) -> None:
+        """Publish the drive settings and step marks into ``engine`` when their sample is due.
+
+        Runs in its own thread; call after ``engine.start()``.
+        """
+        events = self.annotations()
+
+        def play() -> None:
+            for event in events:
+                while (wait := self.clock.wait_s(_annotation_index(event))) > 0:
+                    if self._closing.wait(min(wait, 0.1)):
+                        return
+                engine.publish(event)
+
+        self._annotations = threading.Thread(target=play, name="replay-annotations", daemon=True)
+        self._annotations.start()
 
     def close(self) -> None:
-        """Release the file."""
+        """Stop publishing annotations and release the file."""
+        self._closing.set()
+        if self._annotations is not None:
+            self._annotations.join(5.0)
         self.recording.close()
 
     def __enter__(self) -> Replay:

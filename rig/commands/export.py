@@ -1,0 +1,125 @@
+"""``impact-rig export``: a recording as CSV + JSON exchange files (MODEL.md section 5)."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from rig.cli import CommandError
+
+DESCRIPTION = """\
+Write an HDF5 recording as the exchange format of MODEL.md section 5: FILE.csv
+(time_s, angle_rad, table_m, tach) and FILE.json beside it (experiment, rig
+constants, drive, notes), which every analysis command and other software read.
+
+The exchange format needs uniform sampling, so samples are never filled in:
+a recording with lost samples is refused unless --gaps says what to do
+(split: one FILE_segN.csv per gap-free stretch; longest: only the longest one).
+--per-step writes one FILE_stepNN.csv per complete sweep step (its steady-state
+dwell, with that step's drive in the JSON).
+"""
+
+EPILOG = """\
+examples:
+  impact-rig export run.h5 --out run.csv
+  impact-rig export fsweep.h5 --out fsweep.csv --per-step
+  impact-rig export lossy.h5 --out lossy.csv --gaps split
+"""
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add the ``export`` sub-command."""
+    parser = subparsers.add_parser(
+        "export",
+        help="recording (HDF5) -> CSV + JSON exchange files",
+        description=DESCRIPTION,
+        epilog=EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    parser.add_argument("recording", metavar="FILE.h5", help="the recording to export")
+    parser.add_argument(
+        "--out",
+        required=True,
+        metavar="FILE.csv",
+        help="CSV to write (FILE.json is written beside it)",
+    )
+    parser.add_argument(
+        "--per-step", action="store_true", help="one CSV + JSON per complete sweep step"
+    )
+    parser.add_argument(
+        "--gaps",
+        choices=("refuse", "split", "longest"),
+        default="refuse",
+        help="what to do with a recording that lost samples (default refuse)",
+    )
+    parser.add_argument("--overwrite", action="store_true", help="replace existing CSV/JSON")
+    parser.set_defaults(func=run)
+
+
+def to_exchange(record):
+    """An analysis ``Record`` as an ``ExchangeRecord`` (tach as a 0/1 column)."""
+    import numpy as np
+
+    from analysis.exchange import RIG_KEYS, ExchangeMeta, ExchangeRecord
+
+    tach = None
+    if record.tach_indices.size or record.experiment == "forced":
+        tach = np.zeros(record.time_s.size, dtype=np.int64)
+        tach[record.tach_indices] = 1
+    meta = ExchangeMeta(
+        experiment=record.experiment,
+        rig={key: record.rig.get(key) for key in RIG_KEYS},
+        drive=None if record.drive is None else dict(record.drive),
+        notes=record.notes,
+        extra={"source": record.source},
+    )
+    return ExchangeRecord(record.time_s, record.angle_rad, meta, record.table_m, tach)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Load, cut (steps or segments), write; one line per file written."""
+    from analysis.exchange import sidecar_path, write_exchange
+    from analysis.hdf5_records import load_hdf5_segments, load_hdf5_steps
+    from analysis.records import RecordFormatError
+
+    out = Path(args.out)
+    if out.suffix.lower() != ".csv":
+        raise CommandError(f"--out {out}: expected a file name ending in .csv")
+    try:
+        if args.per_step:
+            records = load_hdf5_steps(args.recording)
+            names = [out.with_name(f"{out.stem}_step{k:02d}.csv") for k in range(len(records))]
+        else:
+            records = load_hdf5_segments(args.recording)
+            names = [out]
+            if len(records) > 1:
+                if args.gaps == "refuse":
+                    raise CommandError(
+                        f"{args.recording}: lost samples split it into {len(records)} gap-free "
+                        "segments; the exchange format needs uniform sampling. Pass --gaps "
+                        "split (one CSV per segment) or --gaps longest"
+                    )
+                if args.gaps == "longest":
+                    records = [max(records, key=lambda r: r.time_s.size)]
+                else:
+                    names = [
+                        out.with_name(f"{out.stem}_seg{k + 1}.csv") for k in range(len(records))
+                    ]
+    except RecordFormatError as error:
+        raise CommandError(str(error)) from None
+    for name in names:
+        for path in (name, sidecar_path(name)):
+            if path.exists() and not args.overwrite:
+                raise CommandError(f"{path}: already exists; pass --overwrite to replace it")
+    for k, (record, name) in enumerate(zip(records, names, strict=True)):
+        if len(records) > 1:
+            print(f"writing {k + 1}/{len(records)} ...", file=sys.stderr, flush=True)
+        csv_path, json_path = write_exchange(name, to_exchange(record))
+        print(
+            f"{csv_path} + {json_path.name}: {record.time_s.size} samples at "
+            f"{record.sample_rate_hz:g} Hz ({record.experiment}"
+            + (f", {record.drive['frequency_hz']:g} Hz drive" if record.drive else "")
+            + ")"
+        )
+    return 0

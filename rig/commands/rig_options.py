@@ -1,0 +1,106 @@
+"""Options shared by the commands that run the rig (record, sweep): where, how fast, into what.
+
+``--config FILE`` names a rig file (default: the shipped virtual rig); ``--sim`` runs
+the same configuration on the virtual rig over its real protocols (pty serial DAQ +
+Modbus TCP amplifier, started in this process).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+from rig.cli import CommandError
+
+CONFIG_HELP = (
+    "rig file (TOML): devices and ports, calibrations, safety limits, rig constants "
+    "(default: the shipped rig/default_rig.toml, which is the virtual rig)"
+)
+
+
+def add_rig_options(parser: argparse.ArgumentParser) -> None:
+    """--config, --sim, --fs, --out, --overwrite, --notes."""
+    group = parser.add_argument_group("rig")
+    group.add_argument("--config", metavar="FILE", help=CONFIG_HELP)
+    group.add_argument(
+        "--sim",
+        action="store_true",
+        help="run on the virtual rig (its emulators on a pty and loopback Modbus TCP, "
+        "reached by the real drivers), whatever the rig file says",
+    )
+    group.add_argument(
+        "--fs",
+        type=float,
+        metavar="HZ",
+        help="DAQ sample rate in Hz (default: the rig file's daq.sample_rate_hz)",
+    )
+    out = parser.add_argument_group("output")
+    out.add_argument("--out", required=True, metavar="FILE.h5", help="the HDF5 recording to write")
+    out.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="replace FILE.h5 if it exists (without it an existing recording is never touched)",
+    )
+    out.add_argument("--notes", default="", help="operator notes kept in the recording")
+
+
+def load_rig_config(args: argparse.Namespace):
+    """The validated rig configuration the options ask for (CommandError on a bad file)."""
+    from rig.config import ConfigError, load_config
+    from rig.devices import virtual_config
+
+    try:
+        config = load_config(args.config)
+    except ConfigError as error:
+        raise CommandError(str(error)) from None
+    return virtual_config(config) if args.sim else config
+
+
+def check_output(args: argparse.Namespace) -> Path:
+    """Refuse an output that exists or cannot be written before any device is touched."""
+    from rig.recorder import RecordingError, check_destination
+
+    try:
+        return check_destination(Path(args.out), overwrite=args.overwrite)
+    except RecordingError as error:
+        raise CommandError(str(error)) from None
+
+
+def open_devices(config, fs: float | None):
+    """Open the rig (CommandError naming the device when it cannot be reached)."""
+    from drivers.interfaces import DeviceError, LimitError
+    from rig.devices import open_rig
+
+    where = "the virtual rig" if config.is_virtual else config.source
+    print(f"opening the devices of {where} ...", file=sys.stderr, flush=True)
+    try:
+        return open_rig(config, sample_rate_hz=fs)
+    except (DeviceError, LimitError, OSError) as error:
+        raise CommandError(f"cannot open the rig ({config.source}): {error}") from None
+
+
+class ProgressLine:
+    """Progress on stderr: one line per message, at most a few per second."""
+
+    def __init__(self, quiet: bool = False) -> None:
+        self.quiet = quiet
+        self._last = 0.0
+
+    def __call__(self, text: str) -> None:
+        now = time.monotonic()
+        if self.quiet or (now - self._last < 0.2 and "step" not in text):
+            return
+        self._last = now
+        print(text, file=sys.stderr, flush=True)
+
+
+def report(result) -> None:
+    """One summary line on stdout."""
+    print(
+        f"{result.path}: {result.experiment}, {result.samples_written} samples written, "
+        f"{result.samples_lost} lost, {result.duration_s:.1f} s"
+        + (f", {result.steps} sweep steps" if result.steps else "")
+        + f" ({result.stop_reason})"
+    )
