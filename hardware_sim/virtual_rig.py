@@ -334,7 +334,9 @@ class VirtualRig:
     def _table(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         p = self._p
         phase = self._omega * t + self._phase0
-        x = p[P.A1] * np.sin(phase) + p[P.A2] * np.sin(2.0 * phase + p[P.PHI2])
+        x = p[P.A1] * np.sin(phase)
+        if p[P.A2] != 0.0:  # second harmonic only when excitation_distortion is on
+            x += p[P.A2] * np.sin(2.0 * phase + p[P.PHI2])
         tach = np.zeros(t.size, dtype=bool)
         if self._omega > 0:
             cycle = np.floor(phase / TWO_PI)

@@ -246,3 +246,23 @@ def test_potentiometer_linearity_and_adc_saturation() -> None:
     assert set(rig.generate(10)["angle"]) == {expected}
     rig.hold(4.0)  # 12.2 V: beyond the +-10 V converter
     assert set(rig.generate(10)["angle"]) == {2**15 - 1}
+
+
+def test_excitation_distortion_adds_the_second_harmonic() -> None:
+    model = Model(drive=Drive(0.002, 4.0)).with_extension(
+        "excitation_distortion", h2=0.2, phi2_rad=0.5
+    )
+    settings = VirtualRigSettings(model=model, sample_rate_hz=2000.0)
+    block = VirtualRig(settings).generate(4000)
+    t = np.arange(4000) / 2000.0
+    x = _table_m(settings, block["table"])
+    # linear least squares on the known harmonics: x = A sin(w t) + A h2 sin(2 w t + phi2)
+    w = 2 * np.pi * 4.0
+    basis = np.column_stack(
+        [np.sin(w * t), np.cos(w * t), np.sin(2 * w * t), np.cos(2 * w * t), np.ones_like(t)]
+    )
+    (s1, c1, s2, c2, _), *_ = np.linalg.lstsq(basis, x, rcond=None)
+    assert math.hypot(s1, c1) == pytest.approx(0.002, rel=2e-3)
+    assert math.atan2(c1, s1) == pytest.approx(0.0, abs=2e-3)  # phase 0 at t = 0
+    assert math.hypot(s2, c2) == pytest.approx(0.0004, rel=1e-2)
+    assert math.atan2(c2, s2) == pytest.approx(0.5, abs=1e-2)
