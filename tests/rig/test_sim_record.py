@@ -1,0 +1,194 @@
+"""The commands on the virtual rig over its real protocols (pty serial DAQ + Modbus TCP)."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from analysis.exchange import read_exchange
+from rig.cli import main
+from rig.config import load_config
+from rig.recording_reader import open_recording
+
+L_M = load_config().constants.L_m
+
+
+def _sine_amplitude(t, x, frequency_hz):
+    """Least-squares amplitude of a sine at a known frequency (an independent estimate)."""
+    w = 2 * np.pi * frequency_hz
+    design = np.column_stack([np.sin(w * t), np.cos(w * t), np.ones_like(t)])
+    coefficients, *_ = np.linalg.lstsq(design, x, rcond=None)
+    return float(np.hypot(coefficients[0], coefficients[1]))
+
+
+@pytest.fixture(scope="module")
+def forced_recording(tmp_path_factory):
+    """A short forced recording from the virtual rig, made by the command line."""
+    path = tmp_path_factory.mktemp("sim") / "forced.h5"
+    status = main(
+        [
+            "record",
+            "--sim",
+            "--experiment",
+            "forced",
+            "--drive-hz",
+            "6",
+            "--beta",
+            "0.02",
+            "--settle",
+            "1.5",
+            "--duration",
+            "2",
+            "--fs",
+            "4000",
+            "--notes",
+            "cli test",
+            "--out",
+            str(path),
+            "--quiet",
+        ]
+    )
+    assert status == 0
+    return path
+
+
+def test_record_sim_writes_every_sample_the_drive_and_the_metadata(forced_recording):
+    with open_recording(forced_recording) as rec:
+        angle, table = rec.channel("angle"), rec.channel("table")
+        assert rec.status().closed and rec.status().stop_reason == "completed"
+        # at least settle + duration of data, nothing lost, indices consecutive
+        assert len(angle) >= 3.5 * 4000
+        assert angle.gaps.size == 0 and rec.status().samples_lost == 0
+        np.testing.assert_array_equal(
+            angle.indices, np.arange(angle.indices[0], angle.indices[-1] + 1)
+        )
+        np.testing.assert_array_equal(angle.indices, table.indices)
+        assert angle.raw.dtype == np.int16
+        # the laser sees the commanded table motion once settled (last second)
+        last = slice(-4000, None)
+        amplitude = _sine_amplitude(table.times_s[last], table.values[last], 6.0)
+        assert amplitude == pytest.approx(0.02 * L_M, rel=0.05)
+        # tach edges once per drive period
+        edges = rec.pulses("tach").edge_indices
+        spacing = np.diff(edges[edges > angle.indices[-1] - 4000])
+        np.testing.assert_allclose(spacing, 4000 / 6.0, atol=1.0)
+        drive = rec.drive_log()
+        assert drive["frequency_hz"][0] == 6.0
+        assert drive["amplitude_m"][0] == pytest.approx(0.02 * L_M)
+        assert drive["enabled"][0] == 1 and drive["enabled"][-1] == 0  # ramped to zero at the end
+        info = rec.info
+        assert info.experiment == "forced" and info.notes == "cli test"
+        assert info.devices["daq"]["model"] == "IRDAQ-4"
+        assert "Modbus TCP 127.0.0.1" in info.devices["shaker"]["where"]
+        assert "[calibration.angle]" in info.config_toml
+        assert info.rig["L_m"] == L_M
+        assert info.calibrations["angle"]["law"] == "potentiometer"
+
+
+def test_export_round_trip_gives_back_the_recorded_samples(forced_recording, tmp_path, capsys):
+    out = tmp_path / "forced.csv"
+    assert main(["export", str(forced_recording), "--out", str(out)]) == 0
+    exchanged = read_exchange(out)
+    with open_recording(forced_recording) as rec:
+        angle, table = rec.channel("angle"), rec.channel("table")
+        edges = rec.pulses("tach").edge_indices
+    # values are stored as float32; the CSV's digits give every one of them back exactly
+    np.testing.assert_array_equal(exchanged.angle_rad.astype(np.float32), angle.values)
+    np.testing.assert_array_equal(exchanged.table_m.astype(np.float32), table.values)
+    np.testing.assert_allclose(exchanged.time_s, angle.times_s, rtol=0, atol=1e-9)
+    np.testing.assert_array_equal(
+        angle.indices[exchanged.tach_indices], edges[edges >= angle.indices[0]]
+    )
+    meta = json.loads(out.with_suffix(".json").read_text())
+    assert meta["experiment"] == "forced"
+    assert meta["drive"]["frequency_hz"] == 6.0
+    assert meta["rig"]["m_kg"] == 0.0326
+    assert exchanged.meta.notes == "cli test"
+    # an existing export is not overwritten silently
+    assert main(["export", str(forced_recording), "--out", str(out)]) == 2
+    assert "already exists" in capsys.readouterr().err
+
+
+def test_free_decay_starts_just_before_the_release_and_decays(tmp_path):
+    path = tmp_path / "decay.h5"
+    status = main(
+        [
+            "record",
+            "--sim",
+            "--experiment",
+            "free_decay",
+            "--release-deg",
+            "-10",
+            "--pretrigger",
+            "0.4",
+            "--duration",
+            "2.5",
+            "--fs",
+            "2000",
+            "--out",
+            str(path),
+            "--quiet",
+        ]
+    )
+    assert status == 0
+    with open_recording(path) as rec:
+        angle = rec.channel("angle")
+        assert rec.info.experiment == "free_decay"
+    held = np.radians(-10)
+    moved = np.flatnonzero(np.abs(angle.values - held) > 0.005)[0]
+    # about pretrigger seconds of the held pendulum come before the motion
+    assert 0.3 * 2000 <= moved <= 0.55 * 2000
+    assert np.all(np.abs(angle.values[: moved - 10] - held) < 0.003)
+    # then it swings through zero to about the mirror angle (small damping)
+    after = angle.values[moved:]
+    assert after.max() == pytest.approx(-held, rel=0.1)
+
+
+def test_sweep_marks_every_step_and_per_step_export_has_the_step_drive(tmp_path):
+    path = tmp_path / "sweep.h5"
+    status = main(
+        [
+            "sweep",
+            "--sim",
+            "--sweep",
+            "frequency",
+            "--start",
+            "4",
+            "--stop",
+            "5",
+            "--steps",
+            "2",
+            "--amplitude-mm",
+            "0.8",
+            "--settle",
+            "0.5",
+            "--dwell",
+            "1.0",
+            "--fs",
+            "2000",
+            "--out",
+            str(path),
+            "--quiet",
+        ]
+    )
+    assert status == 0
+    with open_recording(path) as rec:
+        steps = rec.sweep_steps()
+        drive = rec.drive_log()
+    assert steps["frequency_hz"].tolist() == [4.0, 5.0, 4.0]
+    assert steps["direction"].tolist() == [1, 1, -1]
+    assert steps["complete"].tolist() == [1, 1, 1]
+    dwell = steps["dwell_end_index"] - steps["dwell_start_index"]
+    np.testing.assert_allclose(dwell, 2000, rtol=0.15)
+    assert np.all(steps["dwell_start_index"] - steps["settle_start_index"] >= 0.4 * 2000)
+    assert np.all(steps["settle_start_index"][1:] >= steps["dwell_end_index"][:-1])
+    assert drive["frequency_hz"][:3].tolist() == [4.0, 5.0, 4.0]
+    out = tmp_path / "sweep.csv"
+    assert main(["export", str(path), "--out", str(out), "--per-step"]) == 0
+    for k, frequency in enumerate((4.0, 5.0, 4.0)):
+        record = read_exchange(tmp_path / f"sweep_step{k:02d}.csv")
+        assert record.meta.drive["frequency_hz"] == frequency
+        spacing = np.diff(record.tach_indices)
+        np.testing.assert_allclose(spacing, 2000 / frequency, atol=1.0)
