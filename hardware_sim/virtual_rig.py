@@ -242,7 +242,8 @@ class VirtualRig:
 
     def set_barrier(self, present: bool) -> None:
         """Put the barrier in (True) or take it out."""
-        self.set_model(replace(self._model, barrier=bool(present)))
+        with self._lock:
+            self.set_model(replace(self._model, barrier=bool(present)))
 
     def set_model(self, model: Model) -> None:
         """New rig constants, barrier or causes; the pendulum's state is kept.
