@@ -166,15 +166,24 @@ class Recording:
 
     # -- data ---------------------------------------------------------------------------------
 
+    def _top(self, name: str) -> str:
+        """'channels' or 'pulses', whichever holds ``name`` (an error naming all otherwise)."""
+        if name in self.channel_names:
+            return "channels"
+        if name in self.pulse_names:
+            return "pulses"
+        raise RecordingFormatError(
+            f"{self.path}: no channel {name!r}; the file has "
+            f"{self.channel_names + self.pulse_names}"
+        )
+
     def sample_rate_hz(self, name: str) -> float:
         """The nominal sample rate of a sampled or pulse channel."""
-        top = "channels" if name in self.channel_names else "pulses"
-        return float(self._group(top, name).attrs["sample_rate_hz"])
+        return float(self._group(self._top(name), name).attrs["sample_rate_hz"])
 
     def unit(self, name: str) -> str:
         """The SI unit of a channel's calibrated values ('' for pulse channels)."""
-        top = "channels" if name in self.channel_names else "pulses"
-        return str(self._group(top, name).attrs["unit"])
+        return str(self._group(self._top(name), name).attrs["unit"])
 
     def channel_dtype(self, name: str) -> np.dtype:
         """The stored dtype of a sampled channel's raw counts."""

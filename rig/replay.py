@@ -17,7 +17,7 @@ from typing import Protocol
 
 from drivers.interfaces import PulseBlock, SampleBlock, StreamStatus
 from rig.events import DriveSetting, StepMark
-from rig.recording_reader import Recording, open_recording
+from rig.recording_reader import Recording, RecordingFormatError, open_recording
 
 
 class ReplayClock:
@@ -151,6 +151,12 @@ class Replay:
     ) -> None:
         self.recording = open_recording(path)
         names = channels or self.recording.channel_names + self.recording.pulse_names
+        try:
+            for name in names:
+                self.recording.sample_rate_hz(name)  # an unknown name fails here, clearly
+        except RecordingFormatError:
+            self.recording.close()
+            raise
         first = [
             int(b["first_index"][0])
             for b in (self.recording.complete_blocks(c) for c in self.recording.channel_names)
