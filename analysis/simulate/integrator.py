@@ -28,7 +28,7 @@ import math
 import numba
 import numpy as np
 
-from analysis.model import P, smooth_acceleration
+from analysis.model import P
 
 # ----------------------------------------------------------------------------- status codes
 
@@ -120,10 +120,84 @@ MAX_FACTOR = 5.0
 STUCK_SCAN_PER_PERIOD = 128  # release search resolution while stuck under forcing
 
 
+# ----------------------------------------------------------------------------- right-hand side
+# The kernel evaluates analysis.model.smooth_acceleration with the packed vector's entries
+# hoisted into a tuple of scalars once per call, sin/cos of theta taken once per stage, the
+# drive's second harmonic and the general power law skipped when they are off.  The terms
+# are exactly those of analysis.model (tests/simulate/test_rhs.py checks equality over
+# random packed vectors); the physics is defined there, not here.
+
+K_OMEGA2, K_TWO_ZETA_OMEGA, K_C2, K_INV_L, K_OMEGA_DRIVE, K_PHASE0 = 0, 1, 2, 3, 4, 5
+K_A1, K_A2, K_PHI2, K_GAIN, K_SHAFT, K_STIFFNESS, K_EXPONENT = 6, 7, 8, 9, 10, 11, 12
+K_MU0, K_C_VISCOUS, K_SIN_THETA_B, K_CONTACT_ON, K_HERTZ, K_FORCED, K_HARMONIC2 = (
+    13,
+    14,
+    15,
+    16,
+    17,
+    18,
+    19,
+)
+
+
+@numba.njit(cache=True)
+def coefficients(p, contact):
+    """The packed vector as a tuple of scalars for the kernel; ``contact`` False drops the
+    barrier term (free-flight region)."""
+    forced = p[P.OMEGA_DRIVE] != 0.0 and (p[P.A1] != 0.0 or p[P.A2] != 0.0)
+    return (
+        p[P.OMEGA2],
+        p[P.TWO_ZETA_OMEGA],
+        p[P.C2],
+        p[P.INV_L],
+        p[P.OMEGA_DRIVE],
+        p[P.PHASE0],
+        p[P.A1],
+        p[P.A2],
+        p[P.PHI2],
+        p[P.CONTACT_GAIN],
+        p[P.SHAFT_L],
+        p[P.K],
+        p[P.EXPONENT],
+        p[P.MU0],
+        p[P.C_VISCOUS],
+        p[P.SIN_THETA_B],
+        1.0 if (contact and p[P.BARRIER] != 0.0) else 0.0,
+        1.0 if p[P.EXPONENT] == 1.5 else 0.0,
+        1.0 if forced else 0.0,
+        1.0 if p[P.A2] != 0.0 else 0.0,
+    )
+
+
+@numba.njit(cache=True, inline="always")
+def region_acceleration(t, th, om, k):
+    """analysis.model.smooth_acceleration for the coefficient tuple ``k`` (see above)."""
+    s = math.sin(th)
+    c = math.cos(th)
+    acc = -k[K_TWO_ZETA_OMEGA] * om - k[K_C2] * om * abs(om) - k[K_OMEGA2] * s
+    if k[K_FORCED] != 0.0:
+        w = k[K_OMEGA_DRIVE]
+        phase = w * t + k[K_PHASE0]
+        drive = k[K_A1] * math.sin(phase)
+        if k[K_HARMONIC2] != 0.0:
+            drive += 4.0 * k[K_A2] * math.sin(2.0 * phase + k[K_PHI2])
+        acc += w * w * drive * k[K_INV_L] * c
+    if k[K_CONTACT_ON] != 0.0 and c > 0.0:
+        delta = k[K_SHAFT] * (s - k[K_SIN_THETA_B])
+        if delta > 0.0:
+            delta_dot = k[K_SHAFT] * c * om
+            power = delta * math.sqrt(delta) if k[K_HERTZ] != 0.0 else delta ** k[K_EXPONENT]
+            force = k[K_STIFFNESS] * power * (1.0 + k[K_MU0] * delta_dot)
+            force += k[K_C_VISCOUS] * delta_dot
+            if force > 0.0:
+                acc -= k[K_GAIN] * force
+    return acc
+
+
 @numba.njit(cache=True, inline="always")
 def _acc(t, th, om, pr, slide, tc):
-    """theta'' of the current region: smooth terms of ``pr`` plus friction in a fixed direction."""
-    return smooth_acceleration(t, th, om, pr) - slide * tc
+    """theta'' of the current region: smooth terms plus friction in a fixed direction."""
+    return region_acceleration(t, th, om, pr) - slide * tc
 
 
 @numba.njit(cache=True, inline="always")
@@ -343,7 +417,7 @@ def _push_dense(dense, n_dense, t, th, om):
 @numba.njit(cache=True)
 def _stick_test(t, th, pr, tc):
     """Sliding direction on leaving theta' = 0: 0 stays stuck, else the sign of the net torque."""
-    a = smooth_acceleration(t, th, 0.0, pr)
+    a = region_acceleration(t, th, 0.0, pr)
     if abs(a) <= tc:
         return 0.0
     return 1.0 if a > 0.0 else -1.0
@@ -371,10 +445,7 @@ def initialise_regions(S, p):
         elif om < 0.0:
             S[S_SLIDE] = -1.0
         else:
-            pr = p.copy()
-            if not contact:
-                pr[P.BARRIER] = 0.0
-            S[S_SLIDE] = _stick_test(S[S_TB], th, pr, tc)
+            S[S_SLIDE] = _stick_test(S[S_TB], th, coefficients(p, contact), tc)
             if S[S_SLIDE] == 0.0:
                 S[S_STICK_T] = S[S_TB]
     else:
@@ -474,8 +545,8 @@ def integrate(
     barrier = p[P.BARRIER] != 0.0
     forced = p[P.OMEGA_DRIVE] > 0.0 and (p[P.A1] != 0.0 or p[P.A2] != 0.0)
     period = 2.0 * math.pi / p[P.OMEGA_DRIVE] if p[P.OMEGA_DRIVE] > 0.0 else math.inf
-    p_free = p.copy()
-    p_free[P.BARRIER] = 0.0
+    k_contact = coefficients(p, True)
+    k_free = coefficients(p, False)
     kth = np.empty(7)
     kom = np.empty(7)
     n_out = out_t.shape[0]
@@ -527,7 +598,7 @@ def integrate(
         om = S[S_OMB]
         contact = S[S_CONTACT] != 0.0
         slide = S[S_SLIDE]
-        pr = p if contact else p_free
+        pr = k_contact if contact else k_free
 
         if slide == 0.0:
             # stuck: theta constant until the other torques exceed the friction torque
@@ -538,12 +609,12 @@ def integrate(
                 lo = t
                 while lo < t_end:
                     hi = lo + dt_scan
-                    if abs(smooth_acceleration(hi, th, 0.0, pr)) > tc:
+                    if abs(region_acceleration(hi, th, 0.0, pr)) > tc:
                         for _ in range(200):
                             mid = 0.5 * (lo + hi)
                             if mid <= lo or mid >= hi:
                                 break
-                            if abs(smooth_acceleration(mid, th, 0.0, pr)) > tc:
+                            if abs(region_acceleration(mid, th, 0.0, pr)) > tc:
                                 hi = mid
                             else:
                                 lo = mid
@@ -561,7 +632,7 @@ def integrate(
             S[S_ACC_OK] = 0.0
             if t_release < math.inf:
                 S[S_TB] = t_release
-                a = smooth_acceleration(t_release, th, 0.0, pr)
+                a = region_acceleration(t_release, th, 0.0, pr)
                 S[S_SLIDE] = 1.0 if a > 0.0 else -1.0
                 row[:] = 0.0
                 row[EV_KIND] = KIND_STICK

@@ -1,0 +1,41 @@
+"""The kernel's right-hand side is analysis.model's equation, term for term."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from analysis.model import Model, P, paper_case, smooth_acceleration
+from analysis.simulate.integrator import coefficients, region_acceleration
+
+
+def _random_packed(rng: np.random.Generator) -> np.ndarray:
+    """Every slot of the packed vector random (a new slot left out here fails the check)."""
+    p = rng.uniform(0.1, 2.0, int(P.SIZE)) * np.array(
+        [200, 0.2, 0.5, 20, 700, 0.05, 3e5, 1, 0.8, 5, 0.2, 1, 1, 1e-4, 60, 5e-3, 1e-3, 3, 6]
+        + [1] * (int(P.SIZE) - 19)
+    )
+    p[P.EXPONENT] = rng.choice([1.5, rng.uniform(0.8, 2.5)])
+    p[P.THETA_B] = rng.uniform(-0.3, 0.3)
+    p[P.SIN_THETA_B] = np.sin(p[P.THETA_B])
+    p[P.BARRIER] = rng.choice([0.0, 1.0])
+    for slot in (P.A2, P.C2, P.C_VISCOUS, P.MU0):
+        if rng.random() < 0.3:
+            p[slot] = 0.0
+    return p
+
+
+def test_region_acceleration_equals_the_model_equation():
+    rng = np.random.default_rng(11)
+    packed = [Model().pack(), Model(*paper_case("h").dimensional()).pack()]
+    packed += [_random_packed(rng) for _ in range(300)]
+    for p in packed:
+        free = p.copy()
+        free[P.BARRIER] = 0.0
+        for _ in range(20):
+            t = rng.uniform(0, 100)
+            theta = rng.uniform(-1.5, 1.5) if rng.random() < 0.5 else rng.uniform(-0.02, 0.3)
+            theta_dot = rng.uniform(-30, 30)
+            for contact, reference in ((True, p), (False, free)):
+                expected = smooth_acceleration(t, theta, theta_dot, reference)
+                got = region_acceleration(t, theta, theta_dot, coefficients(p, contact))
+                assert abs(got - expected) <= 1e-12 * max(1.0, abs(expected)), (p, theta)
