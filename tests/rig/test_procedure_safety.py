@@ -1,0 +1,96 @@
+"""Whatever stops a procedure (Ctrl-C, a device failure, a bad path), the shaker ends at zero
+and the recording is a valid file saying why it stopped."""
+
+from __future__ import annotations
+
+import pytest
+
+from rig.cli import main
+from rig.config import load_config
+from rig.devices import open_rig
+from rig.engine import AcquisitionError
+from rig.procedures import SweepPlan, TimedPlan, record_timed, run_sweep
+from rig.recording_reader import open_recording
+
+
+@pytest.fixture(scope="module")
+def devices():
+    """The virtual rig, reached by the real drivers over pty + Modbus TCP."""
+    rig = open_rig(load_config(), sample_rate_hz=2000.0)
+    yield rig
+    rig.close()
+
+
+def _wait_at_zero(shaker):
+    return shaker.wait_until(lambda m: m.at_zero and not m.enabled, 5.0, "at zero")
+
+
+def test_ctrl_c_during_a_sweep_ramps_the_shaker_to_zero_and_marks_the_step_incomplete(
+    devices, tmp_path
+):
+    path = tmp_path / "sweep.h5"
+
+    def operator_presses_ctrl_c(text):
+        if text.startswith("step 2/3") and "dwell" in text:
+            raise KeyboardInterrupt
+
+    plan = SweepPlan("amplitude", (0.5e-3, 1.0e-3), 5.0, settle_s=0.6, dwell_s=0.6)
+    with pytest.raises(KeyboardInterrupt):
+        run_sweep(devices, path, plan, progress=operator_presses_ctrl_c)
+    measured = _wait_at_zero(devices.shaker)
+    assert measured.amplitude_m <= 1e-6  # one register count
+    with open_recording(path) as rec:
+        status = rec.status()
+        steps = rec.sweep_steps()
+        drive = rec.drive_log()
+        samples = len(rec.channel("angle"))
+    assert status.closed and status.stop_reason == "interrupted (Ctrl-C)"
+    assert steps["complete"].tolist() == [1, 0]
+    assert steps["amplitude_m"].tolist() == [0.5e-3, 1.0e-3]
+    assert drive["enabled"][-1] == 0 and drive["amplitude_m"][-1] == 0.0
+    assert samples > 2000
+
+
+def test_a_daq_that_goes_away_stops_the_drive_and_keeps_the_data(tmp_path):
+    rig = open_rig(load_config(), sample_rate_hz=2000.0)
+    path = tmp_path / "unplugged.h5"
+    seen = []
+
+    def unplug_after_a_second(text):
+        seen.append(text)
+        if text.startswith("recording") and len(seen) >= 2:
+            rig.sim.daq.close()  # the board's port disappears, as when its cable is pulled
+
+    try:
+        plan = TimedPlan(
+            "forced", duration_s=10.0, frequency_hz=5.0, amplitude_m=1e-3, settle_s=0.5
+        )
+        with pytest.raises(AcquisitionError, match=r"angle|table|tach"):
+            record_timed(rig, path, plan, progress=unplug_after_a_second)
+        # what reached the amplifier: setpoint zero, output disabled (with the DAQ emulator
+        # closed the virtual rig's physics clock no longer runs, so its measured output
+        # cannot ramp down here; the Ctrl-C test checks the measured ramp)
+        assert rig.shaker.amplitude_m == 0.0
+        assert not rig.shaker.enabled  # one register count
+    finally:
+        rig.close()
+    with open_recording(path) as rec:
+        status = rec.status()
+        assert status.closed and status.stop_reason.startswith("error:")
+        assert len(rec.channel("angle")) >= 2000
+        assert rec.drive_log()["enabled"][-1] == 0
+
+
+def test_record_refuses_an_existing_file_and_an_unwritable_folder_before_opening_devices(
+    tmp_path, read_only_folder, capsys
+):
+    existing = tmp_path / "yesterday.h5"
+    existing.write_bytes(b"precious")
+    assert main(["record", "--sim", "--duration", "1", "--out", str(existing)]) == 2
+    assert "--overwrite" in capsys.readouterr().err
+    assert existing.read_bytes() == b"precious"
+    assert (
+        main(["record", "--sim", "--duration", "1", "--out", str(read_only_folder / "run.h5")]) == 2
+    )
+    error = capsys.readouterr().err
+    assert "not writable" in error and "opening the devices" not in error
