@@ -20,7 +20,7 @@ from matplotlib.figure import Figure
 from scipy.spatial import cKDTree
 
 from analysis.dynamics.regime import Regime, classify_regime, recurrence_distances
-from analysis.dynamics.sweeps import run_poincare
+from analysis.dynamics.sweeps import Progress, run_poincare
 from analysis.model import Model
 
 NO_ATTRACTOR = -1  # the run left the model's regime (over the top) or failed
@@ -61,12 +61,14 @@ def basins_of_attraction(
     rtol: float = 1e-8,
     atol: float = 1e-10,
     workers: int | None = None,
+    progress: Progress | None = None,
 ) -> BasinMap:
     """Which attractor each initial state (at drive phase 0) settles on.
 
     ``tolerance`` (relative to the attractor size) decides periodicity as in the
     classifier; ``match_tolerance`` (relative to the size of all orbits together)
-    decides that two orbits are the same attractor.
+    decides that two orbits are the same attractor.  ``progress(done, total)`` is
+    called as runs finish.
     """
     theta0 = np.asarray(theta0_values, dtype=float).ravel()
     theta_dot0 = np.asarray(theta_dot0_values, dtype=float).ravel()
@@ -90,6 +92,7 @@ def basins_of_attraction(
         rtol=rtol,
         atol=atol,
         workers=workers,
+        progress=progress,
     )
     ok = np.array([status == "ok" for status in runs.status])
     labels, attractors = identify_attractors(

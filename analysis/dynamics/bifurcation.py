@@ -22,7 +22,13 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from analysis.dynamics.poincare import PoincareSection
-from analysis.dynamics.sweeps import continue_along, model_at_beta, process_pool, run_poincare
+from analysis.dynamics.sweeps import (
+    Progress,
+    continue_along,
+    model_at_beta,
+    process_pool,
+    run_poincare,
+)
 from analysis.model import Model
 
 DIRECTIONS = ("up", "down", "fixed", "recorded")
@@ -60,12 +66,15 @@ def simulate_bifurcation(
     rtol: float = 1e-8,
     atol: float = 1e-10,
     workers: int | None = None,
+    progress: Progress | None = None,
 ) -> tuple[BifurcationDiagram, ...]:
     """Bifurcation diagram(s) of ``model`` over ``beta_values`` (sorted ascending here).
 
     Each beta runs ``periods`` drive periods, of which the last ``record_periods`` give
     the Poincare samples (drive phase 0).  Returns (up, down) diagrams for
     ``mode="continuation"`` and a single 'fixed' diagram for ``mode="fixed"``.
+    ``progress(done, total)`` is called as runs finish (per finished direction when
+    continuing in parallel).
     """
     betas = np.sort(np.asarray(beta_values, dtype=float).ravel())
     if betas.size == 0:
@@ -79,7 +88,7 @@ def simulate_bifurcation(
     )
     if mode == "fixed":
         initial = np.tile(np.asarray(initial_state, dtype=float), (betas.size, 1))
-        runs = run_poincare(packed, initial, workers=workers, **settings)
+        runs = run_poincare(packed, initial, workers=workers, progress=progress, **settings)
         return (BifurcationDiagram(betas, runs.theta, runs.theta_dot, "fixed"),)
     if mode != "continuation":
         raise ValueError(f"mode = {mode!r}: choose 'continuation' or 'fixed'")
@@ -90,12 +99,17 @@ def simulate_bifurcation(
                 name: pool.submit(continue_along, packed[order], initial_state, **settings)
                 for name, order in orders.items()
             }
-            runs = {name: future.result() for name, future in futures.items()}
+            runs = {}
+            for name, future in futures.items():
+                runs[name] = future.result()
+                if progress is not None:
+                    progress(betas.size * len(runs), 2 * betas.size)
     else:
-        runs = {
-            name: continue_along(packed[order], initial_state, **settings)
-            for name, order in orders.items()
-        }
+        runs = {}
+        for name, order in orders.items():
+            runs[name] = continue_along(packed[order], initial_state, **settings)
+            if progress is not None:
+                progress(betas.size * len(runs), 2 * betas.size)
     diagrams = []
     for name, order in orders.items():
         back = np.argsort(order)  # results back in ascending beta

@@ -12,7 +12,8 @@ import itertools
 import math
 import os
 import threading
-from concurrent.futures import ProcessPoolExecutor
+from collections.abc import Callable
+from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass, replace
 from multiprocessing import get_all_start_methods, get_context
 
@@ -20,6 +21,8 @@ import numpy as np
 
 from analysis.model import Model, P
 from analysis.simulate import simulate_packed
+
+Progress = Callable[[int, int], None]  # (runs done, runs in all)
 
 
 @dataclass(frozen=True)
@@ -71,11 +74,13 @@ def run_poincare(
     rtol: float = 1e-8,
     atol: float = 1e-10,
     workers: int | None = None,
+    progress: Progress | None = None,
 ) -> PoincareRuns:
     """Simulate runs (packed (n, P.SIZE), initial (n, 2)) and keep their Poincare samples.
 
     Each run integrates ``transient_periods`` drive periods, then records one sample
-    per period for ``record_periods`` periods.  All rows must share the drive frequency.
+    per period for ``record_periods`` periods.  ``progress(done, total)`` is called as
+    chunks of runs finish.
     """
     packed = np.atleast_2d(np.asarray(packed, dtype=float))
     initial = np.atleast_2d(np.asarray(initial, dtype=float))
@@ -87,19 +92,31 @@ def run_poincare(
         raise ValueError("transient_periods must be >= 0 and record_periods >= 1")
     n = packed.shape[0]
     workers = min(workers or default_workers(), n)
-    # Process start-up (imports, numba cache load) costs ~1 s: not worth it for small jobs.
-    if workers <= 1 or n < 4 * workers:
-        return _run_chunk(packed, initial, transient_periods, record_periods, rtol, atol)
-    bounds = np.linspace(0, n, min(n, 8 * workers) + 1).astype(int)
+    settings = (transient_periods, record_periods, rtol, atol)
+    # Process start-up costs up to a second: not worth it for small jobs.
+    in_process = workers <= 1 or n < 4 * workers
+    bounds = np.linspace(0, n, min(n, 50 if in_process else 8 * workers) + 1).astype(int)
     chunks = [(a, b) for a, b in itertools.pairwise(bounds) if b > a]
-    with process_pool(workers) as pool:
-        futures = [
-            pool.submit(
-                _run_chunk, packed[a:b], initial[a:b], transient_periods, record_periods, rtol, atol
-            )
-            for a, b in chunks
-        ]
-        parts = [future.result() for future in futures]
+    parts: list[PoincareRuns | None] = [None] * len(chunks)
+    done = 0
+    if in_process:
+        for k, (a, b) in enumerate(chunks):
+            parts[k] = _run_chunk(packed[a:b], initial[a:b], *settings)
+            done += b - a
+            if progress is not None:
+                progress(done, n)
+    else:
+        with process_pool(workers) as pool:
+            futures = {
+                pool.submit(_run_chunk, packed[a:b], initial[a:b], *settings): k
+                for k, (a, b) in enumerate(chunks)
+            }
+            for future in as_completed(futures):
+                k = futures[future]
+                parts[k] = future.result()
+                done += chunks[k][1] - chunks[k][0]
+                if progress is not None:
+                    progress(done, n)
     return PoincareRuns(
         np.concatenate([part.theta for part in parts]),
         np.concatenate([part.theta_dot for part in parts]),

@@ -104,3 +104,20 @@ def test_too_few_recorded_periods_are_refused():
     rig, drive = paper_case("d").dimensional()
     with pytest.raises(ValueError, match="0-1"):
         basins_of_attraction(Model(rig, drive), [0.0], [0.0], record_periods=10)
+
+
+def test_progress_is_reported_up_to_the_number_of_runs():
+    rig = RigParameters(zeta=0.05)
+    model = Model(rig, Drive(amplitude_m=0.002 * rig.L_m, frequency_hz=10.0), barrier=False)
+    reports = []
+    basins_of_attraction(
+        model,
+        np.linspace(-0.05, 0.05, 3),
+        [0.0, 0.1],
+        transient_periods=20,
+        record_periods=50,
+        workers=1,
+        progress=lambda done, total: reports.append((done, total)),
+    )
+    assert reports[-1] == (6, 6)
+    assert [done for done, _ in reports] == sorted(done for done, _ in reports)
