@@ -81,8 +81,8 @@ class BoardRole(Protocol):
     def attach(self, *, start: bool = True) -> None: ...
 
 
-class _Subscription:
-    """One role's queue of chunks; bounded so a role nobody reads cannot eat the memory."""
+class RoleQueue:
+    """One role's queue of chunks from the board (bounded: an unread role cannot eat the memory)."""
 
     def __init__(self, max_samples: int, wait_when_full: bool, stopping: threading.Event) -> None:
         self.max_samples = max_samples
@@ -187,7 +187,7 @@ class DaqBoard:
         self.configuration: BoardConfiguration | None = None
         self.failure = ""  # set when the device went away; role reads then raise
         self._lock = threading.Lock()
-        self._subscriptions: tuple[_Subscription, ...] = ()  # replaced whole: the reader
+        self._subscriptions: tuple[RoleQueue, ...] = ()  # replaced whole: the reader
         # thread reads it without the lock, which stop() holds while joining that thread
         self._thread: threading.Thread | None = None
         self._stop_reading = threading.Event()
@@ -263,10 +263,10 @@ class DaqBoard:
         return self.analog_channels.index(channel)
 
     # --- streaming ------------------------------------------------------------------------
-    def subscribe(self, *, start: bool = True) -> _Subscription:
+    def subscribe(self, *, start: bool = True) -> RoleQueue:
         """A queue that receives every chunk from now on; starts the stream if asked and needed."""
         self.open()
-        subscription = _Subscription(
+        subscription = RoleQueue(
             max(1, int(self.role_buffer_s * self.sample_rate_hz)),
             wait_when_full=self.when_role_full == "wait",
             stopping=self._stop_reading,
@@ -289,7 +289,7 @@ class DaqBoard:
             if not self._streaming:
                 self._start_locked()
 
-    def unsubscribe(self, subscription: _Subscription) -> None:
+    def unsubscribe(self, subscription: RoleQueue) -> None:
         """Stop feeding a role; the stream stops when the last role leaves."""
         with subscription.condition:
             subscription.closed = True

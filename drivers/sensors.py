@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from drivers.daq import DaqBoard, RawChunk, _Subscription
+from drivers.daq import DaqBoard, RawChunk, RoleQueue
 from drivers.interfaces import PulseBlock, SampleBlock, StreamStatus
 
 FLAG_AT_RAIL = 1  # the ADC reading is saturated: the true value is beyond it
@@ -115,8 +115,8 @@ class _BoardRole:
     def __init__(self, board: DaqBoard, name: str) -> None:
         self.board = board
         self.channel = name
-        self._subscription: _Subscription | None = None
-        self._last: _Subscription | None = None
+        self._subscription: RoleQueue | None = None
+        self._last: RoleQueue | None = None
 
     @property
     def sample_rate_hz(self) -> float:
