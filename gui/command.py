@@ -1,0 +1,124 @@
+"""``impact-rig gui``: the desktop application (live rig, real rig from a file, or a replay)."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from rig.cli import CommandError
+
+VIEWS = ("time", "spectrum", "poincare", "phase", "analysis")
+
+DESCRIPTION = """\
+The desktop application: live views of the angle and the table (time traces,
+spectrum with peaks named as multiples of the drive frequency, Poincare section
+from the tach pulses, phase portrait), shaker control within the rig file's limits
+with an always-visible STOP, recording with notes, sweeps, replay of recordings
+(play, pause, seek, speed) and identification with the model's response drawn
+over the data. Settings persist between runs.
+
+Acquisition and recording run in their own threads; the window only draws.
+"""
+
+EPILOG = """\
+examples:
+  impact-rig gui --sim
+  impact-rig gui --config lab.toml
+  impact-rig gui --replay run.h5
+  impact-rig gui --sim --drive-hz 10 --beta 0.06 --view spectrum \\
+      --screenshot spectrum.png --after 12
+"""
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add the ``gui`` sub-command."""
+    parser = subparsers.add_parser(
+        "gui",
+        help="the desktop application (--sim, --config FILE, --replay FILE)",
+        description=DESCRIPTION,
+        epilog=EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    source = parser.add_mutually_exclusive_group()
+    source.add_argument("--sim", action="store_true", help="connect to the virtual rig at start")
+    source.add_argument("--config", metavar="FILE", help="connect to the rig this TOML file names")
+    source.add_argument("--replay", metavar="FILE", help="replay this recording (.h5)")
+    parser.add_argument("--fs", type=float, metavar="HZ", help="DAQ sample rate for a live rig")
+    parser.add_argument(
+        "--drive-hz", type=float, metavar="HZ", help="start the drive at this frequency (live)"
+    )
+    parser.add_argument(
+        "--beta", type=float, default=0.03, help="drive amplitude A/L with --drive-hz (0.03)"
+    )
+    parser.add_argument("--view", choices=VIEWS, help="the view to show first")
+    parser.add_argument(
+        "--screenshot", metavar="PNG", type=Path, help="save the main window to PNG and exit"
+    )
+    parser.add_argument(
+        "--after",
+        type=float,
+        default=5.0,
+        metavar="SECONDS",
+        help="with --screenshot: how long to run before saving (default 5)",
+    )
+    parser.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Start the Qt application and the main window; optionally save a screenshot and exit."""
+    if args.screenshot is not None and not args.after >= 0:
+        raise CommandError(f"--after {args.after}: expected a number of seconds >= 0")
+    for name in (args.config, args.replay):
+        if name and not Path(name).is_file():
+            raise CommandError(f"{name}: file not found")
+    from PySide6.QtCore import QTimer
+    from PySide6.QtWidgets import QApplication
+
+    from gui.app import MainWindow, open_source
+
+    app = QApplication.instance() or QApplication(sys.argv[:1])
+    app.setApplicationName("impact-rig")
+    window = MainWindow(sample_rate_hz=args.fs)
+    if args.view:
+        window.show_view(args.view)
+    window.show()
+    open_source(window, args.sim, args.config, args.replay)
+    if args.drive_hz is not None:
+        _start_drive_when_connected(window, args.drive_hz, args.beta)
+    status = {"code": 0}
+    if args.screenshot is not None:
+
+        def save() -> None:
+            if not window.grab().save(str(args.screenshot)):
+                print(f"impact-rig gui: cannot write {args.screenshot}", file=sys.stderr)
+                status["code"] = 2
+            else:
+                print(f"saved {args.screenshot}")
+            window.close()
+            app.quit()
+
+        QTimer.singleShot(round(args.after * 1000), save)
+    app.exec()
+    if window.last_error and window.session is None and args.screenshot is None:
+        raise CommandError(window.last_error)
+    return status["code"]
+
+
+def _start_drive_when_connected(window, frequency_hz: float, beta: float) -> None:
+    """Set and enable the drive once the live rig is open."""
+    from PySide6.QtCore import QTimer
+
+    from gui.worker import LiveSession
+
+    def attempt() -> None:
+        if isinstance(window.session, LiveSession):
+            panel = window.shaker_panel
+            panel.frequency.setValue(frequency_hz)
+            panel.beta.setValue(beta)
+            panel.enable.setChecked(True)
+            panel.apply.click()
+        else:
+            QTimer.singleShot(200, attempt)
+
+    QTimer.singleShot(200, attempt)

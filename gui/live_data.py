@@ -1,0 +1,143 @@
+"""What the views draw: the newest seconds of every channel, tach edges and the drive, in memory.
+
+Filled on the GUI thread from the engine subscription (a bounded queue drained on a
+timer); views read slices of it when they redraw.  Fixed-size rings: the memory
+does not grow with the length of a run, and an old sample is simply overwritten.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from collections.abc import Iterable
+
+import numpy as np
+
+from drivers.interfaces import PulseBlock, SampleBlock
+from rig.events import DriveSetting, Gap, StepMark
+
+DEFAULT_KEEP_S = 30.0
+MAX_TACH_EDGES = 100_000
+
+
+class ChannelRing:
+    """The newest ``capacity`` samples of one channel with their device sample indices."""
+
+    def __init__(self, capacity: int) -> None:
+        if capacity < 1:
+            raise ValueError(f"capacity = {capacity}: need room for at least one sample")
+        self.capacity = int(capacity)
+        self._values = np.zeros(self.capacity, dtype=np.float64)
+        self._indices = np.zeros(self.capacity, dtype=np.int64)
+        self._write = 0
+        self.count = 0  # samples held (at most capacity)
+        self.end_index: int | None = None  # one past the newest sample index
+
+    def append(self, first_index: int, values: np.ndarray) -> None:
+        """Add consecutive samples starting at device index ``first_index``."""
+        values = np.asarray(values, dtype=np.float64)
+        n = values.size
+        if n == 0:
+            return
+        indices = first_index + np.arange(n, dtype=np.int64)
+        if n >= self.capacity:
+            values, indices = values[-self.capacity :], indices[-self.capacity :]
+            n = self.capacity
+        stop = self._write + n
+        if stop <= self.capacity:
+            self._values[self._write : stop] = values
+            self._indices[self._write : stop] = indices
+        else:
+            split = self.capacity - self._write
+            self._values[self._write :] = values[:split]
+            self._indices[self._write :] = indices[:split]
+            self._values[: n - split] = values[split:]
+            self._indices[: n - split] = indices[split:]
+        self._write = stop % self.capacity
+        self.count = min(self.capacity, self.count + n)
+        self.end_index = int(indices[-1]) + 1
+
+    def latest(self, n: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """The newest ``n`` samples (all held when None), oldest first: (indices, values)."""
+        n = self.count if n is None else max(0, min(int(n), self.count))
+        start = self._write - n
+        if start >= 0:
+            return self._indices[start : self._write].copy(), self._values[
+                start : self._write
+            ].copy()
+        return (
+            np.concatenate([self._indices[start:], self._indices[: self._write]]),
+            np.concatenate([self._values[start:], self._values[: self._write]]),
+        )
+
+    def since(self, first_index: int) -> tuple[np.ndarray, np.ndarray]:
+        """Samples with index >= ``first_index`` that are still held."""
+        if self.end_index is None:
+            return np.zeros(0, np.int64), np.zeros(0)
+        return self.latest(self.end_index - first_index)
+
+    def clear(self) -> None:
+        """Forget everything (a new source or a seek)."""
+        self._write = 0
+        self.count = 0
+        self.end_index = None
+
+
+class LiveData:
+    """The newest data of the angle, the table and the tach, as the views need it."""
+
+    def __init__(self, sample_rate_hz: float, keep_s: float = DEFAULT_KEEP_S) -> None:
+        self.sample_rate_hz = float(sample_rate_hz)
+        self.keep_s = keep_s
+        capacity = max(1024, int(keep_s * self.sample_rate_hz))
+        self.angle = ChannelRing(capacity)
+        self.table = ChannelRing(capacity)
+        self.tach_edges: deque[int] = deque(maxlen=MAX_TACH_EDGES)
+        self.tach_edges_seen = 0  # all edges ever added (views track their own progress)
+        self.drive: DriveSetting | None = None
+        self.steps: list[StepMark] = []
+        self.gaps = 0
+        self.samples_in = 0
+        self.generation = 0  # bumped by clear(): views drop what they accumulated
+
+    def ingest(self, events: Iterable[object]) -> None:
+        """Take the engine's deliveries (sample and pulse blocks, gaps, drive, steps)."""
+        for event in events:
+            if isinstance(event, SampleBlock):
+                ring = self.angle if event.channel == "angle" else None
+                if ring is None and event.channel == "table":
+                    ring = self.table
+                if ring is not None:
+                    ring.append(event.first_index, event.values)
+                    self.samples_in += len(event)
+            elif isinstance(event, PulseBlock):
+                for edge in event.edge_indices:
+                    self.tach_edges.append(int(edge))
+                    self.tach_edges_seen += 1
+            elif isinstance(event, DriveSetting):
+                self.drive = event
+            elif isinstance(event, StepMark):
+                self.steps.append(event)
+            elif isinstance(event, Gap):
+                self.gaps += 1
+
+    def drive_frequency_hz(self) -> float | None:
+        """The drive frequency: from the tach when it ticks, else the last drive setting."""
+        edges = self.tach_edges
+        if len(edges) >= 3:
+            period = (edges[-1] - edges[-3]) / 2.0
+            newest = self.angle.end_index or 0
+            if period > 0 and newest - edges[-1] < 3 * period:
+                return self.sample_rate_hz / period
+        if self.drive is not None and self.drive.enabled and self.drive.frequency_hz > 0:
+            return self.drive.frequency_hz
+        return None
+
+    def clear(self) -> None:
+        """Forget all data (a new source, or a replay seek)."""
+        self.angle.clear()
+        self.table.clear()
+        self.tach_edges.clear()
+        self.tach_edges_seen = 0
+        self.steps.clear()
+        self.gaps = 0
+        self.generation += 1

@@ -1,0 +1,1 @@
+"""Control panels: connection, shaker, recording and sweeps, status, replay, analysis."""

@@ -1,0 +1,44 @@
+"""Phase portrait: angular velocity against angle over the last few seconds."""
+
+from __future__ import annotations
+
+import numpy as np
+import pyqtgraph as pg
+from PySide6.QtWidgets import QDoubleSpinBox, QHBoxLayout, QLabel, QVBoxLayout, QWidget
+
+from analysis.dynamics.poincare import smoothed_derivative
+from gui.live_data import LiveData
+
+MAX_POINTS = 6000
+
+
+class PhasePortraitView(QWidget):
+    """The trajectory (theta, theta') of the newest ``length_s`` seconds."""
+
+    def __init__(self, parent: QWidget | None = None) -> None:
+        super().__init__(parent)
+        self.length_s = QDoubleSpinBox(minimum=0.2, maximum=20.0, value=2.0, suffix=" s")
+        controls = QHBoxLayout()
+        controls.addWidget(QLabel("Last"))
+        controls.addWidget(self.length_s)
+        controls.addStretch(1)
+        self.plot = pg.PlotWidget()
+        self.plot.setLabel("bottom", "angle", units="rad")
+        self.plot.setLabel("left", "angular velocity", units="rad/s")
+        self.plot.showGrid(x=True, y=True, alpha=0.2)
+        self.curve = self.plot.plot(pen=pg.mkPen("#6a2a9c", width=1))
+        layout = QVBoxLayout(self)
+        layout.setContentsMargins(0, 0, 0, 0)
+        layout.addLayout(controls)
+        layout.addWidget(self.plot)
+
+    def refresh(self, data: LiveData) -> None:
+        """Redraw the newest stretch (derivative by a smoothing filter, then thinned)."""
+        fs = data.sample_rate_hz
+        index, theta = data.angle.latest(int(self.length_s.value() * fs))
+        window = max(15, int(fs / 200) | 1)  # about 5 ms: smooths noise, keeps impacts sharp
+        if theta.size < 2 * window or np.any(np.diff(index) != 1):
+            return
+        rate = smoothed_derivative(theta, fs, window_samples=window)
+        step = max(1, theta.size // MAX_POINTS)
+        self.curve.setData(theta[::step], rate[::step])
