@@ -365,6 +365,8 @@ class DaqBoard:
             self._samples_lost += lost
             self._samples_received += chunk.n_samples
             self._expected_index = chunk.end_index
+            chunk.analog.setflags(write=False)  # shared by every role: nobody may edit it
+            chunk.digital.setflags(write=False)
             for subscription in self._subscriptions:
                 subscription.push(chunk, lost)
 

@@ -9,6 +9,7 @@ volts become SI units with the role's calibration, a small validated dataclass.
 from __future__ import annotations
 
 import math
+import numbers
 from dataclasses import dataclass
 
 import numpy as np
@@ -22,7 +23,8 @@ FLAG_OUT_OF_RANGE = 2  # the reading lies outside the sensor's measuring range
 
 def _require_finite(owner: str, **values: float) -> None:
     for name, value in values.items():
-        if not isinstance(value, int | float) or not math.isfinite(value):
+        real = isinstance(value, numbers.Real) and not isinstance(value, bool)
+        if not real or not math.isfinite(value):
             raise ValueError(f"{owner}.{name}={value!r} must be a finite number")
 
 
@@ -40,6 +42,7 @@ class PotentiometerCalibration:
     linearity: tuple[float, ...] = ()
 
     def __post_init__(self) -> None:
+        object.__setattr__(self, "linearity", tuple(self.linearity))  # a list from a file is fine
         _require_finite("PotentiometerCalibration", offset_v=self.offset_v)
         _require_finite("PotentiometerCalibration", gain_rad_per_v=self.gain_rad_per_v)
         if self.gain_rad_per_v == 0:
@@ -77,6 +80,11 @@ class LaserCalibration:
             raise ValueError("LaserCalibration.m_per_unit must not be 0")
         if self.unit not in ("V", "count"):
             raise ValueError(f"LaserCalibration.unit={self.unit!r} must be 'V' or 'count'")
+        if len(self.measuring_range_m) != 2:
+            raise ValueError(
+                f"LaserCalibration.measuring_range_m={self.measuring_range_m!r} must be (low, high)"
+            )
+        object.__setattr__(self, "measuring_range_m", tuple(self.measuring_range_m))
         low, high = self.measuring_range_m
         _require_finite("LaserCalibration", measuring_range_low=low, measuring_range_high=high)
         if not low < high:

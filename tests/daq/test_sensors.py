@@ -33,12 +33,21 @@ from tests.daq.test_stream import read_past_faults, read_until
         (lambda: LaserCalibration(unit="mm"), "unit"),
         (lambda: LaserCalibration(m_per_unit=0.0), "m_per_unit"),
         (lambda: LaserCalibration(measuring_range_m=(0.05, -0.05)), "measuring_range_m"),
+        (lambda: LaserCalibration(measuring_range_m=(0.0,)), "measuring_range_m"),
+        (lambda: LaserCalibration(zero_m="0"), "zero_m"),
         (lambda: TachometerCalibration(line=16), "line"),
     ],
 )
 def test_calibration_errors_name_the_field(make, field):
     with pytest.raises(ValueError, match=field):
         make()
+
+
+def test_calibrations_from_a_file_take_lists_and_numpy_numbers():
+    pot = PotentiometerCalibration(offset_v=np.float32(0.5), linearity=[0.1, np.int64(0)])
+    assert pot.linearity == (0.1, 0) and hash(pot)
+    laser = LaserCalibration(measuring_range_m=[-0.02, 0.02])
+    assert laser.measuring_range_m == (-0.02, 0.02) and hash(laser)
 
 
 class PatternSource:
