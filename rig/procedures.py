@@ -26,7 +26,7 @@ from rig.events import StepMark
 from rig.recorder import Recorder, RecorderThread, RecordingMetadata
 
 Progress = Callable[[str], None]
-FIRST_DATA_TIMEOUT_S = 5.0
+FIRST_DATA_TIMEOUT_S = 15.0  # generous: a loaded lab PC can be slow to start streaming
 
 
 class ProcedureError(RuntimeError):
