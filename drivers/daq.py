@@ -187,6 +187,7 @@ class DaqBoard:
         self.configuration: BoardConfiguration | None = None
         self.failure = ""  # set when the device went away; role reads then raise
         self._lock = threading.Lock()
+        self._open_lock = threading.Lock()
         self._subscriptions: tuple[RoleQueue, ...] = ()  # replaced whole: the reader
         # thread reads it without the lock, which stop() holds while joining that thread
         self._thread: threading.Thread | None = None
@@ -201,6 +202,10 @@ class DaqBoard:
     # --- set-up ---------------------------------------------------------------------------
     def open(self) -> BoardIdentity:
         """Connect, check it is the expected board, and configure it (validated first)."""
+        with self._open_lock:  # roles may start from several threads at once
+            return self._open_locked()
+
+    def _open_locked(self) -> BoardIdentity:
         if self.identity is not None:
             return self.identity
         identity = self.backend.connect()
