@@ -9,9 +9,11 @@ from __future__ import annotations
 
 import math
 import tomllib
-from dataclasses import asdict, dataclass
+from collections.abc import Mapping
+from dataclasses import asdict, dataclass, field
 from importlib import resources
 from pathlib import Path
+from types import MappingProxyType
 from typing import Any
 
 from drivers.limits import LimitsConfigError, ShakerLimits
@@ -79,6 +81,11 @@ class VirtualRigConfig:
     release_angle_rad: float
     noise_rad: float
     seed: int
+    # physical effects the baseline model lacks, switched on in the simulation
+    # (MODEL.md section 6 cause name -> its parameter values), from [virtual.causes]
+    causes: Mapping[str, Mapping[str, float]] = field(
+        default_factory=lambda: MappingProxyType({})
+    )
 
 
 @dataclass(frozen=True)
@@ -221,6 +228,36 @@ def _range_words(low: float | None, high: float | None, low_open: bool) -> str:
     return ""
 
 
+def _virtual_causes(virtual: _Section) -> Mapping[str, Mapping[str, float]]:
+    """The optional [virtual.causes] table: named causes (MODEL.md section 6) and their values,
+    e.g. ``coulomb_friction = { Tc_N_m = 2e-5 }``; checked against the cause registry."""
+    if "causes" not in virtual.table:
+        return MappingProxyType({})
+    from analysis.extensions import CAUSES
+    from analysis.model import ParameterError
+
+    table = virtual.section("causes")
+    causes: dict[str, Mapping[str, float]] = {}
+    for name in list(table.table):
+        if name not in CAUSES:
+            raise table._bad(name, table.table[name], "a named cause: one of " + ", ".join(CAUSES))
+        given = table.section(name)
+        specs = CAUSES[name].parameters
+        values = {
+            spec.name: given.number(spec.name, low=spec.lower, high=spec.upper)
+            for spec in specs
+            if spec.name in given.table
+        }
+        given.used.update(spec.name for spec in specs)  # absent parameters take their defaults
+        given.finish()
+        try:
+            causes[name] = MappingProxyType(CAUSES[name].values(values))
+        except ParameterError as error:
+            raise ConfigError(f"{virtual.source}: [virtual.causes] {error}") from None
+    table.finish()
+    return MappingProxyType(causes)
+
+
 def default_config_path() -> Path:
     """The shipped default rig file (the virtual rig)."""
     return Path(str(resources.files("rig").joinpath(DEFAULT_CONFIG_NAME)))
@@ -336,6 +373,7 @@ def parse_config(text: str, source: str = "<rig file>") -> RigConfig:
         release_angle_rad=virtual_section.number("release_angle_rad", low=-1.5, high=1.5),
         noise_rad=virtual_section.number("noise_rad", low=0),
         seed=virtual_section.integer("seed", low=0),
+        causes=_virtual_causes(virtual_section),
     )
     virtual_section.finish()
     top.finish()

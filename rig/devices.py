@@ -207,6 +207,8 @@ def _start_virtual_rig(config: RigConfig, sample_rate_hz: float, speed: float):
         ),
         barrier=config.virtual.barrier,
     )
+    for name, values in config.virtual.causes.items():  # effects the baseline model lacks
+        model = model.with_extension(name, **values)
     settings = VirtualRigSettings(
         model=model,
         sample_rate_hz=sample_rate_hz,
