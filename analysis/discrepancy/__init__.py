@@ -1,0 +1,7 @@
+"""Discrepancy analysis: where the baseline model fails on a record, which named cause
+explains it, and how much the extended model gains (MODEL.md section 6)."""
+
+from analysis.discrepancy.analyze import Analysis, AnalysisError, analyze_record
+from analysis.discrepancy.candidates import candidates_for, excluded_for
+
+__all__ = ["Analysis", "AnalysisError", "analyze_record", "candidates_for", "excluded_for"]

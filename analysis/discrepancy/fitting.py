@@ -1,0 +1,280 @@
+"""Fit the baseline model, or the baseline extended by one named cause, to a measured angle record.
+
+One general mechanism for every cause of the registry: a cause's parameters join
+the baseline's free parameters, dynamics causes act through the packed vector of
+the compiled equations (``Model.with_extension``), measurement causes on the
+simulated angle.  Each trial simulates the whole record (``simulate_packed`` at a
+modest tolerance); the Jacobian is a forward difference with steps sized to each
+parameter, and intervals come from the autocorrelation-consistent sandwich that
+``analysis.identify`` uses.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from analysis.discrepancy.candidates import REPLACES, ParameterPlan, RecordScale, plan_for
+from analysis.extensions import NONE, cause
+from analysis.identify.intervals import Z95, sandwich_covariance
+from analysis.identify.result import Estimate
+from analysis.model import Drive, Model, P, RigParameters
+from analysis.simulate import SimulationResult, simulate_packed
+
+RTOL = 1e-8
+ATOL = 1e-10
+MAX_ITERATIONS = 25
+START_INSIDE = 10.0  # steps between a start value and a bound
+
+BASELINE_PARAMETERS: dict[str, tuple[str, ...]] = {
+    "free_decay": ("theta0_rad", "theta_dot0_rad_s", "omega_rad_s", "zeta"),
+    "impact_decay": (
+        "theta0_rad", "theta_dot0_rad_s", "omega_rad_s", "zeta", "K_N_per_m1.5", "mu0_s_per_m",
+    ),
+    "forced": (
+        "theta0_rad", "theta_dot0_rad_s", "omega_rad_s", "zeta", "K_N_per_m1.5", "mu0_s_per_m",
+    ),
+}
+POSITIVE = {"omega_rad_s", "K_N_per_m1.5"}  # fitted on a log scale
+BOUNDS = {
+    "theta0_rad": (-math.pi / 2, math.pi / 2),
+    "theta_dot0_rad_s": (-math.inf, math.inf),
+    "omega_rad_s": (0.0, math.inf),
+    "zeta": (0.0, 0.5),
+    "K_N_per_m1.5": (1e-3, 1e14),
+    "mu0_s_per_m": (0.0, 50.0),
+}
+
+
+@dataclass(frozen=True)
+class FitData:
+    """The part of a record a fit uses: uniform times from 0, angle (NaN where excluded)."""
+
+    experiment: str
+    t: np.ndarray
+    y: np.ndarray
+    valid: np.ndarray
+    noise_rad: float
+    rig: RigParameters  # known constants (m, l, R, g); L, zeta, K, mu0 are fitted
+    drive: Drive = field(default_factory=Drive)
+    barrier: bool = False
+    phase0_rad: float = 0.0
+
+    @property
+    def dt(self) -> float:
+        """Sample period."""
+        return float(self.t[1] - self.t[0])
+
+    @property
+    def n_valid(self) -> int:
+        """Number of usable samples."""
+        return int(np.count_nonzero(self.valid))
+
+    def head(self, fraction: float) -> FitData:
+        """The first ``fraction`` of the record (for held-out prediction of the rest)."""
+        n = max(16, round(fraction * self.t.size))
+        return replace(self, t=self.t[:n], y=self.y[:n], valid=self.valid[:n])
+
+
+@dataclass(frozen=True)
+class FitResult:
+    """A fitted model: its values, estimates with 95 % intervals, and residuals."""
+
+    cause: str
+    values: dict[str, float]
+    estimates: dict[str, Estimate]
+    residual: np.ndarray  # model - data over the whole FitData, NaN where not valid
+    n_params: int
+    success: bool
+    message: str
+    contacts: int = 0
+
+    @property
+    def rss(self) -> float:
+        """Residual sum of squares over the valid samples."""
+        r = self.residual[np.isfinite(self.residual)]
+        return float(r @ r)
+
+    @property
+    def n(self) -> int:
+        """Number of residuals."""
+        return int(np.count_nonzero(np.isfinite(self.residual)))
+
+    @property
+    def rms(self) -> float:
+        """Root mean square residual [rad]."""
+        return math.sqrt(self.rss / max(self.n, 1))
+
+
+def build_model(data: FitData, cause_name: str, values: Mapping[str, float]) -> Model:
+    """The model of the given baseline values, extended by the cause (``none``: baseline)."""
+    omega = values["omega_rad_s"]
+    rig = data.rig.with_values(
+        L_m=data.rig.g_m_s2 / omega**2,
+        zeta=values["zeta"],
+        mu0_s_per_m=values.get("mu0_s_per_m", 0.0),
+    )
+    if "K_N_per_m1.5" in values:
+        rig = rig.with_stiffness(values["K_N_per_m1.5"])
+    model = Model(rig=rig, drive=data.drive, barrier=data.barrier)
+    if cause_name != NONE:
+        c = cause(cause_name)
+        model = model.with_extension(
+            cause_name, **{s.name: values[s.name] for s in c.parameters if s.name in values}
+        )
+    return model
+
+
+def predict(
+    data: FitData, cause_name: str, values: Mapping[str, float], n: int | None = None
+) -> tuple[np.ndarray, SimulationResult]:
+    """The angle the sensor would report under the model, at the record's sample times."""
+    n = data.t.size if n is None else n
+    model = build_model(data, cause_name, values)
+    p = model.pack()
+    p[P.PHASE0] = data.phase0_rad
+    sim = simulate_packed(
+        p, values["theta0_rad"], values["theta_dot0_rad_s"], n * data.dt, 1.0 / data.dt,
+        poincare_phase=None, rtol=RTOL, atol=ATOL,
+    )
+    theta = np.asarray(sim.theta, dtype=float)[:n]
+    if theta.size < n:
+        # The trial left the experiment's regime: hold the last angle, so the optimiser sees
+        # a large residual and steps back instead of failing.
+        last = theta[-1] if theta.size else values["theta0_rad"]
+        theta = np.concatenate([theta, np.full(n - theta.size, last)])
+    if cause_name != NONE:
+        c = cause(cause_name)
+        if c.measurement is not None:
+            t = np.arange(n) * data.dt
+            own = {s.name: values[s.name] for s in c.parameters}
+            theta = c.measurement(t, theta, c.values(own))
+    return theta, sim
+
+
+def free_parameters(
+    data: FitData, cause_name: str, scale: RecordScale, start: Mapping[str, float]
+) -> dict[str, tuple[float, ParameterPlan, float, float]]:
+    """name -> (start value, plan, lower, upper) of every parameter the fit adjusts."""
+    replaced = REPLACES.get(cause_name, ())
+    out: dict[str, tuple[float, ParameterPlan, float, float]] = {}
+    for name in BASELINE_PARAMETERS[data.experiment]:
+        if name in replaced:
+            continue
+        value = start[name]
+        log = name in POSITIVE
+        out[name] = (value, ParameterPlan(value, _baseline_step(name, scale), log), *BOUNDS[name])
+    if cause_name != NONE:
+        c = cause(cause_name)
+        plans = plan_for(c, scale)
+        for spec in c.parameters:
+            plan = plans[spec.name]
+            value = start.get(spec.name, plan.start)
+            value = min(max(value, spec.lower), spec.upper)
+            out[spec.name] = (value, plan, spec.lower, spec.upper)
+    return out
+
+
+def _baseline_step(name: str, s: RecordScale) -> float:
+    steps = {
+        "theta0_rad": 1e-6 * max(s.amplitude_rad, 1e-2),
+        "theta_dot0_rad_s": 1e-6 * s.omega_rad_s * max(s.amplitude_rad, 1e-2),
+        "omega_rad_s": 1e-7,  # log scale: relative step
+        "zeta": 1e-4 * max(s.zeta, 1e-4),
+        "K_N_per_m1.5": 1e-4,  # log scale
+        "mu0_s_per_m": 1e-4 * max(s.mu0_s_per_m, 1e-2),
+    }
+    return steps[name]
+
+
+def fit(
+    data: FitData,
+    cause_name: str,
+    start: Mapping[str, float],
+    scale: RecordScale,
+    *,
+    max_iterations: int = MAX_ITERATIONS,
+) -> FitResult:
+    """Least-squares fit of the baseline (``none``) or the baseline extended by one cause."""
+    free = free_parameters(data, cause_name, scale, start)
+    names = list(free)
+    fixed = {k: v for k, v in start.items() if k not in free}
+    # Work in step units u: x = x0 + u * step (or log x = log x0 + u * step), so a unit
+    # change of u is a well-resolved change of the model for every parameter.
+    origin = np.array([math.log(max(free[k][0], 1e-300)) if free[k][1].log else free[k][0]
+                       for k in names])
+    steps = np.array([free[k][1].step for k in names])
+    lower = np.empty(len(names))
+    upper = np.empty(len(names))
+    for i, k in enumerate(names):
+        _, plan, lo, hi = free[k]
+        if plan.log:
+            lo, hi = math.log(max(lo, 1e-300)), math.log(hi) if math.isfinite(hi) else math.inf
+        lower[i] = (lo - origin[i]) / steps[i]
+        upper[i] = (hi - origin[i]) / steps[i]
+    logs = np.array([free[k][1].log for k in names])
+    mask = data.valid
+    y = data.y[mask]
+
+    def values_of(u: np.ndarray) -> dict[str, float]:
+        raw = origin + u * steps
+        raw = np.where(logs, np.exp(np.where(logs, raw, 0.0)), raw)
+        return {**fixed, **dict(zip(names, raw.tolist(), strict=True))}
+
+    def residual(u: np.ndarray) -> np.ndarray:
+        theta, _ = predict(data, cause_name, values_of(u))
+        return theta[mask] - y
+
+    def jacobian(u: np.ndarray) -> np.ndarray:
+        r0 = residual(u)
+        jac = np.empty((r0.size, u.size))
+        for i in range(u.size):
+            h = 1.0 if u[i] + 1.0 <= upper[i] else -1.0
+            du = u.copy()
+            du[i] += h
+            jac[:, i] = (residual(du) - r0) / h
+        return jac
+
+    # A start on a bound stalls the trust-region reflective method (its scaling there is 0):
+    # start a few steps inside, which leaves the model as good as unchanged.
+    u0 = np.clip(np.zeros(len(names)), lower + START_INSIDE, upper - START_INSIDE)
+    narrow = (upper - lower) <= 2 * START_INSIDE  # only finite bounds can be this close
+    u0[narrow] = 0.5 * (lower[narrow] + upper[narrow])
+    solution = least_squares(
+        residual, u0, jac=jacobian, bounds=(lower, upper), method="trf", x_scale="jac",
+        max_nfev=max_iterations, xtol=1e-10, ftol=1e-10,
+    )
+    values = values_of(solution.x)
+    theta, sim = predict(data, cause_name, values)
+    full_residual = np.where(mask, theta - np.where(mask, data.y, 0.0), np.nan)
+    estimates = _estimates(names, solution, values, steps, logs, data)
+    return FitResult(
+        cause=cause_name, values=values, estimates=estimates, residual=full_residual,
+        n_params=len(names), success=bool(solution.status > 0), message=str(solution.message),
+        contacts=sim.contacts.count,
+    )
+
+
+def _estimates(names, solution, values, steps, logs, data: FitData) -> dict[str, Estimate]:
+    """95 % intervals from the sandwich covariance at the solution (delta method to x)."""
+    out: dict[str, Estimate] = {}
+    try:
+        cov = sandwich_covariance([(solution.fun, solution.jac)])
+        variances = np.diag(cov.matrix)
+    except (np.linalg.LinAlgError, ValueError):
+        variances = np.full(len(names), np.nan)
+    for i, k in enumerate(names):
+        value = values[k]
+        half_u = Z95 * math.sqrt(variances[i]) if math.isfinite(variances[i]) else math.nan
+        half = half_u * steps[i]
+        if not math.isfinite(half) or (logs[i] and half > 50.0):
+            out[k] = Estimate(value)  # not identified: no honest interval
+        elif logs[i]:
+            out[k] = Estimate(value, (value * math.exp(-half), value * math.exp(half)))
+        else:
+            out[k] = Estimate(value, (value - half, value + half))
+    return out
