@@ -231,7 +231,9 @@ def _robust_fit(
     x0 = np.clip(np.asarray(x0, dtype=float), lower, upper)
 
     def residual(x: np.ndarray, mask: np.ndarray) -> np.ndarray:
-        return (curve(t, x) - data)[mask]
+        # Simulate only as far as the samples in use (the early windows are short).
+        stop = int(np.flatnonzero(mask)[-1]) + 1
+        return (curve(t[:stop], x) - data[:stop])[mask[:stop]]
 
     # The robust pass only has to find the basin and the outliers: a thinned record
     # (every k-th sample) does that at a fraction of the cost of the full one.

@@ -16,7 +16,7 @@ from collections.abc import Mapping
 import numpy as np
 from scipy.optimize import minimize_scalar
 
-from analysis.identify.free_decay import _robust_fit
+from analysis.identify.free_decay import _robust_fit, fit_free_decay
 from analysis.identify.preprocess import PreparedSignal, prepare
 from analysis.identify.result import Estimate, IdentificationError, IdentificationResult
 from analysis.model import Drive, Model, RigParameters
@@ -24,20 +24,40 @@ from analysis.records import Record
 
 CONTACT_TIME_CONSTANT = 3.2181
 FITTED = ("L_m", "zeta")
+FREE_SWING_RATIO = 3.0  # a barrier-free fit this close to the noise means no impacts
 MIN_SHORTFALL = 0.03  # impacts must stop the swing this fraction below its free height
 
 
-def _segments(angle: np.ndarray, level: float) -> tuple[np.ndarray, np.ndarray]:
-    """Start and stop indices of the runs where angle > level (contact candidates)."""
-    above = np.concatenate([[False], angle > level, [False]])
+def _segments(
+    angle: np.ndarray, level: float, hysteresis: float = 0.0
+) -> tuple[np.ndarray, np.ndarray]:
+    """Start and stop indices of the runs above ``level``; a run ends only below level - hysteresis.
+
+    Without hysteresis, noise at the level would split one excursion into many.
+    """
+    state = np.zeros(angle.size, dtype=np.int8)
+    state[angle > level] = 1
+    state[angle < level - hysteresis] = -1
+    marks = np.where(state != 0, np.arange(angle.size), 0)
+    np.maximum.accumulate(marks, out=marks)
+    held = np.where(marks > 0, state[marks], state[0])
+    held[0] = 1 if state[0] == 1 else -1 if held[0] == 0 else held[0]
+    above = np.concatenate([[False], held == 1, [False]])
     edges = np.flatnonzero(above[1:] != above[:-1])
     return edges[0::2], edges[1::2]
 
 
 def impact_events(
-    signal: PreparedSignal, omega: float, rig: RigParameters
+    signal: PreparedSignal, rig: RigParameters, omega_hint: float | None = None
 ) -> dict[str, np.ndarray | float]:
-    """Per-impact entry/exit speeds and contact times from the free flight around each impact."""
+    """First estimates from the impacts: omega, sensor offset, theta_b, K, mu0 (see module doc).
+
+    omega and the sensor zero come from the curvature at the lower turning points
+    (there theta' = 0, so theta'' = -omega^2 sin(theta - offset) whatever the damping);
+    the free flight between impacts is then a sinusoid about that zero, and theta_b
+    is the barrier angle at which the contact times and entry speeds predict the
+    observed peak penetrations (t_c and delta_max of the Hertz impact, MODEL.md).
+    """
     t = signal.time_s
     good = signal.valid
     theta = np.where(good, signal.angle_rad, np.nan)
@@ -45,93 +65,115 @@ def impact_events(
     filled = np.interp(idx, idx[good], theta[good])
     high = np.percentile(filled, 99.5)
     low = np.percentile(filled, 0.5)
-    starts, stops = _segments(filled, high - 0.15 * (high - low))
-    peaks = np.array([filled[a:b].max() for a, b in zip(starts, stops, strict=True)])
-    if peaks.size < 3:
+    hysteresis = 6.0 * signal.noise_rad
+    starts, stops = _segments(filled, high - 0.15 * (high - low), hysteresis)
+    peaks_all = np.array([filled[a:b].max() for a, b in zip(starts, stops, strict=True)])
+    if peaks_all.size < 3:
         raise IdentificationError(
-            f"no impacts found: only {peaks.size} excursion(s) reach the upper level; an "
+            f"no impacts found: only {peaks_all.size} excursion(s) reach the upper level; an "
             "impact-decay record needs at least 3 impacts"
         )
     guard = 0.08 * (high - low)
-    cstarts, cstops = _segments(filled, np.median(peaks) - guard)
-    # Free-flight segments between successive contacts; each is c + a cos(w t) + b sin(w t).
+    cstarts, cstops = _segments(filled, np.median(peaks_all) - guard, hysteresis)
+    if cstarts.size < 4:
+        raise IdentificationError(
+            f"no impacts found: only {cstarts.size} upper excursions; need at least 4"
+        )
+    # Lower turning points between successive upper excursions, and their curvature.
+    troughs = np.array([
+        cstops[k] + int(np.argmin(filled[cstops[k]:cstarts[k + 1]]))
+        for k in range(cstarts.size - 1)
+    ])
+    spacing = float(np.median(np.diff(troughs))) if troughs.size > 1 else 0.0
+    half = max(3, int(0.1 * spacing))
+    depth, curvature = [], []
+    for i in troughs:
+        if i - half < 0 or i + half >= t.size:
+            continue
+        window = slice(i - half, i + half + 1)
+        tau = t[window] - t[i]
+        coeffs = np.polyfit(tau[good[window]], filled[window][good[window]], 4)
+        depth.append(filled[i])
+        curvature.append(2.0 * coeffs[-3])
+    depth_a, curvature_a = np.array(depth), np.array(curvature)
+    if depth_a.size >= 3 and np.ptp(depth_a) > 0.1 * np.median(np.abs(depth_a - high)):
+        slope, intercept = np.polyfit(depth_a, curvature_a, 1)  # curv = -w^2 (depth - c)
+        omega = math.sqrt(max(-slope, 1e-12))
+        offset = intercept / omega**2
+    elif omega_hint:
+        omega = omega_hint
+        offset = float(np.median(depth_a + curvature_a / omega**2))
+    else:
+        raise IdentificationError(
+            "cannot separate frequency and sensor zero: the lower turning points hardly "
+            "change depth; hold L_m (--hold or --free-decay)"
+        )
+    if omega_hint:  # a held length is exact; the curvature estimate is not
+        omega = omega_hint
+        offset = float(np.median(depth_a + np.sin(curvature_a / omega**2)))
+    # Free flights between contacts, each a sinusoid about the sensor zero.
     pieces = [(cstops[k], cstarts[k + 1]) for k in range(cstarts.size - 1)]
-    pieces = [(a, b) for a, b in pieces if b - a > 8]
-    if len(pieces) < 2:
-        raise IdentificationError("no impacts found: too few free flights between contacts")
-
-    def segment_fit(w: float) -> tuple[float, list[np.ndarray], float]:
-        rows, rhs, blocks = [], [], []
-        for k, (a, b) in enumerate(pieces):
-            tt = t[a:b]
-            m = good[a:b]
-            basis = np.zeros((tt.size, 1 + 2 * len(pieces)))
-            basis[:, 0] = 1.0
-            basis[:, 1 + 2 * k] = np.cos(w * tt)
-            basis[:, 2 + 2 * k] = np.sin(w * tt)
-            rows.append(basis[m])
-            rhs.append(filled[a:b][m])
-            blocks.append(k)
-        A = np.vstack(rows)
-        y = np.concatenate(rhs)
-        coef, *_ = np.linalg.lstsq(A, y, rcond=None)
-        cost = float(np.sum((A @ coef - y) ** 2))
-        return cost, coef, 0.0
-
-    found = minimize_scalar(
-        lambda w: segment_fit(w)[0], bounds=(0.6 * omega, 1.5 * omega), method="bounded"
-    )
-    w = float(found.x)
-    _, coef, _ = segment_fit(w)
-    offset = float(coef[0])
-    # A barrier stops the swing short of the height the free flight before it would reach;
-    # without impacts the upper turning points sit on the free-flight sinusoid.
-    shortfall = []
-    for k in range(len(pieces) - 1):
-        reach = offset + math.hypot(coef[1 + 2 * k], coef[2 + 2 * k])
-        top = filled[pieces[k][1]:pieces[k + 1][0]].max()
-        shortfall.append((reach - top) / max(reach - offset, 1e-12))
+    arcs = []
+    for a, b in pieces:
+        m = good[a:b]
+        basis = np.column_stack([np.cos(omega * t[a:b]), np.sin(omega * t[a:b])])
+        (ca, cb), *_ = np.linalg.lstsq(basis[m], filled[a:b][m] - offset, rcond=None)
+        arcs.append((math.hypot(ca, cb), math.atan2(cb, ca), t[b - 1]))
+    peaks = np.array([filled[pieces[k][1]:pieces[k + 1][0]].max() for k in range(len(arcs) - 1)])
+    reach = np.array([offset + arcs[k][0] for k in range(len(arcs) - 1)])
+    shortfall = (reach - peaks) / np.maximum(reach - offset, 1e-12)
     if np.median(shortfall) < MIN_SHORTFALL:
         raise IdentificationError(
             "no impacts found: the swings reach the height of free flight (median shortfall "
             f"{100 * np.median(shortfall):.2g} % of the amplitude); is the barrier in place?"
         )
-    L = rig.l_m
-    m_eff = rig.m_kg * rig.L_m**2 / rig.l_m**2
-    theta_b = float(np.median(peaks)) - offset
-    K = rig.K_N_per_m1_5
-    for _ in range(3):
-        v_in, v_out, t_c = [], [], []
-        for k in range(len(pieces) - 1):
-            a1, b1 = coef[1 + 2 * k], coef[2 + 2 * k]
-            a2, b2 = coef[3 + 2 * k], coef[4 + 2 * k]
-            amp1, amp2 = math.hypot(a1, b1), math.hypot(a2, b2)
+    shaft = rig.l_m
+    m_eff = rig.m_kg * (rig.g_m_s2 / omega**2) ** 2 / shaft**2
+
+    def impacts(theta_b: float) -> tuple[np.ndarray, ...]:
+        rows = []
+        for k in range(len(arcs) - 1):
+            (amp1, ph1, near), (amp2, ph2, _) = arcs[k], arcs[k + 1]
             if amp1 <= abs(theta_b) or amp2 <= abs(theta_b):
                 continue
-            # Segment k rises to theta_b, segment k+1 leaves it: times on each sinusoid.
-            ph1, ph2 = math.atan2(b1, a1), math.atan2(b2, a2)
-            contact_t = t[pieces[k][1]]
-            enter = _crossing_time(amp1, ph1, w, theta_b, contact_t, rising=True)
-            leave = _crossing_time(amp2, ph2, w, theta_b, contact_t, rising=False)
-            speed_in = w * math.sqrt(amp1**2 - theta_b**2)
-            speed_out = w * math.sqrt(amp2**2 - theta_b**2)
-            if leave > enter:
-                v_in.append(speed_in)
-                v_out.append(speed_out)
-                t_c.append(leave - enter)
-        if len(v_in) < 2:
-            raise IdentificationError("no impacts found: contact times could not be measured")
-        v_in_a, v_out_a, t_c_a = np.array(v_in), np.array(v_out), np.array(t_c)
-        v = L * v_in_a  # contact-point speed l theta'_in
-        K_each = np.sqrt(m_eff**2 / v * (CONTACT_TIME_CONSTANT / t_c_a) ** 5)
-        K = float(np.median(K_each))
-        penetration = (5.0 * m_eff * np.median(v) ** 2 / (4.0 * K)) ** 0.4
-        theta_b = float(np.median(peaks)) - offset - penetration / L
-    restitution = v_out_a / v_in_a
+            enter = _crossing_time(amp1, ph1, omega, theta_b, near, rising=True)
+            leave = _crossing_time(amp2, ph2, omega, theta_b, near, rising=False)
+            if leave <= enter:
+                continue
+            rows.append((omega * math.sqrt(amp1**2 - theta_b**2),
+                         omega * math.sqrt(amp2**2 - theta_b**2), leave - enter, peaks[k]))
+        return tuple(np.array(col) for col in zip(*rows, strict=True)) if rows else ()
+
+    def mismatch(theta_b: float) -> float:
+        found = impacts(theta_b)
+        if not found or found[0].size < 2:
+            return math.inf
+        w_in, _, t_c, top = found
+        v = shaft * w_in
+        K_each = np.sqrt(m_eff**2 / v * (CONTACT_TIME_CONSTANT / t_c) ** 5)
+        reach_in = (5.0 * m_eff * v**2 / (4.0 * K_each)) ** 0.4 / shaft
+        return float(np.sum((offset + theta_b + reach_in - top) ** 2))
+
+    upper = float(np.median(peaks)) - offset
+    lower = upper - 0.5 * (upper - float(np.median(depth_a)) + offset)
+    grid = np.linspace(lower, upper, 81)
+    costs = np.array([mismatch(b) for b in grid])
+    if not np.any(np.isfinite(costs)):
+        raise IdentificationError("no impacts found: contact times could not be measured")
+    best = int(np.nanargmin(costs))
+    refined = minimize_scalar(
+        mismatch, bounds=(grid[max(best - 1, 0)], grid[min(best + 1, grid.size - 1)]),
+        method="bounded",
+    )
+    theta_b = float(refined.x) if refined.fun <= costs[best] else float(grid[best])
+    w_in, w_out, t_c, _ = impacts(theta_b)
+    v = shaft * w_in
+    K = float(np.median(np.sqrt(m_eff**2 / v * (CONTACT_TIME_CONSTANT / t_c) ** 5)))
+    restitution = w_out / w_in
     mu0 = float(1.5 * np.sum((1.0 - restitution) * v) / np.sum(v * v))
     return {
-        "omega_rad_s": w, "offset_rad": offset, "theta_b_rad": theta_b, "K": K,
-        "mu0": max(mu0, 0.0), "v_in": v_in_a, "restitution": restitution, "t_c": t_c_a,
+        "omega_rad_s": omega, "offset_rad": offset, "theta_b_rad": theta_b, "K": K,
+        "mu0": max(mu0, 0.0), "v_in": w_in, "restitution": restitution, "t_c": t_c,
     }
 
 
@@ -159,12 +201,10 @@ def fit_impact_decay(
     rig0 = record.rig_parameters()
     g = record.gravity_m_s2
     signal = prepare(record.time_s, record.angle_rad, detect_release=detect_release)
-    L_guess = hold.get("L_m", rig0.L_m)
-    omega_guess = math.sqrt(g / L_guess)
-    if "L_m" not in hold:
-        omega_guess = _dominant_omega(signal)
-    events = impact_events(signal, omega_guess, rig0.with_values(L_m=g / omega_guess**2))
-    omega0 = events["omega_rad_s"] if "L_m" not in hold else math.sqrt(g / hold["L_m"])
+    _refuse_free_decay(record, signal)
+    omega_hint = math.sqrt(g / hold["L_m"]) if "L_m" in hold else None
+    events = impact_events(signal, rig0.with_values(g_m_s2=g), omega_hint)
+    omega0 = float(events["omega_rad_s"])
     zeta0 = hold.get("zeta", 0.005)
     theta_start = float(signal.angle_rad[signal.valid][0]) - events["offset_rad"]
     dt = float(signal.time_s[1] - signal.time_s[0])
@@ -187,7 +227,6 @@ def fit_impact_decay(
         x0.append(zeta0)
         lower.append(0.0)
         upper.append(0.5)
-    n_samples = signal.time_s.size
 
     def curve(t: np.ndarray, x: np.ndarray) -> np.ndarray:
         values = dict(zip(names, x, strict=True))
@@ -196,7 +235,7 @@ def fit_impact_decay(
             L_m=g / omega**2, g_m_s2=g, zeta=values.get("zeta", zeta0),
             mu0_s_per_m=values["mu0_s_per_m"], theta_b_rad=values["theta_b_rad"],
         ).with_stiffness(math.exp(values["log_K"]))
-        return _simulate(rig, values["theta0_rad"], values["theta_dot0_rad_s"], dt, n_samples) \
+        return _simulate(rig, values["theta0_rad"], values["theta_dot0_rad_s"], dt, t.size) \
             + values["offset_rad"]
 
     x, cov, quality, excluded = _robust_fit(
@@ -263,33 +302,26 @@ def fit_impact_decay(
     )
 
 
+def _refuse_free_decay(record: Record, signal: PreparedSignal) -> None:
+    """Raise when the start of the record is explained by a free swing: no impacts happened."""
+    fs = record.sample_rate_hz
+    head = slice(signal.start_index, min(signal.stop_index, signal.start_index + int(3.0 * fs)))
+    probe = Record(record.time_s[head], record.angle_rad[head], "free_decay", rig=record.rig)
+    try:
+        free = fit_free_decay(probe, detect_release=False)
+    except IdentificationError:
+        return  # not even a free swing fits: not the reason to refuse
+    ratio = free.quality.rms_residual_rad / max(free.quality.noise_rad, 1e-300)
+    if ratio < FREE_SWING_RATIO:
+        raise IdentificationError(
+            "no impacts found: the record is a free swing (a fit without barrier leaves "
+            f"residuals of {ratio:.2g} x the noise); is the barrier in place?"
+        )
+
+
 def _e_from_k(K: float, lo: float, hi: float, R: float) -> tuple[float, tuple[float, float]]:
     factor = 3.0 / (4.0 * math.sqrt(R))
     return K * factor, (lo * factor, hi * factor)
-
-
-def _dominant_omega(signal: PreparedSignal) -> float:
-    """Free-flight frequency from the time spent below half the trough depth.
-
-    Impacts cut the upper half swing short, so the spectrum peak is not omega; the
-    lower half swing is free: a sinusoid of amplitude A spends 2 acos(1/2) / omega
-    = (2 pi / 3) / omega below -A/2.
-    """
-    good = signal.valid
-    angle = signal.angle_rad[good]
-    t = signal.time_s[good]
-    low = np.percentile(angle, 1.0)
-    high = np.percentile(angle, 99.0)
-    centre = 0.5 * (low + high) if high < 0 else min(0.0, 0.5 * (low + high))
-    level = centre - 0.5 * (centre - low) if high < 0 else 0.5 * low
-    starts, stops = _segments(-angle, -level)
-    durations = t[np.minimum(stops, t.size - 1)] - t[starts]
-    durations = durations[(starts > 0) & (stops < t.size)]
-    # Noise makes brief chatter segments at the level; the swings are the long ones.
-    durations = durations[durations > 0.3 * durations.max()] if durations.size else durations
-    if durations.size == 0:
-        raise IdentificationError("no oscillation: the angle never swings below its rest level")
-    return (2.0 * math.pi / 3.0) / float(np.median(durations))
 
 
 def _simulate(rig: RigParameters, theta0: float, theta_dot0: float, dt: float, n: int):
