@@ -80,9 +80,19 @@ def fit_drive(record: Record, *, estimate_frequency: bool = False) -> Identifica
                 f"table amplitude {amplitude:.4g} m differs from the stated {stated_amp:.4g} m "
                 f"by {100 * eps:.2g} %"
             )
+    details = {"units_of_residual": "m (table displacement)", "stated_frequency_hz": float(stated)}
+    tach = record.tach_indices[record.tach_indices < record.time_s.size]
+    if tach.size:
+        # MODEL.md: the tach pulse marks drive phase 0, so the table's phase there should be 0.
+        at_tach = np.angle(np.exp(1j * (omega * (record.time_s[tach] - record.time_s[0]) + phase)))
+        details["table_phase_at_tach_rad"] = float(np.angle(np.mean(np.exp(1j * at_tach))))
+        if abs(details["table_phase_at_tach_rad"]) > 0.1:
+            warnings.append(
+                f"the table is at phase {details['table_phase_at_tach_rad']:.3g} rad at the tach "
+                "pulses, not 0: tach and table channel disagree on the drive phase"
+            )
     return IdentificationResult(
         experiment=record.experiment, method="forced: sine fit of the table channel",
         parameters=parameters, quality=quality, warnings=tuple(warnings),
-        details={"units_of_residual": "m (table displacement)",
-                 "stated_frequency_hz": float(stated)},
+        details=details,
     )

@@ -17,7 +17,8 @@ The experiment named in the metadata decides the fit:
                 averaging solution up to 0.2 rad amplitude, full simulation beyond
   impact_decay  K (and E for the rig's R), mu0, theta_b by simulating the record;
                 L and zeta held with --hold or --free-decay, else fitted too
-  forced        drive amplitude and phase from the table channel
+  forced        drive amplitude and phase from the table channel (checked against the
+                tach pulses); model parameters held with --hold / --free-decay
 
 Bad samples (NaN, spikes), a start before the release and a tail at rest are found
 and reported. A poor fit is reported as such, not hidden.
@@ -34,20 +35,25 @@ examples:
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add the ``identify`` sub-command."""
     parser = subparsers.add_parser(
-        "identify", help="identify model parameters of a record (CSV + JSON, later HDF5)",
-        description=DESCRIPTION, epilog=EPILOG,
+        "identify",
+        help="identify model parameters of a record (CSV + JSON, later HDF5)",
+        description=DESCRIPTION,
+        epilog=EPILOG,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     parser.add_argument("file", type=Path, help="exchange CSV (NAME.json beside it) or recording")
     parser.add_argument("--meta", type=Path, help="JSON sidecar, if not NAME.json beside FILE")
     parser.add_argument("--json", type=Path, dest="json_out", help="write the report here")
     parser.add_argument(
-        "--hold", default="",
-        help="impact decay: hold parameters, e.g. L_m=0.046,zeta=0.007",
+        "--hold",
+        default="",
+        help="impact decay / forced: hold parameters, e.g. L_m=0.046,zeta=0.007",
     )
     parser.add_argument(
-        "--free-decay", type=Path, dest="free_decay",
-        help="impact decay: take L and zeta from this free-decay record (CSV)",
+        "--free-decay",
+        type=Path,
+        dest="free_decay",
+        help="impact decay / forced: take L and zeta from this free-decay record (CSV)",
     )
     parser.set_defaults(func=run)
 
@@ -68,6 +74,7 @@ def _parse_hold(text: str) -> dict[str, float]:
 def run(args: argparse.Namespace) -> int:
     """Load the record, run the fit its experiment calls for, print and save the report."""
     from analysis.identify import (
+        Estimate,
         IdentificationError,
         fit_drive,
         fit_free_decay,
@@ -77,19 +84,25 @@ def run(args: argparse.Namespace) -> int:
 
     try:
         record = load_record(args.file, args.meta)
-        print(f"identifying {args.file} ({record.experiment}, {record.time_s.size} samples)...",
-              file=sys.stderr)
+        print(
+            f"identifying {args.file} ({record.experiment}, {record.time_s.size} samples)...",
+            file=sys.stderr,
+        )
         if record.experiment == "free_decay":
             result = fit_free_decay(record)
-        elif record.experiment == "impact_decay":
+        else:
             hold = _parse_hold(args.hold)
             if args.free_decay:
                 decay = fit_free_decay(load_record(args.free_decay))
                 hold.setdefault("L_m", decay["L_m"].value)
                 hold.setdefault("zeta", decay["zeta"].value)
-            result = fit_impact_decay(record, hold=hold)
-        else:
-            result = fit_drive(record)
+            if record.experiment == "impact_decay":
+                result = fit_impact_decay(record, hold=hold)
+            else:
+                result = fit_drive(record)
+                # The model of a forced run is held from the decay fits; report what was held.
+                for key, value in hold.items():
+                    result.parameters.setdefault(key, Estimate(value))
     except IdentificationError as error:
         raise CommandError(f"{args.file}: cannot identify: {error}") from None
     except ValueError as error:  # format errors name the file and field themselves

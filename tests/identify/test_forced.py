@@ -40,3 +40,20 @@ def test_forced_record_without_table_channel_is_refused():
     record = Record(np.arange(100) / 100.0, np.zeros(100), "forced", drive={"frequency_hz": 2.0})
     with pytest.raises(IdentificationError, match="table_m"):
         fit_drive(record)
+
+
+def test_tach_pulses_at_drive_phase_zero_agree_with_the_table():
+    rng = np.random.default_rng(12)
+    fs, f = 1000.0, 4.0
+    t = np.arange(4000) / fs
+    table = 4e-3 * np.sin(2 * math.pi * f * t) + rng.normal(0.0, 2e-5, t.size)
+    tach = np.flatnonzero(np.diff(np.floor(f * t), prepend=-1) > 0)  # phase 0 of each period
+    agree = fit_drive(Record(t, np.zeros(t.size), "forced", drive={"frequency_hz": f},
+                             table_m=table, tach_indices=tach))
+    assert abs(agree.details["table_phase_at_tach_rad"]) < 0.02
+    assert not agree.warnings
+    shifted = fit_drive(Record(t, np.zeros(t.size), "forced", drive={"frequency_hz": f},
+                               table_m=table, tach_indices=tach + 50))  # 50 ms late
+    late = 2 * math.pi * f * 0.05
+    assert shifted.details["table_phase_at_tach_rad"] == pytest.approx(late, abs=0.02)
+    assert any("tach" in w for w in shifted.warnings)
