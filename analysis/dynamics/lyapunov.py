@@ -17,7 +17,6 @@ from dataclasses import dataclass
 
 import numba
 import numpy as np
-from scipy.spatial import cKDTree
 
 from analysis.dynamics.embedding import delay_embed
 from analysis.dynamics.integrators import JittedFunction
@@ -93,6 +92,16 @@ def flow_lyapunov(
     return LyapunovEstimate(float(running[-1]), "variational RK4", (index + 1) * dt, running[index])
 
 
+@numba.njit(cache=True)
+def _matvec(matrix, vector):
+    """matrix @ vector as a plain loop (the generic matmul costs seconds of compile time)."""
+    out = np.zeros(matrix.shape[0])
+    for i in range(matrix.shape[0]):
+        for j in range(matrix.shape[1]):
+            out[i] += matrix[i, j] * vector[j]
+    return out
+
+
 @numba.njit
 def _map_tangent(step, jacobian, y0, p, iterations, transient):
     y = y0.copy()
@@ -102,7 +111,7 @@ def _map_tangent(step, jacobian, y0, p, iterations, transient):
     total = 0.0
     running = np.empty(iterations)
     for k in range(iterations):
-        v = jacobian(float(k), y, p) @ v
+        v = _matvec(jacobian(float(k), y, p), v)
         y = step(float(k), y, p)
         norm = math.sqrt(np.sum(v * v))
         total += math.log(norm)
@@ -128,16 +137,16 @@ def _flow_tangent(rhs, jacobian, y0, p, dt, steps, transient_steps):
     for k in range(steps):
         # RK4 on the joint system (y, v), v' = J(t, y) v
         k1 = rhs(t, y, p)
-        l1 = jacobian(t, y, p) @ v
+        l1 = _matvec(jacobian(t, y, p), v)
         y2, v2 = y + 0.5 * dt * k1, v + 0.5 * dt * l1
         k2 = rhs(t + 0.5 * dt, y2, p)
-        l2 = jacobian(t + 0.5 * dt, y2, p) @ v2
+        l2 = _matvec(jacobian(t + 0.5 * dt, y2, p), v2)
         y3, v3 = y + 0.5 * dt * k2, v + 0.5 * dt * l2
         k3 = rhs(t + 0.5 * dt, y3, p)
-        l3 = jacobian(t + 0.5 * dt, y3, p) @ v3
+        l3 = _matvec(jacobian(t + 0.5 * dt, y3, p), v3)
         y4, v4 = y + dt * k3, v + dt * l3
         k4 = rhs(t + dt, y4, p)
-        l4 = jacobian(t + dt, y4, p) @ v4
+        l4 = _matvec(jacobian(t + dt, y4, p), v4)
         y = y + dt / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
         v = v + dt / 6.0 * (l1 + 2.0 * l2 + 2.0 * l3 + l4)
         t += dt
@@ -270,14 +279,15 @@ def rosenstein_lyapunov(
     delay: int,
     theiler_window: int | None = None,
     horizon: int | None = None,
+    max_references: int = 4000,
 ) -> LyapunovEstimate:
     """Largest exponent [1/s] of a scalar record by Rosenstein's method on its delay embedding.
 
-    Each point's nearest neighbour (at least ``theiler_window`` samples away in time;
-    default: one mean period of the record) is followed for ``horizon`` samples
-    (default: 4 mean periods); the mean log distance grows linearly at rate lambda
-    before saturating at the attractor size.  The fitted stretch is chosen by
-    :func:`scaling_region`.
+    The nearest neighbour of each of up to ``max_references`` points (at least
+    ``theiler_window`` samples away in time; default: one mean period of the record)
+    is followed for ``horizon`` samples (default: 4 mean periods); the mean log
+    distance grows linearly at rate lambda before saturating at the attractor size.
+    The fitted stretch is chosen by :func:`scaling_region`.
     """
     x = np.asarray(x, dtype=float)
     if not fs_hz > 0:
@@ -291,23 +301,13 @@ def rosenstein_lyapunov(
         raise ValueError(
             f"record too short: {vectors.shape[0]} delay vectors for a horizon of {horizon} samples"
         )
-    reference = vectors[:n]
-    tree = cKDTree(reference)
-    neighbour = np.full(n, -1, dtype=np.int64)
-    k = min(n, 2 * theiler + 8)
-    pending = np.arange(n)
-    while pending.size:
-        dist, idx = tree.query(reference[pending], k=k)
-        dist, idx = dist.reshape(pending.size, k), idx.reshape(pending.size, k)
-        ok = (np.abs(idx - pending[:, None]) > theiler) & (dist > 0) & (idx < n)
-        has = ok.any(axis=1)
-        neighbour[pending[has]] = idx[has, np.argmax(ok, axis=1)[has]]
-        pending = pending[~has]
-        if k >= n:
-            break
-        k = min(n, 4 * k)
-    rows = np.flatnonzero(neighbour >= 0)
-    pair = neighbour[rows]
+    # Reference points spread evenly over the record; their neighbours come from all of it.
+    rows = np.unique(np.linspace(0, n - 1, min(n, max_references)).astype(np.int64))
+    pair = _nearest_outside_window(vectors[:n], rows, theiler)
+    found = pair >= 0
+    rows, pair = rows[found], pair[found]
+    if rows.size == 0:
+        raise ValueError("no nearest neighbours outside the Theiler window: record too short")
     curve = np.empty(horizon + 1)
     for step in range(horizon + 1):
         d = np.linalg.norm(vectors[rows + step] - vectors[pair + step], axis=1)
@@ -330,6 +330,32 @@ def rosenstein_lyapunov(
     return LyapunovEstimate(
         float(slope * fs_hz), "Rosenstein", time, curve, (time[start], time[stop - 1])
     )
+
+
+@numba.njit(cache=True)
+def _nearest_outside_window(vectors, rows, theiler):
+    """Nearest neighbour of each vectors[rows[i]] among all vectors more than ``theiler`` apart.
+
+    A brute-force scan: a k-d tree would have to return ~2 theiler candidates per
+    query before the first one outside the window, which costs more.  Exact
+    duplicates are skipped (log 0); -1 where no neighbour exists.
+    """
+    n, dim = vectors.shape
+    out = np.full(rows.size, -1, dtype=np.int64)
+    for r in range(rows.size):
+        i = rows[r]
+        best = np.inf
+        for j in range(n):
+            if abs(i - j) <= theiler:
+                continue
+            d2 = 0.0
+            for c in range(dim):
+                diff = vectors[i, c] - vectors[j, c]
+                d2 += diff * diff
+            if 0.0 < d2 < best:
+                best = d2
+                out[r] = j
+    return out
 
 
 def scaling_region(curve: np.ndarray, *, low: float = 0.1, high: float = 0.6) -> tuple[int, int]:
