@@ -33,6 +33,9 @@ MAX_OUTLIER_FRACTION = 0.01  # more "outliers" than this is model misfit, not ba
 POOR_FIT_RATIO = 3.0  # residual rms this many times the noise: the model misses structure
 ROBUST_PASS_SAMPLES = 6000
 CONTINUATION_START_PERIODS = 4.0
+# Relative finite-difference step for simulated curves: the simulator's output moves by
+# ~1e-9 rad when a parameter moves by nothing, so the step must dwarf that.
+SIMULATION_DIFF_STEP = 1e-5
 CONTINUATION_GROWTH = 3.0
 METHODS = ("auto", "averaging", "simulation")
 
@@ -149,7 +152,8 @@ def fit_free_decay(
             return simulated_free_decay(t, x[0], x[1], x[2], x[3], g) + x[4]
 
     x, cov, quality, excluded = _robust_fit(
-        signal, curve, x0, lower, upper, 2.0 * math.pi / guess.omega_rad_s
+        signal, curve, x0, lower, upper, 2.0 * math.pi / guess.omega_rad_s,
+        diff_step=None if method == "averaging" else SIMULATION_DIFF_STEP,
     )
     values = dict(zip(names, x, strict=True))
     omega, zeta = values["omega_rad_s"], values["zeta"]
@@ -223,8 +227,13 @@ def _robust_fit(
     lower: Sequence[float],
     upper: Sequence[float],
     period_s: float,
+    diff_step: float | None = None,
 ) -> tuple[np.ndarray, Covariance, FitQuality, int]:
-    """Robust (soft L1) fit, exclusion of isolated outliers, final least squares and intervals."""
+    """Robust (soft L1) fit, exclusion of isolated outliers, final least squares and intervals.
+
+    ``diff_step`` is the relative finite-difference step; a simulated curve needs one
+    well above the integrator's tolerance, or the Jacobian is integration noise.
+    """
     t = signal.time_s
     use = signal.valid.copy()
     data = signal.angle_rad
@@ -253,16 +262,17 @@ def _robust_fit(
         window = thin & (t <= span)
         x_start = least_squares(
             residual, x_start, bounds=(lower, upper), method="trf", x_scale="jac",
-            args=(window,), max_nfev=100,
+            diff_step=diff_step, args=(window,), max_nfev=100,
         ).x
         span *= CONTINUATION_GROWTH
     plain = least_squares(
-        residual, x_start, bounds=(lower, upper), method="trf", x_scale="jac", args=(thin,),
+        residual, x_start, bounds=(lower, upper), method="trf", x_scale="jac",
+        diff_step=diff_step, args=(thin,),
     )
     r = plain.fun
     spread = 1.4826 * float(np.median(np.abs(r - np.median(r))))
     robust = least_squares(
-        residual, plain.x, bounds=(lower, upper), method="trf", loss="soft_l1",
+        residual, plain.x, bounds=(lower, upper), method="trf", loss="soft_l1", diff_step=diff_step,
         f_scale=3.0 * max(spread, signal.noise_rad), x_scale="jac", args=(thin,),
         max_nfev=200,
     )
@@ -275,7 +285,8 @@ def _robust_fit(
         use[idx[far]] = False
         excluded = int(np.count_nonzero(far))
     final = least_squares(
-        residual, robust.x, bounds=(lower, upper), method="trf", x_scale="jac", args=(use,),
+        residual, robust.x, bounds=(lower, upper), method="trf", x_scale="jac",
+        diff_step=diff_step, args=(use,),
     )
     if not final.success:
         raise IdentificationError(f"the fit did not converge: {final.message}")

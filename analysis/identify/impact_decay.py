@@ -16,7 +16,7 @@ from collections.abc import Mapping
 import numpy as np
 from scipy.optimize import minimize_scalar
 
-from analysis.identify.free_decay import _robust_fit, fit_free_decay
+from analysis.identify.free_decay import SIMULATION_DIFF_STEP, _robust_fit, fit_free_decay
 from analysis.identify.preprocess import PreparedSignal, prepare
 from analysis.identify.result import Estimate, IdentificationError, IdentificationResult
 from analysis.model import Drive, Model, RigParameters
@@ -239,7 +239,7 @@ def fit_impact_decay(
             + values["offset_rad"]
 
     x, cov, quality, excluded = _robust_fit(
-        signal, curve, x0, lower, upper, 2.0 * math.pi / omega0
+        signal, curve, x0, lower, upper, 2.0 * math.pi / omega0, diff_step=SIMULATION_DIFF_STEP
     )
     values = dict(zip(names, x, strict=True))
     i_k = names.index("log_K")
