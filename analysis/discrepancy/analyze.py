@@ -243,12 +243,16 @@ def _drive_of(record: Record, stated: Drive) -> tuple[Drive, float, list[str]]:
     return stated, phase0, notes
 
 
-def baseline_start(record: Record, data: FitData) -> tuple[dict[str, float], list[str]]:
-    """Start values of the baseline fit from ``analysis.identify`` (sensor zero and barrier
-    position are not baseline parameters: the baseline holds both at 0)."""
-    notes = []
+def baseline_start(
+    record: Record, data: FitData
+) -> tuple[dict[str, float], dict[str, float], list[str]]:
+    """Start values of the baseline fit from ``analysis.identify``, and hints: identified
+    values of parameters the baseline holds (sensor zero, barrier position), which start
+    the candidates that free them."""
+    notes: list[str] = []
     if data.experiment == "free_decay":
         result = fit_free_decay(record)
+        hints = {"offset_rad": result["offset_rad"].value}
         fitted = result.details["fitted"]
         omega, zeta = result["omega_rad_s"].value, result["zeta"].value
         if "theta_dot0_rad_s" in fitted:
@@ -259,9 +263,11 @@ def baseline_start(record: Record, data: FitData) -> tuple[dict[str, float], lis
         return {
             "theta0_rad": result["theta0_rad"].value, "theta_dot0_rad_s": theta_dot0,
             "omega_rad_s": omega, "zeta": zeta,
-        }, notes
+        }, hints, notes
     if data.experiment == "impact_decay":
         result = fit_impact_decay(record)
+        hints = {"offset_rad": result["offset_rad"].value,
+                 "theta_b_rad": result["theta_b_rad"].value}
         fitted = result.details["fitted"]
         omega = data.rig.g_m_s2 / result["L_m"].value
         return {
@@ -270,8 +276,8 @@ def baseline_start(record: Record, data: FitData) -> tuple[dict[str, float], lis
             "omega_rad_s": math.sqrt(omega), "zeta": result["zeta"].value,
             "K_N_per_m1.5": result["K_N_per_m1.5"].value,
             "mu0_s_per_m": max(result["mu0_s_per_m"].value, 1e-3),
-        }, notes
-    return _forced_start(data), notes
+        }, hints, notes
+    return _forced_start(data), {}, notes
 
 
 def _forced_start(data: FitData) -> dict[str, float]:
@@ -314,10 +320,13 @@ def record_scale(data: FitData, baseline: FitResult, contacts_delta: float) -> R
 def assess_candidate(
     cause_name: str, data: FitData, n_train: int, baseline_train: FitResult,
     baseline: FitResult, baseline_heldout: float, scale: RecordScale,
+    hints: dict[str, float] | None = None,
 ) -> CandidateOutcome:
     """Fit one cause on the training part and on the whole record; judge it."""
     head = data.head(n_train / data.t.size)
-    train = fit(head, cause_name, baseline_train.values, scale)
+    own = {s.name for s in cause(cause_name).parameters}
+    start = {**baseline_train.values, **{k: v for k, v in (hints or {}).items() if k in own}}
+    train = fit(head, cause_name, start, scale)
     prediction, _ = predict(data, cause_name, train.values)
     heldout = heldout_rms(prediction, data.y, data.valid, n_train)
     full = fit(data, cause_name, {**baseline.values, **_cause_values(train)}, scale)
@@ -356,7 +365,7 @@ def analyze_record(
     say(f"{data.experiment}: {data.n_valid} samples at {1 / data.dt:.4g} Hz, "
         f"noise {data.noise_rad:.3g} rad")
     try:
-        start, start_notes = baseline_start(record, data)
+        start, hints, start_notes = baseline_start(record, data)
     except IdentificationError as error:
         raise AnalysisError(f"{record.source or 'record'}: {error}") from error
     notes.extend(start_notes)
@@ -382,7 +391,10 @@ def analyze_record(
     names = [c.name for c in candidates_for(data.experiment)]
     if causes is not None:
         names = [n for n in names if n in causes]
-    jobs = [(n, data, n_train, baseline_train, baseline, baseline_heldout, scale) for n in names]
+    jobs = [
+        (n, data, n_train, baseline_train, baseline, baseline_heldout, scale, hints)
+        for n in names
+    ]
     workers = workers if workers is not None else min(2, os.cpu_count() or 1)
     outcomes: list[CandidateOutcome] = []
     if workers > 1 and len(jobs) > 1:

@@ -1,0 +1,198 @@
+"""Write a discrepancy analysis as JSON and as a Markdown page with PNG figures.
+
+Figures: the record with the baseline and the extended model, the residuals of
+both, and for impact decays the constant-restitution model against Hunt-Crossley.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt
+import numpy as np
+
+from analysis.discrepancy.analyze import Analysis
+from analysis.discrepancy.fitting import predict
+from analysis.extensions import NONE
+
+
+def _plain(value: Any) -> Any:
+    """JSON-safe copy (numpy scalars to floats, non-finite to None)."""
+    if isinstance(value, dict):
+        return {str(k): _plain(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_plain(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return [_plain(v) for v in value.tolist()]
+    if isinstance(value, np.bool_ | bool):
+        return bool(value)
+    if isinstance(value, np.integer):
+        return int(value)
+    if isinstance(value, float | np.floating):
+        return float(value) if math.isfinite(value) else None
+    return value
+
+
+def report_json(analysis: Analysis) -> dict[str, Any]:
+    """The analysis as a JSON-safe dict."""
+    return _plain(analysis.as_json())
+
+
+def write_json(analysis: Analysis, path: str | Path) -> Path:
+    """Write the JSON report; returns its path."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(report_json(analysis), indent=2) + "\n")
+    return path
+
+
+def _curves(analysis: Analysis) -> tuple[np.ndarray, np.ndarray | None]:
+    data = analysis.data
+    base, _ = predict(data, NONE, analysis.baseline.values)
+    best = analysis.chosen_outcome
+    if best is None:
+        ranked = analysis.ranked()
+        best = ranked[0] if ranked else None
+    ext = predict(data, best.cause, best.full.values)[0] if best is not None else None
+    return base, ext
+
+
+def figure_fit(analysis: Analysis, path: Path, dpi: int = 80) -> Path:
+    """Record, baseline and extended model (top); residuals before and after (bottom)."""
+    data = analysis.data
+    base, ext = _curves(analysis)
+    best = analysis.chosen_outcome or (analysis.ranked()[0] if analysis.candidates else None)
+    label = best.cause if best is not None else "none"
+    fig, axes = plt.subplots(2, 1, figsize=(8, 5.2), sharex=True)
+    t = data.t
+    ax = axes[0]
+    ax.plot(t, data.y, ".", ms=1.5, color="0.4", label="measured")
+    ax.plot(t, base, lw=0.8, color="tab:red", label="baseline")
+    if ext is not None:
+        ax.plot(t, ext, lw=0.8, ls="--", color="tab:blue", label=f"+ {label}")
+    ax.set_ylabel("angle [rad]")
+    ax.legend(loc="upper right", fontsize=8)
+    if analysis.n_train < t.size:
+        for a in axes:
+            a.axvline(t[analysis.n_train], color="0.6", lw=0.6, ls=":")
+    ax.set_title(f"{data.experiment}: cause = {analysis.chosen}", fontsize=10)
+    ax = axes[1]
+    ax.plot(t, base - data.y, lw=0.6, color="tab:red", label="baseline residual")
+    if ext is not None:
+        ax.plot(t, ext - data.y, lw=0.6, color="tab:blue", label=f"+ {label} residual")
+    ax.axhline(0, color="0.5", lw=0.5)
+    ax.set_xlabel("time [s]  (dotted: end of the fitted part for the held-out test)")
+    ax.set_ylabel("model - data [rad]")
+    ax.legend(loc="upper right", fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=dpi)
+    plt.close(fig)
+    return path
+
+
+def figure_restitution(analysis: Analysis, path: Path, dpi: int = 80) -> Path:
+    """Constant-restitution and Hunt-Crossley fits of an impact decay."""
+    data = analysis.data
+    base, _ = predict(data, NONE, analysis.baseline.values)
+    rest = analysis.restitution or {}
+    fig, axes = plt.subplots(2, 1, figsize=(8, 5.2), sharex=True)
+    axes[0].plot(data.t, data.y, ".", ms=1.5, color="0.4", label="measured")
+    axes[0].plot(data.t, base, lw=0.8, color="tab:red", label="Hunt-Crossley contact")
+    axes[0].plot(data.t, rest["curve"], lw=0.8, ls="--", color="tab:green",
+                 label="constant restitution e")
+    axes[0].set_ylabel("angle [rad]")
+    axes[0].legend(loc="upper right", fontsize=8)
+    axes[1].plot(data.t, base - data.y, lw=0.6, color="tab:red", label="Hunt-Crossley")
+    axes[1].plot(data.t, rest["residual"], lw=0.6, color="tab:green", label="restitution")
+    axes[1].set_ylabel("model - data [rad]")
+    axes[1].set_xlabel("time [s]")
+    axes[1].legend(loc="upper right", fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=dpi)
+    plt.close(fig)
+    return path
+
+
+def _fmt(est: dict[str, Any]) -> str:
+    value = est.get("value")
+    ci = est.get("ci95")
+    if value is None:
+        return "-"
+    if ci and all(c is not None for c in ci):
+        return f"{value:.4g} [{ci[0]:.4g}, {ci[1]:.4g}]"
+    return f"{value:.4g}"
+
+
+def write_report(analysis: Analysis, directory: str | Path, name: str = "report") -> Path:
+    """Write NAME.md, NAME.json and the PNG figures into ``directory``; returns the .md path."""
+    directory = Path(directory)
+    directory.mkdir(parents=True, exist_ok=True)
+    js = report_json(analysis)
+    write_json(analysis, directory / f"{name}.json")
+    fit_png = figure_fit(analysis, directory / f"{name}_fit.png")
+    lines = [
+        f"# Discrepancy analysis: {Path(analysis.record.source).name or 'record'}",
+        "",
+        f"- experiment: `{js['experiment']}`",
+        f"- **cause: `{js['cause']}`**",
+        f"- where the baseline fails: {js['localization']}",
+        f"- baseline rms residual {js['baseline']['rms_residual']:.3g} rad; extended "
+        f"{js['extended']['rms_residual']:.3g} rad (noise {js['noise_rad']:.3g} rad)",
+    ]
+    gain = js["gain"]
+    if gain["heldout_rms_baseline"] is not None:
+        lines.append(
+            f"- held-out prediction (fit on the first part, predict the rest): baseline "
+            f"{gain['heldout_rms_baseline']:.3g} rad, extended "
+            f"{(gain['heldout_rms_extended'] or 0):.3g} rad; BIC gain "
+            f"{gain['information_criterion_delta']:.4g}"
+        )
+    lines += ["", f"![fit and residuals]({fit_png.name})", "", "## Ranking", "",
+              "| cause | score (BIC gain) | held-out ratio | rms [rad] | parameters | earns keep |",
+              "|---|---|---|---|---|---|"]
+    for row in js["ranking"]:
+        params = ", ".join(f"{k} = {_fmt(v)}" for k, v in row["parameters"].items())
+        ratio = row["heldout_ratio"]
+        lines.append(
+            f"| {row['cause']} | {row['score']:.4g} | "
+            f"{'-' if ratio is None else f'{ratio:.3g}'} | {row['rms_residual']:.3g} | "
+            f"{params} | {'yes' if row['earns_keep'] else 'no'} |"
+        )
+    if js.get("excluded"):
+        lines += ["", "Causes that cannot show in this experiment:", ""]
+        lines += [f"- `{k}`: {v}" for k, v in js["excluded"].items()]
+    lines += ["", "## Parameters", "", "| key | baseline | extended |", "|---|---|---|"]
+    keys = list(dict.fromkeys([*js["baseline"]["parameters"], *js["extended"]["parameters"]]))
+    for k in keys:
+        b = js["baseline"]["parameters"].get(k)
+        e = js["extended"]["parameters"].get(k)
+        lines.append(f"| {k} | {_fmt(b) if b else '-'} | {_fmt(e) if e else '-'} |")
+    if analysis.restitution is not None:
+        rc = js["restitution_comparison"]
+        rest_png = figure_restitution(analysis, directory / f"{name}_restitution.png")
+        lines += [
+            "", "## Finite-time contact against a constant coefficient of restitution", "",
+            "The classical model treats each impact as instantaneous: the velocity is reversed "
+            "and multiplied by a constant e at the barrier, the pendulum swings freely between "
+            "impacts. Hunt-Crossley contact lets the restitution depend on the impact speed "
+            "and gives the contact a duration.",
+            "",
+            f"- constant e = {_fmt(rc['parameters']['e'])}: rms residual "
+            f"{rc['rms_residual']:.3g} rad, held-out {rc['heldout_rms']:.3g} rad",
+            f"- Hunt-Crossley: rms residual {rc['hunt_crossley_rms_residual']:.3g} rad, held-out "
+            f"{rc['hunt_crossley_heldout_rms']:.3g} rad",
+            f"- rms reduction by Hunt-Crossley {100 * rc['rms_reduction_by_hunt_crossley']:.3g} %,"
+            f" BIC gain {rc['information_criterion_delta_for_hunt_crossley']:.4g}",
+            "", f"![restitution]({rest_png.name})",
+        ]
+    if js.get("notes"):
+        lines += ["", "## Notes", ""] + [f"- {n}" for n in js["notes"]]
+    md = directory / f"{name}.md"
+    md.write_text("\n".join(lines) + "\n")
+    return md

@@ -1,0 +1,59 @@
+"""Parts of the discrepancy analysis against independent oracles."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from analysis.discrepancy.candidates import VISIBILITY, candidates_for, excluded_for
+from analysis.discrepancy.restitution import restitution_samples
+from analysis.discrepancy.selection import correlation_time
+from analysis.extensions import CAUSES
+
+
+def test_every_registered_cause_is_declared_for_every_experiment():
+    for name in CAUSES:
+        assert set(VISIBILITY[name]) == {"free_decay", "impact_decay", "forced"}
+
+
+def test_free_decay_excludes_contact_drive_and_lag_with_reasons():
+    names = {c.name for c in candidates_for("free_decay")}
+    assert names == {"coulomb_friction", "quadratic_drag", "sensor_offset", "sensor_nonlinearity"}
+    excluded = excluded_for("free_decay")
+    assert "barrier" in excluded["contact_exponent"]
+    assert "phase" in excluded["sensor_lag"]
+    assert set(excluded) | names == set(CAUSES)
+
+
+def test_forced_can_show_every_cause():
+    assert {c.name for c in candidates_for("forced")} == set(CAUSES)
+
+
+def test_correlation_time_white_and_ar1():
+    rng = np.random.default_rng(0)
+    white = rng.normal(size=20000)
+    assert correlation_time(white) == pytest.approx(1.0, abs=0.1)
+    phi = 0.9
+    ar = np.empty(20000)
+    ar[0] = 0.0
+    for i in range(1, ar.size):
+        ar[i] = phi * ar[i - 1] + white[i]
+    # integrated autocorrelation time of AR(1): (1 + phi) / (1 - phi) = 19
+    assert correlation_time(ar) == pytest.approx(19.0, rel=0.3)
+
+
+@pytest.mark.parametrize("amplitude", [0.1, 1.0])
+def test_restitution_model_conserves_energy_between_impacts(amplitude):
+    # Undamped: every lower turning point after k impacts has the energy of the speed
+    # e^k v0 at the barrier (theta_b = 0): 1 - cos(theta_k) = e^(2k) (1 - cos(A)).
+    omega, e, dt = 10.0, 0.8, 1e-4
+    theta = restitution_samples(-amplitude, 0.0, omega, 0.0, e, 0.0, dt, 40000)
+    lows = [theta[i] for i in range(1, theta.size - 1)
+            if theta[i] < theta[i - 1] and theta[i] <= theta[i + 1] and theta[i] < -1e-3]
+    assert len(lows) >= 4
+    for k, low in enumerate(lows[:4], start=1):  # the release itself is not a turning point
+        expected = math.acos(1.0 - e ** (2 * k) * (1.0 - math.cos(amplitude)))
+        assert -low == pytest.approx(expected, rel=1e-4)
+    assert theta.max() <= 1e-9  # never through the barrier
