@@ -28,6 +28,7 @@ from drivers.amplifier_registers import HOLDING_COUNT, INPUT_COUNT
 from hardware_sim.amplifier_firmware import AmplifierFirmware, RegisterAccessError
 
 WATCHDOG_POLL_S = 0.02
+START_TIMEOUT_S = 10.0
 LOG_LENGTH = 10_000  # requests kept for inspection
 _READ_INPUT, _READ_HOLDING = 4, 3
 _WRITES = (6, 16)
@@ -104,6 +105,7 @@ class AmplifierEmulator:
         self._bridge: _PtyBridge | None = None
         self._started = threading.Event()
         self._start_error: BaseException | None = None
+        self._watchdog_task: asyncio.Task[None] | None = None
 
     # ------------------------------------------------------------------ lifecycle
 
@@ -116,17 +118,21 @@ class AmplifierEmulator:
             self.rtu_path = self._bridge.client_path
         self._thread = threading.Thread(target=self._run, name="amplifier-emulator", daemon=True)
         self._thread.start()
-        self._started.wait(10.0)
+        if not self._started.wait(START_TIMEOUT_S):
+            self._start_error = TimeoutError(f"not serving after {START_TIMEOUT_S:g} s")
         if self._start_error is not None:
+            where = f"Modbus TCP {self.host}:{self._requested_port}" if self._tcp else "Modbus RTU"
             self.stop()
-            raise RuntimeError(f"amplifier emulator could not start: {self._start_error}")
+            raise RuntimeError(
+                f"amplifier emulator could not start on {where}: {self._start_error}"
+            )
         return self
 
     def stop(self) -> None:
         """Stop serving and release the port and the pty; safe to call twice."""
         loop, thread = self._loop, self._thread
         if loop is not None and thread is not None and thread.is_alive():
-            with contextlib.suppress(RuntimeError):
+            with contextlib.suppress(RuntimeError, TimeoutError):
                 asyncio.run_coroutine_threadsafe(self._shutdown(), loop).result(5.0)
             thread.join(5.0)
         self._thread = None
@@ -225,7 +231,9 @@ class AmplifierEmulator:
             await asyncio.sleep(WATCHDOG_POLL_S)
 
     async def _shutdown(self) -> None:
-        self._watchdog_task.cancel()
+        # also after a failed start: the watchdog may not exist, some servers may
+        if self._watchdog_task is not None:
+            self._watchdog_task.cancel()
         for server in self._servers:
             await server.shutdown()
         self._servers.clear()

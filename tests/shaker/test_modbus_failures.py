@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import socket
+import threading
 import time
 from collections.abc import Callable
 
@@ -121,3 +122,14 @@ def test_driver_works_over_modbus_rtu_on_a_pty() -> None:
             assert settled.amplitude_m == pytest.approx(0.0015)
         assert not emulator.firmware.enabled
         assert any(r.function_code == 16 for r in emulator.requests)
+
+
+def test_emulator_on_a_port_in_use_fails_clearly_and_leaves_nothing_running() -> None:
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        port = taken.getsockname()[1]
+        threads_before = set(threading.enumerate())
+        with pytest.raises(RuntimeError, match=f"could not start on Modbus TCP 127.0.0.1:{port}"):
+            AmplifierEmulator(make_firmware(), port=port, rtu=True).start()
+    assert _wait_for(lambda: set(threading.enumerate()) <= threads_before, 5.0)

@@ -5,6 +5,7 @@ from __future__ import annotations
 import os
 import re
 import signal
+import socket
 import subprocess
 import sys
 import time
@@ -115,3 +116,16 @@ def test_sim_rig_serves_its_endpoints_and_stops_on_ctrl_c(
     out, err = process.communicate(timeout=15)
     assert process.returncode == 0, err
     assert "stopped" in out
+
+
+def test_sim_rig_on_a_port_in_use_is_a_clear_error(capsys: pytest.CaptureFixture[str]) -> None:
+    from rig.cli import main
+
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        port = taken.getsockname()[1]
+        assert main(["sim-rig", "--port", str(port), "--no-daq"]) == 2
+    err = capsys.readouterr().err
+    assert f"could not start the virtual rig on 127.0.0.1:{port}" in err
+    assert "--port 0" in err
