@@ -15,7 +15,8 @@ from dataclasses import dataclass
 from drivers.amplifier_registers import Fault
 from hardware_sim.amplifier_emulator import AmplifierEmulator, TransportFault
 from hardware_sim.amplifier_firmware import AmplifierFirmware
-from hardware_sim.virtual_rig import VirtualRig, VirtualRigSettings
+from hardware_sim.daq_emulator import DaqEmulator
+from hardware_sim.virtual_rig import VirtualRig, VirtualRigSettings, compile_physics
 
 WORLD_TICK_S = 0.02
 
@@ -45,19 +46,23 @@ class SimRig:
         self.rig = VirtualRig(settings)
         self.firmware = AmplifierFirmware(self.rig.shaker, plant_clock=None)
         self.amplifier = AmplifierEmulator(self.firmware, host=host, port=port, tcp=tcp, rtu=rtu)
-        self.daq = None
-        if daq:
-            from hardware_sim.daq_emulator import DaqEmulator
-
-            self.daq = DaqEmulator(self.rig, speed=self.rig.speed_factor)
+        self.daq = DaqEmulator(self.rig, speed=self.rig.speed_factor) if daq else None
         self._stop = threading.Event()
         self._clock: threading.Thread | None = None
 
     def start(self) -> SimRig:
-        """Start every device and the world clock."""
-        self.amplifier.start()
-        if self.daq is not None:
-            self.daq.start()
+        """Compile the physics, then start every device and the world clock.
+
+        If one device cannot start, those already started are stopped again.
+        """
+        compile_physics(self.rig.settings)
+        try:
+            self.amplifier.start()
+            if self.daq is not None:
+                self.daq.start()
+        except BaseException:
+            self.stop()
+            raise
         self._stop.clear()
         self._clock = threading.Thread(target=self._world_clock, name="world-clock", daemon=True)
         self._clock.start()

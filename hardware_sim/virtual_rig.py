@@ -382,6 +382,18 @@ class VirtualRig:
         return filtered
 
 
+def compile_physics(settings: VirtualRigSettings) -> None:
+    """Compile the numba physics on a throwaway rig swinging into the barrier.
+
+    The first integration compiles (tens of seconds on a fresh install or after the
+    model code changed, holding the interpreter meanwhile); doing it before serving
+    keeps a device's first frames and the first shaker ramp from waiting for it.
+    """
+    rig = VirtualRig(replace(settings, seed=0))
+    rig.release(-0.3)
+    rig.generate(max(1, round(settings.sample_rate_hz)))
+
+
 def _packed_parts(model: Model) -> tuple[np.ndarray, tuple[float, float]]:
     """Packed vector with the drive zeroed, and the per-metre table amplitudes (A1, A2).
 
