@@ -82,17 +82,19 @@ def open_devices(config, fs: float | None):
 
 
 class ProgressLine:
-    """Progress on stderr: one line per message, at most a few per second."""
+    """Progress on stderr: every new kind of message, and repeats at most a few per second."""
 
     def __init__(self, quiet: bool = False) -> None:
         self.quiet = quiet
         self._last = 0.0
+        self._kind = ""
 
     def __call__(self, text: str) -> None:
         now = time.monotonic()
-        if self.quiet or (now - self._last < 0.2 and "step" not in text):
+        kind = text.split(":", 1)[0]
+        if self.quiet or (kind == self._kind and now - self._last < 0.2):
             return
-        self._last = now
+        self._last, self._kind = now, kind
         print(text, file=sys.stderr, flush=True)
 
 
