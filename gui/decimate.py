@@ -26,20 +26,17 @@ def min_max_decimate(x: np.ndarray, y: np.ndarray, columns: int) -> tuple[np.nda
     n = y.size
     if n <= 2 * columns:
         return x, y
-    per_bin = n // columns
-    used = per_bin * columns
-    # the tail that does not fill a whole bin is kept as it is (at most per_bin - 1 points)
-    blocks = y[:used].reshape(columns, per_bin)
+    per_bin = -(-n // columns)  # ceil: the last bin may be short, never a long undrawn tail
+    bins = -(-n // per_bin)
+    padded = np.empty(bins * per_bin, dtype=y.dtype)
+    padded[:n] = y
+    padded[n:] = y[-1]  # repeats of the last sample: its index is clipped back below
+    blocks = padded.reshape(bins, per_bin)
     low = np.argmin(blocks, axis=1)
     high = np.argmax(blocks, axis=1)
-    first = np.minimum(low, high)
-    second = np.maximum(low, high)
-    base = np.arange(columns) * per_bin
-    order = np.empty(2 * columns, dtype=np.int64)
-    order[0::2] = base + first
-    order[1::2] = base + second
-    tail = np.arange(used, n)
-    if tail.size:
-        order = np.concatenate([order, [tail[np.argmin(y[tail])], tail[np.argmax(y[tail])]]])
-        order[-2:] = np.sort(order[-2:])
+    base = np.arange(bins) * per_bin
+    order = np.empty(2 * bins, dtype=np.int64)
+    order[0::2] = base + np.minimum(low, high)
+    order[1::2] = base + np.maximum(low, high)
+    np.minimum(order, n - 1, out=order)
     return x[order], y[order]

@@ -31,9 +31,16 @@ class AppSettings:
         """Where the settings are kept (file name or registry path)."""
         return self._store.fileName()
 
+    def _value(self, key: str) -> object:
+        # never hand a default to QSettings.value: PySide6 returns it without a new
+        # reference, and the interpreter later crashes freeing True or None
+        return self._store.value(key) if self._store.contains(key) else None
+
     def number(self, key: str, default: float) -> float:
         """A float setting (the default when missing or unreadable)."""
-        value = self._store.value(key, default)
+        value = self._value(key)
+        if value is None:
+            return float(default)
         try:
             return float(value)
         except (TypeError, ValueError):
@@ -41,12 +48,14 @@ class AppSettings:
 
     def text(self, key: str, default: str = "") -> str:
         """A text setting."""
-        value = self._store.value(key, default)
+        value = self._value(key)
         return str(value) if value is not None else default
 
     def flag(self, key: str, default: bool = False) -> bool:
         """A yes/no setting (QSettings stores booleans as text in INI files)."""
-        value = self._store.value(key, default)
+        value = self._value(key)
+        if value is None:
+            return default
         if isinstance(value, str):
             return value.lower() in ("true", "1", "yes")
         return bool(value)

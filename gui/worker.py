@@ -41,10 +41,20 @@ from rig.replay import Replay
 VIEW_QUEUE_ITEMS = 4000  # the GUI's own bounded queue; when full it loses only its own view
 
 
+@dataclass(frozen=True)
+class _Outcome:
+    """A finished background call and whom to tell."""
+
+    on_done: Callable[[object], None] | None
+    on_error: Callable[[BaseException], None] | None
+    result: object
+    error: BaseException | None
+
+
 class TaskRunner(QObject):
     """Runs blocking calls one after another on a background thread; answers on the GUI thread."""
 
-    _finished = Signal(object, object, object)  # callback, result, error
+    _finished = Signal(object)  # an _Outcome (never a bare None: PySide6 mis-counts its refs)
 
     def __init__(self, name: str, parent: QObject | None = None) -> None:
         super().__init__(parent)
@@ -65,20 +75,19 @@ class TaskRunner(QObject):
             error = future.exception()
             result = None if error is not None else future.result()
             with contextlib.suppress(RuntimeError):  # the runner was deleted at exit
-                self._finished.emit((on_done, on_error), result, error)
+                self._finished.emit(_Outcome(on_done, on_error, result, error))
 
         future = self._executor.submit(work)
         future.add_done_callback(finished)
         return future
 
-    def _deliver(self, callbacks: tuple, result: object, error: object) -> None:
+    def _deliver(self, outcome: _Outcome) -> None:
         self.pending -= 1
-        on_done, on_error = callbacks
-        if error is not None:
-            if on_error is not None:
-                on_error(error)
-        elif on_done is not None:
-            on_done(result)
+        if outcome.error is not None:
+            if outcome.on_error is not None:
+                outcome.on_error(outcome.error)
+        elif outcome.on_done is not None:
+            outcome.on_done(outcome.result)
 
     def shutdown(self, wait: bool = True) -> None:
         """Finish what was submitted and stop the thread."""

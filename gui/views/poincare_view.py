@@ -41,14 +41,14 @@ class PoincareAccumulator:
         end = data.angle.end_index
         if end is None or not data.tach_edges:
             return 0
-        half = DERIVATIVE_WINDOW
-        pending = [e for e in data.tach_edges if e > self._last_edge and e + half < end]
+        margin = 2 * DERIVATIVE_WINDOW  # samples needed on each side of a pulse
+        pending = [e for e in data.tach_edges if e > self._last_edge and e + margin <= end]
         if not pending:
             return 0
-        first_needed = pending[0] - 2 * half
+        first_needed = pending[0] - margin
         index, theta = data.angle.since(first_needed)
         self._last_edge = pending[-1]
-        if theta.size < 4 * half or np.any(np.diff(index) != 1):
+        if theta.size < 2 * margin or np.any(np.diff(index) != 1):
             return 0  # a gap or an overwritten stretch: skip rather than interpolate across it
         positions = np.asarray(pending, dtype=float) - index[0]
         positions = positions[(positions >= 0) & (positions <= theta.size - 1)]
