@@ -209,28 +209,31 @@ class DaqBoard:
         if self.identity is not None:
             return self.identity
         identity = self.backend.connect()
-        if identity.model != self.expected_model:
-            self.backend.close()
-            raise WrongDeviceError(
-                f"{self.backend.description} is a {identity.model!r} "
-                f"(serial {identity.serial}), expected a {self.expected_model!r} DAQ board"
+        try:
+            if identity.model != self.expected_model:
+                raise WrongDeviceError(
+                    f"{self.backend.description} is a {identity.model!r} "
+                    f"(serial {identity.serial}), expected a {self.expected_model!r} DAQ board"
+                )
+            self._validate_against(identity)
+            self.configuration = self.backend.configure(
+                self.requested_rate_hz, self.analog_channels
             )
-        self._validate_against(identity)
-        self.configuration = self.backend.configure(self.requested_rate_hz, self.analog_channels)
+        except (DeviceError, LimitError):
+            self.backend.close()  # refused or failed: the port is not left open
+            raise
         self.identity = identity
         return identity
 
     def _validate_against(self, identity: BoardIdentity) -> None:
         low, high = identity.min_rate_hz, identity.max_rate_hz
         if not low <= self.requested_rate_hz <= high:
-            self.backend.close()
             raise LimitError(
                 f"sample_rate_hz={self.requested_rate_hz:g} is outside the range "
                 f"{low:g}..{high:g} Hz of {identity.model} on {self.backend.description}"
             )
         unknown = [c for c in self.analog_channels if c >= identity.channels]
         if unknown:
-            self.backend.close()
             raise LimitError(
                 f"analog channel {unknown[0]} does not exist: {identity.model} has "
                 f"channels 0..{identity.channels - 1}"

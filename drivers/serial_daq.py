@@ -70,20 +70,26 @@ class SerialDaqBackend:
 
     # --- connection -----------------------------------------------------------------------
     def connect(self) -> BoardIdentity:
-        """Open the port, stop any stream left running, and ask who is there."""
+        """Open the port, stop any stream left running, and ask who is there.
+
+        On any failure the port is closed again.
+        """
         if self._serial is None:
             self._open()
-        self._command(encode_command(COMMAND_STOP), expect_reply=False)
-        self._chunks.clear()
-        reply = self._command(encode_command(COMMAND_IDENTIFY), wrong_device_on_silence=True)
         try:
-            return BoardIdentity.from_reply(self._require_ok(reply, COMMAND_IDENTIFY))
-        except ProtocolError as error:
+            self._command(encode_command(COMMAND_STOP), expect_reply=False)
+            self._chunks.clear()
+            reply = self._command(encode_command(COMMAND_IDENTIFY), wrong_device_on_silence=True)
+            try:
+                return BoardIdentity.from_reply(self._require_ok(reply, COMMAND_IDENTIFY))
+            except ProtocolError as error:
+                raise WrongDeviceError(
+                    f"{self.description} answered IDN? with something that is not a DAQ board "
+                    f"identity: {error}"
+                ) from None
+        except DeviceError:
             self.close()
-            raise WrongDeviceError(
-                f"{self.description} answered IDN? with something that is not a DAQ board "
-                f"identity: {error}"
-            ) from None
+            raise
 
     def _open(self) -> None:
         if not os.path.exists(self.port):
@@ -92,6 +98,11 @@ class SerialDaqBackend:
             self._serial = serial.Serial(self.port, self.baudrate, timeout=READ_POLL_S)
         except (serial.SerialException, OSError) as error:
             raise DeviceNotFoundError(f"cannot open DAQ board port {self.port}: {error}") from None
+        # a new connection: nothing of the previous one (a vanished port, half a frame) remains
+        self._gone = ""
+        self._parser = FrameParser()
+        self._chunks.clear()
+        self._replies.clear()
         self._serial.reset_input_buffer()
 
     def close(self) -> None:
@@ -153,7 +164,6 @@ class SerialDaqBackend:
         if self._replies:
             return self._replies.popleft()
         if wrong_device_on_silence:
-            self.close()
             raise WrongDeviceError(
                 f"nothing on {self.description} answered {line.decode().strip()} within "
                 f"{self.reply_timeout_s:g} s in the DAQ protocol: is this the DAQ board?"

@@ -14,7 +14,7 @@ import tty
 import pytest
 
 from drivers.daq import DaqBoard
-from drivers.interfaces import DeviceError, DeviceNotFoundError, WrongDeviceError
+from drivers.interfaces import DeviceError, DeviceNotFoundError, LimitError, WrongDeviceError
 from drivers.sensors import PotentiometerAngleSensor, PotentiometerCalibration
 from drivers.serial_daq import SerialDaqBackend
 from hardware_sim.daq_emulator import DaqEmulator
@@ -128,3 +128,39 @@ def test_a_board_left_streaming_is_stopped_and_identified():
         block = angle.read(1.0)
         assert block is not None and block.first_index == 0
         board.close()
+
+
+def test_a_replugged_board_streams_again_after_close_and_open(tmp_path):
+    # The port path stays the same across the replug (like /dev/ttyACM0): a symlink.
+    port = tmp_path / "ttyACM0"
+    first = DaqEmulator(CounterSource(), speed=5).start()
+    port.symlink_to(first.port)
+    board = DaqBoard(SerialDaqBackend(str(port)), sample_rate_hz=20_000, analog_channels=(0,))
+    angle = PotentiometerAngleSensor(board, 0, PotentiometerCalibration())
+    angle.start()
+    assert angle.read(1.0) is not None
+    first.faults.unplug()
+    deadline = time.monotonic() + 5
+    with pytest.raises(DeviceError, match="went away"):
+        while time.monotonic() < deadline:
+            angle.read(0.1)
+    angle.stop()
+    board.close()
+    with DaqEmulator(CounterSource(), speed=5) as second:
+        port.unlink()
+        port.symlink_to(second.port)
+        assert board.open().model == "IRDAQ-4"
+        angle.start()
+        block = angle.read(1.0)
+        assert block is not None and block.first_index == 0 and block.lost_before == 0
+        board.close()
+    first.close()
+
+
+def test_a_refused_configuration_leaves_the_port_closed():
+    with DaqEmulator(CounterSource(), speed=5) as emulator:
+        backend = SerialDaqBackend(emulator.port)
+        board = DaqBoard(backend, sample_rate_hz=1e6, analog_channels=(0,))
+        with pytest.raises(LimitError, match="outside the range"):
+            board.open()
+        assert backend._serial is None  # released: another program may open the port
