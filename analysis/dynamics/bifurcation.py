@@ -5,7 +5,8 @@ Simulated sweeps come in two kinds (``mode``):
 * ``"continuation"`` (default) mimics the experiment: the up sweep starts each beta
   from the final state of the previous one, the down sweep likewise from the top, so
   hysteresis and coexisting attractors show as differences between the two.  Each
-  direction is sequential; the two directions run in parallel processes.
+  direction is sequential; the two directions advance in lockstep, one two-member
+  ensemble call per beta, so they run on two cores.
 * ``"fixed"``: every beta starts from the same initial state; all runs are
   independent and spread over all cores.  Cheaper per core, but it shows whichever
   attractor that one initial state falls into.
@@ -22,13 +23,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from analysis.dynamics.poincare import PoincareSection
-from analysis.dynamics.sweeps import (
-    Progress,
-    continue_along,
-    model_at_beta,
-    process_pool,
-    run_poincare,
-)
+from analysis.dynamics.sweeps import Progress, continue_along, model_at_beta, run_poincare
 from analysis.model import Model
 
 DIRECTIONS = ("up", "down", "fixed", "recorded")
@@ -73,8 +68,7 @@ def simulate_bifurcation(
     Each beta runs ``periods`` drive periods, of which the last ``record_periods`` give
     the Poincare samples (drive phase 0).  Returns (up, down) diagrams for
     ``mode="continuation"`` and a single 'fixed' diagram for ``mode="fixed"``.
-    ``progress(done, total)`` is called as runs finish (per finished direction when
-    continuing in parallel).
+    ``progress(done, total)`` is called as runs finish.
     """
     betas = np.sort(np.asarray(beta_values, dtype=float).ravel())
     if betas.size == 0:
@@ -92,24 +86,16 @@ def simulate_bifurcation(
         return (BifurcationDiagram(betas, runs.theta, runs.theta_dot, "fixed"),)
     if mode != "continuation":
         raise ValueError(f"mode = {mode!r}: choose 'continuation' or 'fixed'")
+    # up and down advance in lockstep: one two-member ensemble call per step, in parallel
+    up, down = continue_along(
+        np.stack([packed, packed[::-1]]),
+        initial_state,
+        workers=workers,
+        progress=progress,
+        **settings,
+    )
+    runs = {"up": up, "down": down}
     orders = {"up": np.arange(betas.size), "down": np.arange(betas.size)[::-1]}
-    if (workers or 2) >= 2 and betas.size >= 8:
-        with process_pool(2) as pool:
-            futures = {
-                name: pool.submit(continue_along, packed[order], initial_state, **settings)
-                for name, order in orders.items()
-            }
-            runs = {}
-            for name, future in futures.items():
-                runs[name] = future.result()
-                if progress is not None:
-                    progress(betas.size * len(runs), 2 * betas.size)
-    else:
-        runs = {}
-        for name, order in orders.items():
-            runs[name] = continue_along(packed[order], initial_state, **settings)
-            if progress is not None:
-                progress(betas.size * len(runs), 2 * betas.size)
     diagrams = []
     for name, order in orders.items():
         back = np.argsort(order)  # results back in ascending beta

@@ -1,26 +1,23 @@
-"""Running many simulations for sweeps and basin maps: Poincare orbits out, spread over processes.
+"""Running many simulations for sweeps and basin maps: Poincare orbits out, spread over the cores.
 
 Bifurcation diagrams and basins of attraction need hundreds to tens of thousands of
-runs; each run here is a call of :func:`analysis.simulate.simulate_packed` that keeps
-only the Poincare samples and the final state.  Independent runs are split into
-chunks handed to worker processes (numba code holds the GIL, so threads would not help).
+runs.  Independent runs go to :func:`analysis.simulate.simulate_ensemble` (a numba
+``prange`` over members) in a few chunks, so that progress can be reported;
+continuation sweeps advance several sweeps in lockstep, one ensemble call per step.
 """
 
 from __future__ import annotations
 
-import itertools
 import math
-import os
-import threading
-from collections.abc import Callable
-from concurrent.futures import ProcessPoolExecutor, as_completed
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, replace
-from multiprocessing import get_all_start_methods, get_context
 
+import numba
 import numpy as np
 
 from analysis.model import Model, P
-from analysis.simulate import simulate_packed
+from analysis.simulate import simulate_ensemble
 
 Progress = Callable[[int, int], None]  # (runs done, runs in all)
 
@@ -45,24 +42,9 @@ def model_at_beta(model: Model, beta: float) -> Model:
     return replace(model, drive=drive)
 
 
-def process_pool(workers: int) -> ProcessPoolExecutor:
-    """A pool of worker processes, forked when that is safe.
-
-    Forking copies the loaded numba code (fast start) and, unlike spawn, needs no
-    ``if __name__ == "__main__"`` guard in the caller's script; but forking a process
-    that runs other threads can deadlock, so such callers (a GUI) get spawn.
-    """
-    safe_to_fork = threading.active_count() == 1 and "fork" in get_all_start_methods()
-    context = get_context("fork" if safe_to_fork else "spawn")
-    return ProcessPoolExecutor(workers, mp_context=context)
-
-
 def default_workers() -> int:
-    """Worker processes to use: the cores this process may run on."""
-    try:
-        return max(1, len(os.sched_getaffinity(0)))
-    except AttributeError:  # pragma: no cover - not Linux
-        return max(1, os.cpu_count() or 1)
+    """Threads numba may use for ensembles (NUMBA_NUM_THREADS, by default the cores)."""
+    return int(numba.config.NUMBA_NUM_THREADS)
 
 
 def run_poincare(
@@ -79,44 +61,29 @@ def run_poincare(
     """Simulate runs (packed (n, P.SIZE), initial (n, 2)) and keep their Poincare samples.
 
     Each run integrates ``transient_periods`` drive periods, then records one sample
-    per period for ``record_periods`` periods.  ``progress(done, total)`` is called as
+    per period for ``record_periods`` periods.  All rows must share the drive
+    frequency.  ``workers`` caps the threads; ``progress(done, total)`` is called as
     chunks of runs finish.
     """
-    packed = np.atleast_2d(np.asarray(packed, dtype=float))
-    initial = np.atleast_2d(np.asarray(initial, dtype=float))
-    if packed.shape[0] != initial.shape[0] or initial.shape[1] != 2:
-        raise ValueError(
-            f"packed {packed.shape} and initial {initial.shape} must be (n, P.SIZE) and (n, 2)"
-        )
-    if transient_periods < 0 or record_periods < 1:
-        raise ValueError("transient_periods must be >= 0 and record_periods >= 1")
+    packed, initial = _check_runs(packed, initial, transient_periods, record_periods)
     n = packed.shape[0]
-    workers = min(workers or default_workers(), n)
-    settings = (transient_periods, record_periods, rtol, atol)
-    # Process start-up costs up to a second: not worth it for small jobs.
-    in_process = workers <= 1 or n < 4 * workers
-    bounds = np.linspace(0, n, min(n, 50 if in_process else 8 * workers) + 1).astype(int)
-    chunks = [(a, b) for a, b in itertools.pairwise(bounds) if b > a]
-    parts: list[PoincareRuns | None] = [None] * len(chunks)
-    done = 0
-    if in_process:
-        for k, (a, b) in enumerate(chunks):
-            parts[k] = _run_chunk(packed[a:b], initial[a:b], *settings)
-            done += b - a
+    chunk = max(1, math.ceil(n / 20), 16 * default_workers())
+    parts = []
+    with _threads(workers):
+        for start in range(0, n, chunk):
+            stop = min(n, start + chunk)
+            parts.append(
+                _ensemble(
+                    packed[start:stop],
+                    initial[start:stop],
+                    transient_periods,
+                    record_periods,
+                    rtol,
+                    atol,
+                )
+            )
             if progress is not None:
-                progress(done, n)
-    else:
-        with process_pool(workers) as pool:
-            futures = {
-                pool.submit(_run_chunk, packed[a:b], initial[a:b], *settings): k
-                for k, (a, b) in enumerate(chunks)
-            }
-            for future in as_completed(futures):
-                k = futures[future]
-                parts[k] = future.result()
-                done += chunks[k][1] - chunks[k][0]
-                if progress is not None:
-                    progress(done, n)
+                progress(stop, n)
     return PoincareRuns(
         np.concatenate([part.theta for part in parts]),
         np.concatenate([part.theta_dot for part in parts]),
@@ -127,68 +94,103 @@ def run_poincare(
 
 def continue_along(
     packed: np.ndarray,
-    initial_state: tuple[float, float],
+    initial_state: tuple[float, float] | np.ndarray,
     *,
     transient_periods: int,
     record_periods: int,
     rtol: float = 1e-8,
     atol: float = 1e-10,
-) -> PoincareRuns:
-    """Sweep in the given order, each run starting from the final state of the one before.
+    workers: int | None = None,
+    progress: Progress | None = None,
+) -> tuple[PoincareRuns, ...]:
+    """Continuation sweeps: each step starts from the final state of the step before.
 
-    A run that leaves the model's regime (over the top) restarts the next one from
-    ``initial_state``.
+    ``packed`` is (steps, P.SIZE) for one sweep or (sweeps, steps, P.SIZE) for several
+    advanced in lockstep (one ensemble call of ``sweeps`` members per step, e.g. the
+    up and down sweeps in parallel).  ``initial_state`` is (2,) or (sweeps, 2).  A run
+    that leaves the model's regime (over the top) restarts the next step from the
+    initial state.  Returns one :class:`PoincareRuns` per sweep, in step order.
     """
+    packed = np.asarray(packed, dtype=float)
+    if packed.ndim == 2:
+        packed = packed[None]
+    if packed.ndim != 3 or packed.shape[2] != P.SIZE:
+        raise ValueError(f"packed has shape {packed.shape}; expected (sweeps, steps, {P.SIZE})")
+    sweeps, steps = packed.shape[:2]
+    start = np.broadcast_to(np.asarray(initial_state, dtype=float), (sweeps, 2)).copy()
+    theta = np.full((sweeps, steps, record_periods), np.nan)
+    theta_dot = np.full((sweeps, steps, record_periods), np.nan)
+    final = np.full((sweeps, steps, 2), np.nan)
+    status = np.empty((sweeps, steps), dtype=object)
+    state = start.copy()
+    with _threads(workers):
+        for k in range(steps):
+            run = _ensemble(packed[:, k], state, transient_periods, record_periods, rtol, atol)
+            theta[:, k], theta_dot[:, k], final[:, k] = run.theta, run.theta_dot, run.final_state
+            status[:, k] = run.status
+            ok = np.array(run.status) == "ok"
+            state = np.where(ok[:, None], run.final_state, start)
+            if progress is not None:
+                progress((k + 1) * sweeps, steps * sweeps)
+    return tuple(
+        PoincareRuns(theta[m], theta_dot[m], final[m], tuple(status[m])) for m in range(sweeps)
+    )
+
+
+def _check_runs(packed, initial, transient_periods, record_periods):
     packed = np.atleast_2d(np.asarray(packed, dtype=float))
-    n = packed.shape[0]
-    theta = np.full((n, record_periods), np.nan)
-    theta_dot = np.full((n, record_periods), np.nan)
-    final = np.full((n, 2), np.nan)
-    status = []
-    state = tuple(map(float, initial_state))
-    for i in range(n):
-        run = _run_chunk(
-            packed[i : i + 1], np.array([state]), transient_periods, record_periods, rtol, atol
+    initial = np.atleast_2d(np.asarray(initial, dtype=float))
+    if packed.shape[0] != initial.shape[0] or initial.shape[1] != 2:
+        raise ValueError(
+            f"packed {packed.shape} and initial {initial.shape} must be (n, P.SIZE) and (n, 2)"
         )
-        theta[i], theta_dot[i], final[i] = run.theta[0], run.theta_dot[0], run.final_state[0]
-        status.append(run.status[0])
-        state = tuple(final[i]) if run.status[0] == "ok" else tuple(map(float, initial_state))
-    return PoincareRuns(theta, theta_dot, final, tuple(status))
+    if transient_periods < 0 or record_periods < 1:
+        raise ValueError("transient_periods must be >= 0 and record_periods >= 1")
+    return packed, initial
 
 
-def _run_chunk(
-    packed: np.ndarray,
-    initial: np.ndarray,
-    transient_periods: int,
-    record_periods: int,
-    rtol: float,
-    atol: float,
-) -> PoincareRuns:
-    n = packed.shape[0]
-    theta = np.full((n, record_periods), np.nan)
-    theta_dot = np.full((n, record_periods), np.nan)
-    final = np.full((n, 2), np.nan)
-    status = []
-    for i in range(n):
-        omega = packed[i, P.OMEGA_DRIVE]
-        if not omega > 0:
-            raise ValueError(f"run {i}: the drive frequency must be > 0 for Poincare samples")
-        period = 2.0 * math.pi / omega
-        result = simulate_packed(
-            packed[i],
-            float(initial[i, 0]),
-            float(initial[i, 1]),
-            duration_s=record_periods * period,
-            # few uniform samples: only the Poincare samples and the final state are kept
-            fs_hz=1.0 / period,
-            skip_s=transient_periods * period,
-            poincare_phase=0.0,
-            rtol=rtol,
-            atol=atol,
-        )
-        k = min(record_periods, result.poincare.theta.size)
-        theta[i, :k] = result.poincare.theta[:k]
-        theta_dot[i, :k] = result.poincare.theta_dot[:k]
-        final[i] = result.final_state[1], result.final_state[2]
-        status.append(result.status)
-    return PoincareRuns(theta, theta_dot, final, tuple(status))
+def _ensemble(packed, initial, transient_periods, record_periods, rtol, atol) -> PoincareRuns:
+    """One ensemble call; the Poincare sample at the record's end is the final state."""
+    omega = packed[:, P.OMEGA_DRIVE]
+    if not np.all(omega > 0) or not np.allclose(omega, omega[0]):
+        raise ValueError("all runs need the same drive frequency > 0 for Poincare samples")
+    period = 2.0 * math.pi / float(omega[0])
+    result = simulate_ensemble(
+        packed,
+        initial,
+        duration_s=record_periods * period,
+        skip_s=transient_periods * period,
+        poincare_phase=0.0,
+        rtol=rtol,
+        atol=atol,
+    )
+    samples = result.poincare[:, : record_periods + 1]
+    theta = np.full((packed.shape[0], record_periods), np.nan)
+    theta_dot = np.full_like(theta, np.nan)
+    usable = min(record_periods, samples.shape[1])
+    theta[:, :usable] = samples[:, :usable, 0]
+    theta_dot[:, :usable] = samples[:, :usable, 1]
+    final = np.full((packed.shape[0], 2), np.nan)
+    if samples.shape[1] == record_periods + 1:
+        final = samples[:, record_periods].copy()
+    status = tuple(str(s) for s in result.status)
+    # a run without its closing sample did not reach the end: treat it as failed
+    status = tuple(
+        s if np.all(np.isfinite(f)) else (s if s != "ok" else "incomplete")
+        for s, f in zip(status, final, strict=True)
+    )
+    return PoincareRuns(theta, theta_dot, final, status)
+
+
+@contextmanager
+def _threads(workers: int | None) -> Iterator[None]:
+    """Cap numba's threads at ``workers`` for the block (None: leave as is)."""
+    if workers is None:
+        yield
+        return
+    previous = numba.get_num_threads()
+    numba.set_num_threads(max(1, min(int(workers), default_workers())))
+    try:
+        yield
+    finally:
+        numba.set_num_threads(previous)

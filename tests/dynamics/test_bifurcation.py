@@ -48,7 +48,7 @@ def test_linear_sweep_follows_the_analytic_steady_state(mode):
         assert np.allclose(diagram.theta, expected[:, None], rtol=2e-3, atol=1e-7)
 
 
-def test_sweep_runs_in_process_with_one_worker_and_sorts_betas():
+def test_sweep_runs_on_one_thread_and_sorts_betas():
     model = _linear_model()
     (up, down) = simulate_bifurcation(
         model, [0.003, 0.001, 0.002], periods=300, record_periods=5, workers=1
