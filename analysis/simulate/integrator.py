@@ -1,4 +1,4 @@
-"""Compiled Dormand-Prince 5(4) integrator of the impact pendulum with exact event location.
+"""Compiled Dormand-Prince 8(5,3) integrator of the impact pendulum with exact event location.
 
 The whole integration loop is one numba function (``integrate``) working on plain
 arrays, so a call costs no Python per step.  The non-smooth parts of the model are
@@ -27,6 +27,7 @@ import math
 
 import numba
 import numpy as np
+from scipy.integrate._ivp import dop853_coefficients as _dop853
 
 from analysis.model import P
 
@@ -51,22 +52,23 @@ S_THA = 2  # theta at TA
 S_OMA = 3  # theta' at TA
 S_THB = 4  # theta at TB
 S_OMB = 5  # theta' at TB
-S_POLY = 6  # 8 dense-output coefficients: theta(s) = THA + c0 s + .. + c3 s^4, theta'(s) likewise
-S_H = 14  # next step size proposal (<= 0: choose one)
-S_CONTACT = 15  # 1.0 while theta > theta_b (in contact), else 0.0
-S_SLIDE = 16  # Coulomb sliding direction +1 / -1, 0 stuck (always +1 without friction)
-S_STATUS = 17
-S_ENTRY_T = 18  # current contact: entry time, theta, theta', grazing flag, max theta so far
-S_ENTRY_TH = 19
-S_ENTRY_OM = 20
-S_ENTRY_GRAZE = 21
-S_THMAX = 22
-S_STEPS = 23  # accepted steps (landing steps included)
-S_REJECTS = 24
-S_STICK_T = 25  # start of the current stuck interval
-S_ACC_B = 26  # theta'' at TB (first-same-as-last stage), valid when S_ACC_OK = 1
-S_ACC_OK = 27
-S_SIZE = 28
+DEGREE = 7  # of the dense-output polynomials
+S_POLY = 6  # 2 x 7 dense-output coefficients: theta(s) = THA + c0 s + .. + c6 s^7, then theta'
+S_H = S_POLY + 2 * DEGREE  # next step size proposal (<= 0: choose one)
+S_CONTACT = S_H + 1  # 1.0 while theta > theta_b (in contact), else 0.0
+S_SLIDE = S_H + 2  # Coulomb sliding direction +1 / -1, 0 stuck (always +1 without friction)
+S_STATUS = S_H + 3
+S_ENTRY_T = S_H + 4  # current contact: entry time, theta, theta', grazing flag, max theta so far
+S_ENTRY_TH = S_H + 5
+S_ENTRY_OM = S_H + 6
+S_ENTRY_GRAZE = S_H + 7
+S_THMAX = S_H + 8
+S_STEPS = S_H + 9  # accepted steps (landing steps included)
+S_REJECTS = S_H + 10
+S_STICK_T = S_H + 11  # start of the current stuck interval
+S_ACC_B = S_H + 12  # theta'' at TB (last stage of the step), valid when S_ACC_OK = 1
+S_ACC_OK = S_H + 13
+S_SIZE = S_H + 14
 
 # rows of the event buffer
 EV_KIND = 0  # 0 contact, 1 stuck interval
@@ -82,41 +84,42 @@ EV_SIZE = 9
 KIND_CONTACT = 0.0
 KIND_STICK = 1.0
 
-# ----------------------------------------------------------------------------- Dormand-Prince 5(4)
+# ------------------------------------------------------------------------- Dormand-Prince 8(5,3)
+# The published DOP853 tableau (Hairer, Norsett & Wanner, Solving ODEs I, section II.10) with
+# its 7th-order dense output, taken from scipy's copy of it; numba freezes the arrays into
+# the compiled kernel as constants.
+N_STAGES = _dop853.N_STAGES  # 12 stages per step; stage 13 is f at the step's end
+A853 = np.ascontiguousarray(_dop853.A, dtype=np.float64)
+B853 = np.ascontiguousarray(_dop853.B, dtype=np.float64)
+C853 = np.ascontiguousarray(_dop853.C, dtype=np.float64)
+E3 = np.ascontiguousarray(_dop853.E3, dtype=np.float64)
+E5 = np.ascontiguousarray(_dop853.E5, dtype=np.float64)
+D853 = np.ascontiguousarray(_dop853.D, dtype=np.float64)
+N_EXTENDED = _dop853.N_STAGES_EXTENDED  # 16 with the three extra dense-output stages
 
-C2, C3, C4, C5 = 1.0 / 5.0, 3.0 / 10.0, 4.0 / 5.0, 8.0 / 9.0
-A21 = 1.0 / 5.0
-A31, A32 = 3.0 / 40.0, 9.0 / 40.0
-A41, A42, A43 = 44.0 / 45.0, -56.0 / 15.0, 32.0 / 9.0
-A51, A52, A53, A54 = 19372.0 / 6561.0, -25360.0 / 2187.0, 64448.0 / 6561.0, -212.0 / 729.0
-A61, A62, A63, A64, A65 = (
-    9017.0 / 3168.0,
-    -355.0 / 33.0,
-    46732.0 / 5247.0,
-    49.0 / 176.0,
-    -5103.0 / 18656.0,
-)
-B1, B3, B4, B5, B6 = 35.0 / 384.0, 500.0 / 1113.0, 125.0 / 192.0, -2187.0 / 6784.0, 11.0 / 84.0
-# error weights: 5th-order minus embedded 4th-order solution
-E1, E3, E4, E5, E6, E7 = (
-    71.0 / 57600.0,
-    -71.0 / 16695.0,
-    71.0 / 1920.0,
-    -17253.0 / 339200.0,
-    22.0 / 525.0,
-    -1.0 / 40.0,
-)
-# dense output (4th order): y(s) = y0 + h sum_k K_k (Q_k1 s + Q_k2 s^2 + Q_k3 s^3 + Q_k4 s^4)
-Q11, Q12, Q13, Q14 = 1.0, -2.8535800653862835, 3.0717434641059005, -1.1270175653862835
-Q32, Q33, Q34 = 4.023133379230305, -6.249321565289, 2.675424484351598
-Q42, Q43, Q44 = -3.7324019615885042, 10.068970589843675, -5.685526961588504
-Q52, Q53, Q54 = 2.5548038301849423, -6.399112377351017, 3.5219323679207912
-Q62, Q63, Q64 = -1.3744241142186024, 3.272657752246729, -1.7672812570757455
-Q72, Q73, Q74 = 1.3824689317781436, -3.764937863556287, 2.382468931778144
+
+def _power_basis() -> np.ndarray:
+    """M with y(s) - y0 = sum_j (M F)_j s^(j+1) for the interpolant's nested form
+    y0 + s (F0 + (1-s) (F1 + s (F2 + (1-s) (F3 + ...)))), so polynomials are plain."""
+    basis = np.zeros((DEGREE, DEGREE))
+    s = np.polynomial.Polynomial([0.0, 1.0])
+    for i in range(DEGREE):
+        poly = np.polynomial.Polynomial([0.0])
+        for j in range(DEGREE - 1, -1, -1):
+            poly = poly + (1.0 if j == i else 0.0)
+            poly = poly * (s if j % 2 == 0 else 1.0 - s)
+        coefficients = np.zeros(DEGREE + 1)
+        coefficients[: poly.coef.size] = poly.coef
+        basis[:, i] = coefficients[1:]
+    return basis
+
+
+M_POWER = np.ascontiguousarray(_power_basis())
+ERROR_EXPONENT = -1.0 / 8.0
 
 SAFETY = 0.9
 MIN_FACTOR = 0.2
-MAX_FACTOR = 5.0
+MAX_FACTOR = 10.0
 STUCK_SCAN_PER_PERIOD = 128  # release search resolution while stuck under forcing
 
 
@@ -201,66 +204,100 @@ def _acc(t, th, om, pr, slide, tc):
 
 
 @numba.njit(cache=True, inline="always")
-def _dopri_step(t, th, om, a1, h, pr, slide, tc, kth, kom):
-    """One Dormand-Prince step: fills the stage slopes; returns theta, theta', a7 and errors."""
+def _rk_step(t, th, om, a1, h, pr, slide, tc, kth, kom, rtol, atol):
+    """One DOP853 step: fills the stage slopes; returns theta, theta', theta'' at the end and
+    the scaled error norm (Hairer's blend of the 5th- and 3rd-order estimates)."""
     kth[0] = om
     kom[0] = a1
-    y = th + h * A21 * om
-    v = om + h * A21 * a1
-    kth[1] = v
-    kom[1] = _acc(t + C2 * h, y, v, pr, slide, tc)
-    y = th + h * (A31 * kth[0] + A32 * kth[1])
-    v = om + h * (A31 * kom[0] + A32 * kom[1])
-    kth[2] = v
-    kom[2] = _acc(t + C3 * h, y, v, pr, slide, tc)
-    y = th + h * (A41 * kth[0] + A42 * kth[1] + A43 * kth[2])
-    v = om + h * (A41 * kom[0] + A42 * kom[1] + A43 * kom[2])
-    kth[3] = v
-    kom[3] = _acc(t + C4 * h, y, v, pr, slide, tc)
-    y = th + h * (A51 * kth[0] + A52 * kth[1] + A53 * kth[2] + A54 * kth[3])
-    v = om + h * (A51 * kom[0] + A52 * kom[1] + A53 * kom[2] + A54 * kom[3])
-    kth[4] = v
-    kom[4] = _acc(t + C5 * h, y, v, pr, slide, tc)
-    y = th + h * (A61 * kth[0] + A62 * kth[1] + A63 * kth[2] + A64 * kth[3] + A65 * kth[4])
-    v = om + h * (A61 * kom[0] + A62 * kom[1] + A63 * kom[2] + A64 * kom[3] + A65 * kom[4])
-    kth[5] = v
-    kom[5] = _acc(t + h, y, v, pr, slide, tc)
-    th1 = th + h * (B1 * kth[0] + B3 * kth[2] + B4 * kth[3] + B5 * kth[4] + B6 * kth[5])
-    om1 = om + h * (B1 * kom[0] + B3 * kom[2] + B4 * kom[3] + B5 * kom[4] + B6 * kom[5])
-    a7 = _acc(t + h, th1, om1, pr, slide, tc)
-    kth[6] = om1
-    kom[6] = a7
-    eth = h * (E1 * kth[0] + E3 * kth[2] + E4 * kth[3] + E5 * kth[4] + E6 * kth[5] + E7 * kth[6])
-    eom = h * (E1 * kom[0] + E3 * kom[2] + E4 * kom[3] + E5 * kom[4] + E6 * kom[5] + E7 * kom[6])
-    return th1, om1, a7, eth, eom
+    for s in range(1, N_STAGES):
+        dth = 0.0
+        dom = 0.0
+        for j in range(s):
+            a = A853[s, j]
+            dth += a * kth[j]
+            dom += a * kom[j]
+        v = om + h * dom
+        kth[s] = v
+        kom[s] = _acc(t + C853[s] * h, th + h * dth, v, pr, slide, tc)
+    dth = 0.0
+    dom = 0.0
+    for j in range(N_STAGES):
+        dth += B853[j] * kth[j]
+        dom += B853[j] * kom[j]
+    th1 = th + h * dth
+    om1 = om + h * dom
+    a_new = _acc(t + h, th1, om1, pr, slide, tc)
+    kth[N_STAGES] = om1
+    kom[N_STAGES] = a_new
+    e5th = 0.0
+    e5om = 0.0
+    e3th = 0.0
+    e3om = 0.0
+    for j in range(N_STAGES + 1):
+        e5th += E5[j] * kth[j]
+        e5om += E5[j] * kom[j]
+        e3th += E3[j] * kth[j]
+        e3om += E3[j] * kom[j]
+    sth = atol + rtol * max(abs(th), abs(th1))
+    som = atol + rtol * max(abs(om), abs(om1))
+    e5 = (e5th / sth) ** 2 + (e5om / som) ** 2
+    e3 = (e3th / sth) ** 2 + (e3om / som) ** 2
+    if e5 == 0.0 and e3 == 0.0:
+        return th1, om1, a_new, 0.0
+    return th1, om1, a_new, abs(h) * e5 / math.sqrt(2.0 * (e5 + 0.01 * e3))
 
 
 @numba.njit(cache=True)
-def _dense_coefficients(h, kth, kom, S):
-    """Coefficients of the 4th-order dense-output polynomials of the last step, into S."""
+def _dense_coefficients(t, th, om, th1, om1, h, pr, slide, tc, kth, kom, S):
+    """Coefficients of the 7th-order dense-output polynomials of a step, into S.
+
+    Needs the step's stages in kth/kom; evaluates the three extra stages of the
+    interpolant (only for steps that are sampled or searched for events).
+    """
+    for s in range(N_STAGES + 1, N_EXTENDED):
+        dth = 0.0
+        dom = 0.0
+        for j in range(s):
+            a = A853[s, j]
+            dth += a * kth[j]
+            dom += a * kom[j]
+        v = om + h * dom
+        kth[s] = v
+        kom[s] = _acc(t + C853[s] * h, th + h * dth, v, pr, slide, tc)
+    F = np.empty(DEGREE)
     for comp in range(2):
         k = kth if comp == 0 else kom
-        base = S_POLY + 4 * comp
-        S[base] = h * (Q11 * k[0])
-        S[base + 1] = h * (
-            Q12 * k[0] + Q32 * k[2] + Q42 * k[3] + Q52 * k[4] + Q62 * k[5] + Q72 * k[6]
-        )
-        S[base + 2] = h * (
-            Q13 * k[0] + Q33 * k[2] + Q43 * k[3] + Q53 * k[4] + Q63 * k[5] + Q73 * k[6]
-        )
-        S[base + 3] = h * (
-            Q14 * k[0] + Q34 * k[2] + Q44 * k[3] + Q54 * k[4] + Q64 * k[5] + Q74 * k[6]
-        )
+        delta = (th1 - th) if comp == 0 else (om1 - om)
+        F[0] = delta
+        F[1] = h * k[0] - delta
+        F[2] = 2.0 * delta - h * (k[N_STAGES] + k[0])
+        for i in range(4):
+            acc = 0.0
+            for j in range(N_EXTENDED):
+                acc += D853[i, j] * k[j]
+            F[3 + i] = h * acc
+        base = S_POLY + DEGREE * comp
+        for j in range(DEGREE):
+            c = 0.0
+            for i in range(DEGREE):
+                c += M_POWER[j, i] * F[i]
+            S[base + j] = c
 
 
 @numba.njit(cache=True, inline="always")
 def _poly(y0, S, base, s):
-    return y0 + s * (S[base] + s * (S[base + 1] + s * (S[base + 2] + s * S[base + 3])))
+    acc = S[base + DEGREE - 1]
+    for j in range(DEGREE - 2, -1, -1):
+        acc = S[base + j] + s * acc
+    return y0 + s * acc
 
 
 @numba.njit(cache=True, inline="always")
 def _poly_slope(S, base, s):
-    return S[base] + s * (2.0 * S[base + 1] + s * (3.0 * S[base + 2] + s * 4.0 * S[base + 3]))
+    acc = DEGREE * S[base + DEGREE - 1]
+    for j in range(DEGREE - 2, -1, -1):
+        acc = (j + 1) * S[base + j] + s * acc
+    return acc
 
 
 @numba.njit(cache=True)
@@ -271,7 +308,7 @@ def _first_exit(y0, S, base, level, sign):
     derivative, bracketed on a fine grid), so d is monotone on each piece and an
     excursion that starts and ends inside the step (grazing) is found as well.
     """
-    nodes = np.empty(6)
+    nodes = np.empty(DEGREE + 2)
     nodes[0] = 0.0
     count = 1
     samples = 24
@@ -293,7 +330,7 @@ def _first_exit(y0, S, base, level, sign):
                     hi = mid
                 if hi - lo < 1e-16:
                     break
-            if count < 5:
+            if count < DEGREE:
                 nodes[count] = 0.5 * (lo + hi)
                 count += 1
         prev = cur
@@ -477,7 +514,7 @@ def restart(S, t, theta, theta_dot, p):
     S[S_OMA] = theta_dot
     S[S_THB] = theta
     S[S_OMB] = theta_dot
-    for i in range(8):
+    for i in range(2 * DEGREE):
         S[S_POLY + i] = 0.0
     initialise_regions(S, p)
 
@@ -490,7 +527,7 @@ def state_at(S, t):
     if tb <= ta:
         return S[S_THB], S[S_OMB]
     s = (t - ta) / (tb - ta)
-    return _poly(S[S_THA], S, S_POLY, s), _poly(S[S_OMA], S, S_POLY + 4, s)
+    return _poly(S[S_THA], S, S_POLY, s), _poly(S[S_OMA], S, S_POLY + DEGREE, s)
 
 
 @numba.njit(cache=True)
@@ -505,7 +542,7 @@ def _initial_step(t, th, om, a, pr, slide, tc, rtol, atol):
     om1 = om + h0 * a
     a1 = _acc(t + h0, th1, om1, pr, slide, tc)
     d2 = math.sqrt(0.5 * (((om1 - om) / sc0) ** 2 + ((a1 - a) / sc1) ** 2)) / h0
-    h1 = max(1e-06, h0 * 0.001) if max(d1, d2) <= 1e-15 else (0.01 / max(d1, d2)) ** 0.2
+    h1 = max(1e-06, h0 * 0.001) if max(d1, d2) <= 1e-15 else (0.01 / max(d1, d2)) ** 0.125
     return min(100.0 * h0, h1)
 
 
@@ -547,8 +584,8 @@ def integrate(
     period = 2.0 * math.pi / p[P.OMEGA_DRIVE] if p[P.OMEGA_DRIVE] > 0.0 else math.inf
     k_contact = coefficients(p, True)
     k_free = coefficients(p, False)
-    kth = np.empty(7)
-    kom = np.empty(7)
+    kth = np.empty(N_EXTENDED)
+    kom = np.empty(N_EXTENDED)
     n_out = out_t.shape[0]
     n_pc = pc_th.shape[0]
     gi = 0
@@ -561,7 +598,11 @@ def integrate(
         pc_om[j] = math.nan
     steps_this_call = 0
     row = np.zeros(EV_SIZE)
-    last_h = 0.0  # length of the last DOPRI step whose stages sit in kth/kom (0: none)
+    # the last step whose stages sit in kth/kom (last_h = 0: none), for its dense output
+    last_h = 0.0
+    last_t = last_th = last_om = last_th1 = last_om1 = 0.0
+    last_pr = k_free
+    last_slide = 1.0
     poly_ok = True
 
     while True:
@@ -571,18 +612,31 @@ def integrate(
         need = (gi < n_out and out_t[gi] <= tb) or (pk < n_pc and pc_t0 + pk * pc_dt <= tb)
         if need:
             if not poly_ok:
-                _dense_coefficients(last_h, kth, kom, S)
+                _dense_coefficients(
+                    last_t,
+                    last_th,
+                    last_om,
+                    last_th1,
+                    last_om1,
+                    last_h,
+                    last_pr,
+                    last_slide,
+                    tc,
+                    kth,
+                    kom,
+                    S,
+                )
                 poly_ok = True
             span = tb - ta
             while gi < n_out and out_t[gi] <= tb:
                 s = (out_t[gi] - ta) / span if span > 0.0 else 1.0
                 out_th[gi] = _poly(S[S_THA], S, S_POLY, s)
-                out_om[gi] = _poly(S[S_OMA], S, S_POLY + 4, s)
+                out_om[gi] = _poly(S[S_OMA], S, S_POLY + DEGREE, s)
                 gi += 1
             while pk < n_pc and pc_t0 + pk * pc_dt <= tb:
                 s = (pc_t0 + pk * pc_dt - ta) / span if span > 0.0 else 1.0
                 pc_th[pk] = _poly(S[S_THA], S, S_POLY, s)
-                pc_om[pk] = _poly(S[S_OMA], S, S_POLY + 4, s)
+                pc_om[pk] = _poly(S[S_OMA], S, S_POLY + DEGREE, s)
                 pk += 1
         if gi >= n_out and pk >= n_pc and tb >= t_final:
             break
@@ -626,7 +680,7 @@ def integrate(
             S[S_TA] = t
             S[S_THA] = th
             S[S_OMA] = 0.0
-            for i in range(8):
+            for i in range(2 * DEGREE):
                 S[S_POLY + i] = 0.0
             poly_ok = True
             S[S_ACC_OK] = 0.0
@@ -662,11 +716,8 @@ def integrate(
             if h < h_min:
                 S[S_STATUS] = STATUS_STEP_UNDERFLOW
                 break
-            th1, om1, a7, eth, eom = _dopri_step(t, th, om, a1, h, pr, slide, tc, kth, kom)
+            th1, om1, a7, err = _rk_step(t, th, om, a1, h, pr, slide, tc, kth, kom, rtol, atol)
             steps_this_call += 1
-            sth = atol + rtol * max(abs(th), abs(th1))
-            som = atol + rtol * max(abs(om), abs(om1))
-            err = math.sqrt(0.5 * ((eth / sth) ** 2 + (eom / som) ** 2))
             if err <= 1.0:
                 break
             S[S_REJECTS] += 1
@@ -674,17 +725,19 @@ def integrate(
             if not err < math.inf:  # NaN or inf
                 h *= MIN_FACTOR
             else:
-                h *= max(MIN_FACTOR, SAFETY * err**-0.2)
+                h *= max(MIN_FACTOR, SAFETY * err**ERROR_EXPONENT)
         if S[S_STATUS] != STATUS_OK:
             break
-        factor = MAX_FACTOR if err == 0.0 else min(MAX_FACTOR, SAFETY * err ** (-0.2))
+        factor = MAX_FACTOR if err == 0.0 else min(MAX_FACTOR, SAFETY * err**ERROR_EXPONENT)
         if rejected:
             factor = min(factor, 1.0)
         h_next = min(h * factor, max_step)
         S[S_STEPS] += 1
 
         # ---- events inside the accepted step
-        last_h = h
+        last_t, last_th, last_om, last_th1, last_om1, last_h = t, th, om, th1, om1, h
+        last_pr = pr
+        last_slide = slide
         poly_ok = False
         s_event = 2.0
         kind = 0  # 1: contact surface, 2: theta' = 0
@@ -695,7 +748,7 @@ def integrate(
             if d1 < 0.0 or (sign * om < 0.0 and sign * om1 > 0.0):
                 S[S_THA] = th
                 S[S_OMA] = om
-                _dense_coefficients(h, kth, kom, S)
+                _dense_coefficients(t, th, om, th1, om1, h, pr, slide, tc, kth, kom, S)
                 poly_ok = True
                 s = _first_exit(th, S, S_POLY, thb, sign)
                 if s >= 0.0:
@@ -708,9 +761,9 @@ def integrate(
                 if not poly_ok:
                     S[S_THA] = th
                     S[S_OMA] = om
-                    _dense_coefficients(h, kth, kom, S)
+                    _dense_coefficients(t, th, om, th1, om1, h, pr, slide, tc, kth, kom, S)
                     poly_ok = True
-                s = _first_exit(om, S, S_POLY + 4, 0.0, slide)
+                s = _first_exit(om, S, S_POLY + DEGREE, 0.0, slide)
                 if 0.0 <= s < s_event:
                     s_event = s
                     kind = 2
@@ -731,7 +784,7 @@ def integrate(
                     S[S_THMAX] = th1
                 if om > 0.0 and om1 < 0.0:
                     if not poly_ok:
-                        _dense_coefficients(h, kth, kom, S)
+                        _dense_coefficients(t, th, om, th1, om1, h, pr, slide, tc, kth, kom, S)
                         poly_ok = True
                     S[S_THMAX] = max(S[S_THMAX], _poly_max(th, S, S_POLY))
             if abs(th1) > math.pi:
@@ -747,15 +800,15 @@ def integrate(
         S[S_THA] = th
         S[S_OMA] = om
         if h_land > 0.0:
-            thl, oml, _al, _, _ = _dopri_step(t, th, om, a1, h_land, pr, slide, tc, kth, kom)
+            thl, oml, _, _ = _rk_step(t, th, om, a1, h_land, pr, slide, tc, kth, kom, rtol, atol)
             S[S_STEPS] += 1
             steps_this_call += 1
-            last_h = h_land
+            last_th1, last_om1, last_h = thl, oml, h_land
             poly_ok = False
             t_land = t + h_land
         else:
             thl, oml, t_land = th, om, t
-            for i in range(8):
+            for i in range(2 * DEGREE):
                 S[S_POLY + i] = 0.0
             poly_ok = True
         if kind == 1:
@@ -773,7 +826,7 @@ def integrate(
         S[S_H] = max(h_next, 1e-3 * h)
         if contact and h_land > 0.0:
             if not poly_ok:
-                _dense_coefficients(last_h, kth, kom, S)
+                _dense_coefficients(t, th, om, thl, oml, h_land, pr, slide, tc, kth, kom, S)
                 poly_ok = True
             S[S_THMAX] = max(S[S_THMAX], thl, _poly_max(th, S, S_POLY))
         if want_dense:
@@ -808,7 +861,20 @@ def integrate(
                 S[S_STICK_T] = t_ev
 
     if not poly_ok and last_h > 0.0:
-        _dense_coefficients(last_h, kth, kom, S)
+        _dense_coefficients(
+            last_t,
+            last_th,
+            last_om,
+            last_th1,
+            last_om1,
+            last_h,
+            last_pr,
+            last_slide,
+            tc,
+            kth,
+            kom,
+            S,
+        )
     return events, n_events, dense, n_dense, gi, pk
 
 

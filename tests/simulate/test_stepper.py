@@ -38,7 +38,7 @@ def test_set_model_changes_the_drive_with_continuous_phase():
     rig = RigParameters()
     first = Model(rig, Drive(amplitude_m=0.003, frequency_hz=8.0))
     second = Model(rig, Drive(amplitude_m=0.005, frequency_hz=10.0))
-    stepper = Stepper(first, -0.2)
+    stepper = Stepper(first, -0.2, rtol=1e-11, atol=1e-13)
     t_switch = 1.2345
     stepper.advance(np.linspace(0.01, t_switch, 100))
     phase_before = stepper.drive_phase
