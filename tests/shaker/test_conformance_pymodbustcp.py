@@ -39,7 +39,7 @@ def test_drive_through_the_documented_map_then_watchdog_trips(emulator: Amplifie
     client = _client(emulator)
     try:
         assert client.read_input_registers(IR_MODEL, 3) == [0x5348, 0x0100, 1]
-        assert client.write_single_register(HR_WATCHDOG_MS, 500)
+        assert client.write_single_register(HR_WATCHDOG_MS, 1000)
         frequency_mhz = 12_500
         assert client.write_multiple_registers(
             HR_FREQUENCY_MHZ, [frequency_mhz >> 16, frequency_mhz & 0xFFFF]
@@ -58,8 +58,8 @@ def test_drive_through_the_documented_map_then_watchdog_trips(emulator: Amplifie
         assert abs(frequency_hz - 12.5) < 1e-3
         assert abs(amplitude_m - 1.5e-3) < 1e-6
         assert client.read_input_registers(8, 1) == [beat]  # heartbeat echo
-        # the host goes quiet: after 500 ms the amplifier ramps to zero and latches the fault
-        deadline = time.monotonic() + 3.0
+        # the host goes quiet: after 1000 ms the amplifier ramps to zero and latches the fault
+        deadline = time.monotonic() + 5.0
         while time.monotonic() < deadline:
             status, faults, _, amplitude_m = _measured(client)
             if status & STATUS_AT_ZERO:

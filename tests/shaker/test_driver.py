@@ -101,11 +101,12 @@ def test_leaving_the_with_block_ramps_the_drive_to_zero(bench: Bench) -> None:
 
 
 def test_heartbeat_keeps_the_watchdog_quiet(bench: Bench) -> None:
-    with bench.shaker(watchdog_s=0.5, heartbeat_period_s=0.05) as shaker:
+    # 1 s of silence trips it: ten heartbeats missed in a row, not a busy machine's hiccup
+    with bench.shaker(watchdog_s=1.0, heartbeat_period_s=0.1) as shaker:
         shaker.frequency_hz = 5.0
         shaker.amplitude_m = 0.001
         shaker.enabled = True
-        time.sleep(1.6)  # three watchdog periods
+        time.sleep(2.5)  # two and a half watchdog periods
         assert shaker.faults() == ()
         assert shaker.enabled
         echo = bench.firmware.read_input(Input.HEARTBEAT_ECHO, 1)[0]

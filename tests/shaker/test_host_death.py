@@ -20,7 +20,7 @@ from drivers.limits import ShakerLimits
 from drivers.modbus_shaker import ModbusTcpBackend
 from drivers.shaker import ShakerAmplifier
 shaker = ShakerAmplifier(ModbusTcpBackend("127.0.0.1", int(sys.argv[1]), timeout_s=0.5),
-                         ShakerLimits(max_ramp_rate_m_s=0.05), watchdog_s=0.5).connect()
+                         ShakerLimits(max_ramp_rate_m_s=0.05), watchdog_s=1.0).connect()
 shaker.ramp_rate_m_s = 0.05
 shaker.frequency_hz = 10.0
 shaker.amplitude_m = 0.002
@@ -63,7 +63,7 @@ def test_killed_host_leaves_the_table_at_zero_through_the_watchdog(
         assert emulator.firmware.read_input(7, 1) == [2000]
         host.send_signal(signal.SIGKILL)  # no atexit, no close: only the watchdog is left
         host.wait(5)
-        assert _wait_at_zero(emulator, 3.0)
+        assert _wait_at_zero(emulator, 5.0)  # watchdog 1 s, then a 40 ms ramp
         assert emulator.firmware.faults == Fault.WATCHDOG_EXPIRED
         assert not emulator.firmware.enabled
     finally:
