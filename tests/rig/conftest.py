@@ -42,3 +42,10 @@ def read_only_folder(tmp_path):
     """A folder nobody can write to, not even root (a read-only mount)."""
     with mounted_tmpfs(tmp_path / "ro", "ro,size=1m") as where:
         yield where
+
+
+@pytest.fixture
+def two_megabyte_filesystem(tmp_path):
+    """Room for a few seconds of a 20 kHz recording."""
+    with mounted_tmpfs(tmp_path / "small", "size=2m") as where:
+        yield where

@@ -3,6 +3,7 @@ and the recording is a valid file saying why it stopped."""
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
 from rig.cli import main
@@ -94,3 +95,39 @@ def test_record_refuses_an_existing_file_and_an_unwritable_folder_before_opening
     )
     error = capsys.readouterr().err
     assert "not writable" in error and "opening the devices" not in error
+
+
+def test_a_disk_that_fills_during_a_forced_run_stops_it_cleanly(two_megabyte_filesystem, capsys):
+    path = two_megabyte_filesystem / "forced.h5"
+    status = main(
+        [
+            "record",
+            "--sim",
+            "--experiment",
+            "forced",
+            "--drive-hz",
+            "5",
+            "--beta",
+            "0.02",
+            "--settle",
+            "0.5",
+            "--duration",
+            "60",
+            "--fs",
+            "20000",
+            "--out",
+            str(path),
+            "--quiet",
+        ]
+    )
+    assert status == 2
+    error = capsys.readouterr().err
+    assert "disk almost full" in error and "ramped to zero" in error
+    with open_recording(path) as rec:
+        status_row = rec.status()
+        drive = rec.drive_log()
+        angle = rec.channel("angle")
+    assert status_row.closed and "disk almost full" in status_row.stop_reason
+    assert len(angle) >= 4_000  # what was recorded before the disk filled is kept, in order
+    np.testing.assert_array_equal(np.diff(angle.indices), 1)
+    assert drive["enabled"].tolist()[0] == 1 and drive["enabled"].tolist()[-1] == 0
