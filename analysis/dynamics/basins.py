@@ -12,16 +12,17 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.colors import ListedColormap
-from matplotlib.figure import Figure
 from scipy.spatial import cKDTree
 
 from analysis.dynamics.regime import Regime, classify_regime, recurrence_distances
 from analysis.dynamics.sweeps import Progress, run_poincare
 from analysis.model import Model
+
+if TYPE_CHECKING:  # matplotlib is imported by the plot functions only (slow import)
+    from matplotlib.figure import Figure
 
 NO_ATTRACTOR = -1  # the run left the model's regime (over the top) or failed
 
@@ -197,6 +198,10 @@ def plot_basins(
     basin_map: BasinMap, *, title: str | None = None, path: str | Path | None = None
 ) -> Figure:
     """Colour map of the basins with a legend of attractor names (Agg); PNG when ``path`` given."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.colors import ListedColormap
+    from matplotlib.figure import Figure
+
     figure = Figure(figsize=(7.0, 5.5), dpi=120)
     FigureCanvasAgg(figure)
     axes = figure.add_subplot()

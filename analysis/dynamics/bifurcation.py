@@ -17,14 +17,16 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.figure import Figure
 
 from analysis.dynamics.poincare import PoincareSection
 from analysis.dynamics.sweeps import Progress, continue_along, model_at_beta, run_poincare
 from analysis.model import Model
+
+if TYPE_CHECKING:  # matplotlib is imported by the plot functions only (slow import)
+    from matplotlib.figure import Figure
 
 DIRECTIONS = ("up", "down", "fixed", "recorded")
 
@@ -159,13 +161,17 @@ def plot_bifurcation(
     """Draw diagrams on one axis (Agg, no window); saved as PNG when ``path`` is given."""
     if not diagrams:
         raise ValueError("nothing to plot: pass at least one BifurcationDiagram")
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
     figure = Figure(figsize=(8.0, 5.0), dpi=120)
     FigureCanvasAgg(figure)
     axes = figure.add_subplot()
     for diagram in diagrams:
         x, y = diagram.scatter()
         style = _STYLE.get(diagram.direction, dict(color="gray", label=diagram.direction))
-        size = 6.0 if diagram.direction == "recorded" else 0.8
+        # the down sweep drawn larger, so where the two sweeps agree both stay visible
+        size = {"recorded": 6.0, "down": 2.0}.get(diagram.direction, 0.8)
         axes.scatter(x, y, s=size, marker=".", linewidths=0, alpha=0.8, **style)
     axes.set_xlabel(diagrams[0].parameter_name)
     axes.set_ylabel("theta at drive phase 0 [rad]")
