@@ -315,7 +315,15 @@ class Recorder:
         return time.monotonic() - self._last_flush >= self.flush_interval_s
 
     def add(self, event: Event, host_time_s: float) -> None:
-        """Queue one engine event for the next flush (blocks of unknown channels are an error)."""
+        """Queue one engine event for the next flush (blocks of unknown channels are an error).
+
+        After the disk filled, drive settings and step marks (a few bytes, written into the
+        reserve at close) are still taken, so the file tells how the run ended.
+        """
+        if isinstance(self._failed, DiskFullError):
+            if isinstance(event, DriveSetting | StepMark) and not self._closed:
+                self._add_annotation(event)
+            return
         self._check_usable()
         self._last_host_time_s = max(self._last_host_time_s, host_time_s)
         if isinstance(event, SampleBlock):
@@ -347,7 +355,13 @@ class Recorder:
             buffer = self._channel(event.channel, None)
             buffer.gaps.append((event.start_index, event.length))
             buffer.lost += event.length
-        elif isinstance(event, DriveSetting):
+        elif isinstance(event, DriveSetting | StepMark):
+            self._add_annotation(event)
+        else:
+            raise TypeError(f"cannot record {type(event).__name__}")
+
+    def _add_annotation(self, event: DriveSetting | StepMark) -> None:
+        if isinstance(event, DriveSetting):
             self._drive.append(
                 (
                     event.host_time_s,
@@ -472,6 +486,8 @@ class Recorder:
             return
         if isinstance(self._failed, DiskFullError):
             try:
+                _append(self._file["drive"], self._drive, DRIVE_DTYPE)
+                _append(self._file["sweep_steps"], self._steps, STEP_DTYPE)
                 self._write_status(closed=True, reason=str(self._failed))
                 self._file.flush()
                 self._file.close()
@@ -589,6 +605,18 @@ class RecorderThread(threading.Thread):
             self.error = error
             if self.on_error is not None:
                 self.on_error(error)
+            if isinstance(error, DiskFullError):
+                self._keep_annotations()
+
+    def _keep_annotations(self) -> None:
+        """After the disk filled: drain until the engine stops, keeping only drive settings and
+        step marks (the recorder writes them into its reserve at close)."""
+        while True:
+            batch = self.source.get_many(timeout_s=0.1)
+            for host_time_s, event in batch:
+                self.recorder.add(event, host_time_s)  # blocks are refused quietly now
+            if not batch and self.source.closed:
+                return
 
 
 class RecordingSubscriber(Protocol):
