@@ -17,12 +17,10 @@ from __future__ import annotations
 import argparse
 import contextlib
 import errno
-import math
 import os
 import select
 import sys
 import threading
-import time
 import tty
 from dataclasses import replace
 
@@ -39,7 +37,6 @@ from hardware_sim.daq_faults import (
     STALL,
     UNPLUG,
     DaqFaults,
-    FaultRecord,
 )
 from hardware_sim.daq_firmware import DEFAULT_IDENTITY, DaqFirmware
 from hardware_sim.sample_source import CounterSource, SampleSource
@@ -59,14 +56,13 @@ class DaqEmulator:
         max_samples_per_frame: int = 256,
         wiring: dict[int, str] | None = None,
     ) -> None:
-        if speed is None:  # the virtual rig says how fast it should be paced
-            speed = float(getattr(source, "speed_factor", 1.0))
-        if not speed > 0:
-            raise ValueError(f"speed={speed} must be > 0 (math.inf: as fast as the host reads)")
         self.firmware = DaqFirmware(
-            source, identity=identity, wiring=wiring, max_samples_per_frame=max_samples_per_frame
+            source,
+            identity=identity,
+            wiring=wiring,
+            max_samples_per_frame=max_samples_per_frame,
+            speed=speed,
         )
-        self.speed = speed
         self.faults = faults if faults is not None else DaqFaults()
         self.fifo_bytes = fifo_bytes
         self._master = -1
@@ -76,7 +72,6 @@ class DaqEmulator:
         self._running = threading.Event()
         self._out = bytearray()
         self._commands = bytearray()
-        self._clock_start = 0.0
         self.frames_sent = 0
 
     # --- life cycle ------------------------------------------------------------------
@@ -138,13 +133,9 @@ class DaqEmulator:
     def _time_to_next_frame(self) -> float:
         if not self.firmware.streaming:
             return 0.05
-        if math.isinf(self.speed):
+        if not self.firmware.paced:
             return 0.0 if len(self._out) < self.fifo_bytes else 0.05
-        config = self.firmware.configuration
-        due_s = (self.firmware.next_index + config.samples_per_frame) / (
-            config.sample_rate_hz * self.speed
-        )
-        return min(0.05, max(0.0, self._clock_start + due_s - time.monotonic()))
+        return min(0.05, self.firmware.seconds_to_next_frame())
 
     def _read_commands(self) -> None:
         try:
@@ -160,11 +151,7 @@ class DaqEmulator:
             line, _, rest = self._commands.partition(b"\n")
             self._commands = bytearray(rest)
             text = line.decode("ascii", errors="replace").strip("\r ")
-            was_streaming = self.firmware.streaming
-            reply = self.firmware.handle(text)
-            if self.firmware.streaming and not was_streaming:
-                self._clock_start = time.monotonic()
-            self._out += encode_reply_frame(reply)
+            self._out += encode_reply_frame(self.firmware.handle(text))
         if len(self._commands) > MAX_COMMAND_BYTES:  # a line that never ends is noise
             self._out += encode_reply_frame("ERR command line too long")
             self._commands.clear()
@@ -172,16 +159,14 @@ class DaqEmulator:
     def _produce_due_frames(self) -> None:
         config = self.firmware.configuration
         per_frame = config.samples_per_frame
-        if math.isinf(self.speed):
-            due_frames = 1 if len(self._out) < self.fifo_bytes else 0
+        paced = self.firmware.paced
+        if paced:
+            due_frames = self.firmware.frames_due()
         else:
-            elapsed_samples = (time.monotonic() - self._clock_start) * (
-                config.sample_rate_hz * self.speed
-            )
-            due_frames = int(elapsed_samples - self.firmware.next_index) // per_frame
+            due_frames = 1 if len(self._out) < self.fifo_bytes else 0
         for _ in range(due_frames):
             first = self.firmware.next_index
-            if self.faults.stalled and not math.isinf(self.speed):
+            if self.faults.stalled and paced:
                 self.firmware.skip(per_frame)
                 self.faults.record(STALL, first, per_frame)
                 continue
@@ -209,11 +194,6 @@ class DaqEmulator:
         except BlockingIOError:
             return
         del self._out[:written]
-
-    # --- for tests ------------------------------------------------------------------------
-    @property
-    def fault_log(self) -> list[FaultRecord]:
-        return self.faults.log
 
 
 def _main(argv: list[str] | None = None) -> int:

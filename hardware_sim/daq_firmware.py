@@ -7,6 +7,9 @@ two behave alike: same limits, same error replies, same sample indices.
 
 from __future__ import annotations
 
+import math
+import time
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -54,7 +57,12 @@ class Chunk:
 
 
 class DaqFirmware:
-    """Board state machine: identify, configure (stopped only), start, stop; makes chunks."""
+    """Board state machine: identify, configure (stopped only), start, stop; makes chunks.
+
+    Its sample clock runs ``speed`` times real time from each START (``None``: the
+    source's own ``speed_factor`` if it has one, else real time; ``math.inf``:
+    unpaced, samples are due as fast as they are taken).
+    """
 
     def __init__(
         self,
@@ -63,11 +71,20 @@ class DaqFirmware:
         identity: BoardIdentity = DEFAULT_IDENTITY,
         wiring: dict[int, str] | None = None,
         max_samples_per_frame: int = 256,
+        speed: float | None = None,
+        clock: Callable[[], float] = time.monotonic,
     ) -> None:
         if not 1 <= max_samples_per_frame <= MAX_SAMPLES_PER_FRAME:
             raise ValueError(
                 f"max_samples_per_frame={max_samples_per_frame} outside 1..{MAX_SAMPLES_PER_FRAME}"
             )
+        if speed is None:  # the virtual rig says how fast it should be paced
+            speed = float(getattr(source, "speed_factor", 1.0))
+        if not speed > 0:
+            raise ValueError(f"speed={speed} must be > 0 (math.inf: unpaced)")
+        self.speed = speed
+        self._clock = clock
+        self._started_at = 0.0
         self.source = source
         self.identity = identity
         self.wiring = dict(DEFAULT_WIRING if wiring is None else wiring)
@@ -106,6 +123,7 @@ class DaqFirmware:
                 return "ERR already streaming"
             self.streaming = True
             self.next_index = 0
+            self._started_at = self._clock()
             restart = getattr(self.source, "restart", None)
             if callable(restart):
                 restart()
@@ -138,6 +156,23 @@ class DaqFirmware:
         self.configuration = self._configuration_for(rate_hz, channels)
         self.source.configure(self.configuration.sample_rate_hz)
         return self.configuration.to_reply()
+
+    @property
+    def paced(self) -> bool:
+        """True when the sample clock keeps time (False: unpaced, ``speed`` is inf)."""
+        return not math.isinf(self.speed)
+
+    def frames_due(self) -> int:
+        """Whole frames the paced clock has produced since START that are not acquired yet."""
+        config = self.configuration
+        elapsed = (self._clock() - self._started_at) * config.sample_rate_hz * self.speed
+        return int(elapsed - self.next_index) // config.samples_per_frame
+
+    def seconds_to_next_frame(self) -> float:
+        """Wall-clock time until the paced clock completes the next frame (0 if it has)."""
+        config = self.configuration
+        due_s = (self.next_index + config.samples_per_frame) / (config.sample_rate_hz * self.speed)
+        return max(0.0, self._started_at + due_s - self._clock())
 
     def acquire(self, n_samples: int | None = None) -> Chunk:
         """The next samples of the running stream (one frame's worth by default)."""

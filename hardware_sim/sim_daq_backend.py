@@ -9,7 +9,6 @@ that never arrives, exactly as the serial driver would reject it.
 
 from __future__ import annotations
 
-import math
 import threading
 import time
 
@@ -51,17 +50,15 @@ class SimDaqBackend:
         max_samples_per_frame: int = 256,
         wiring: dict[int, str] | None = None,
     ) -> None:
-        if speed is None:  # the virtual rig says how fast it should be paced
-            speed = float(getattr(source, "speed_factor", 1.0))
-        if not speed > 0:
-            raise ValueError(f"speed={speed} must be > 0 (math.inf: as fast as it is read)")
         self.firmware = DaqFirmware(
-            source, identity=identity, wiring=wiring, max_samples_per_frame=max_samples_per_frame
+            source,
+            identity=identity,
+            wiring=wiring,
+            max_samples_per_frame=max_samples_per_frame,
+            speed=speed,
         )
-        self.speed = speed
         self.faults = faults if faults is not None else DaqFaults()
         self._frames_rejected = 0
-        self._clock_start = 0.0
         self._connected = False
         self._lock = threading.Lock()  # the reader thread acquires while the user stops
 
@@ -96,7 +93,6 @@ class SimDaqBackend:
 
     def start(self) -> None:
         self._ask(COMMAND_START, COMMAND_START)
-        self._clock_start = time.monotonic()
 
     def stop(self) -> None:
         self._ask(COMMAND_STOP, COMMAND_STOP)
@@ -108,11 +104,7 @@ class SimDaqBackend:
         self._connected = False
 
     def _due_frames(self) -> int:
-        config = self.firmware.configuration
-        if math.isinf(self.speed):
-            return MAX_FRAMES_PER_CHUNK
-        elapsed = (time.monotonic() - self._clock_start) * config.sample_rate_hz * self.speed
-        return int(elapsed - self.firmware.next_index) // config.samples_per_frame
+        return self.firmware.frames_due() if self.firmware.paced else MAX_FRAMES_PER_CHUNK
 
     def read_chunk(self, timeout_s: float) -> RawChunk | None:
         deadline = time.monotonic() + timeout_s
@@ -122,7 +114,7 @@ class SimDaqBackend:
             if not self.firmware.streaming:
                 return None
             due = self._due_frames()
-            if due and not (self.faults.stalled and math.isinf(self.speed)):
+            if due and not (self.faults.stalled and not self.firmware.paced):
                 with self._lock:
                     chunk = self._frames(min(due, MAX_FRAMES_PER_CHUNK))
                 if chunk is not None:
@@ -134,13 +126,7 @@ class SimDaqBackend:
             time.sleep(min(remaining, self._seconds_to_next_frame(), 0.02))
 
     def _seconds_to_next_frame(self) -> float:
-        config = self.firmware.configuration
-        if math.isinf(self.speed):
-            return 0.005
-        due_s = (self.firmware.next_index + config.samples_per_frame) / (
-            config.sample_rate_hz * self.speed
-        )
-        return max(0.0, self._clock_start + due_s - time.monotonic())
+        return self.firmware.seconds_to_next_frame() if self.firmware.paced else 0.005
 
     def _frames(self, count: int) -> RawChunk | None:
         """Acquire up to ``count`` frames; a lost frame ends the chunk (the next begins after)."""
