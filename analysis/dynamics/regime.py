@@ -77,6 +77,7 @@ def classify_regime(
     lyapunov_exponent: float | None = None,
     scale: np.ndarray | float | None = None,
     tolerance: float = 1e-3,
+    noise_tolerance: float = 0.05,
     max_period: int = 16,
     chaos_threshold: float = 0.5,
     lyapunov_threshold: float = 0.0,
@@ -85,9 +86,11 @@ def classify_regime(
     """Classify post-transient Poincare samples (one per drive period; (n,) or (n, d) or a section).
 
     Periodic with period n: the smallest n whose recurrence distance is within
-    ``tolerance`` of the attractor size.  Otherwise chaotic when the 0-1 test's K
-    exceeds ``chaos_threshold`` or the given Lyapunov exponent exceeds
-    ``lyapunov_threshold``, else quasi-periodic.
+    ``tolerance`` of the attractor size, or, for noisy measured orbits, within
+    ``noise_tolerance`` and a clear dip (5x below the median over the other lags).
+    Otherwise chaotic when the 0-1 test's K exceeds ``chaos_threshold`` or the given
+    Lyapunov exponent exceeds ``lyapunov_threshold``, else quasi-periodic.  (The
+    0-1 test reads measurement noise as chaos, hence the noisy-period rule first.)
     """
     points = _as_points(poincare.points if isinstance(poincare, PoincareSection) else poincare)
     if points.shape[0] < 3:
@@ -99,9 +102,8 @@ def classify_regime(
         evidence["lyapunov"] = float(lyapunov_exponent)
     harmonics = _harmonic_content(spectrum)
     evidence.update(harmonics)
-    periodic = np.flatnonzero(recurrence <= tolerance)
-    if periodic.size:
-        period = int(periodic[0] + 1)
+    period = _period(recurrence, tolerance, noise_tolerance)
+    if period is not None:
         label = f"period-{period}" + _harmonic_text(harmonics)
         return Regime("periodic", period, label, MappingProxyType(evidence))
     if points.shape[0] >= 50:
@@ -126,6 +128,20 @@ def classify_regime(
     if harmonics.get("incommensurate"):
         label += f", lines at {', '.join(harmonics['incommensurate'])}"
     return Regime("quasi_periodic", None, label, MappingProxyType(evidence))
+
+
+def _period(recurrence: np.ndarray, tolerance: float, noise_tolerance: float) -> int | None:
+    """Smallest lag that closes the orbit: within tolerance, or a clear dip within the noise."""
+    exact = np.flatnonzero(recurrence <= tolerance)
+    if exact.size:
+        return int(exact[0] + 1)
+    finite = np.isfinite(recurrence)
+    for n in np.flatnonzero(finite & (recurrence <= noise_tolerance)):
+        others = np.delete(recurrence, n)
+        others = others[np.isfinite(others)]
+        if others.size >= 2 and 5.0 * recurrence[n] <= np.median(others):
+            return int(n + 1)
+    return None
 
 
 def classify_motion(

@@ -60,3 +60,19 @@ def test_period_two_label_names_the_subharmonic_from_the_spectrum():
     assert "1/2 f" in regime.evidence["subharmonics"]
     assert "3 f" in regime.evidence["superharmonics"]
     assert "1/2 f" in regime.label
+
+
+def test_noisy_period_three_from_a_measurement_is_still_period_three():
+    # 1 % sensor noise: far above the strict tolerance, so only the noise rule finds the period
+    cycle = np.array([[0.10, 1.0], [-0.05, 2.0], [0.02, -0.7]])
+    rng = np.random.default_rng(4)
+    points = cycle[K % 3] + 0.01 * np.ptp(cycle, axis=0) * rng.normal(size=(K.size, 2))
+    regime = classify_regime(points)
+    assert (regime.kind, regime.period) == ("periodic", 3)
+    assert classify_regime(points, noise_tolerance=0.0).kind != "periodic"
+
+
+def test_noisy_chaos_is_not_mistaken_for_a_period(henon_orbit):
+    rng = np.random.default_rng(6)
+    noisy = henon_orbit[:600] + 0.01 * rng.normal(size=(600, 2))
+    assert classify_regime(noisy).kind == "chaotic"
