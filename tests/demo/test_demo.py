@@ -1,0 +1,177 @@
+"""``impact-rig demo --quick`` run as a user runs it (a subprocess on the virtual rig over its
+real protocols), and the report folder it leaves: report, figures, JSON reports, recordings."""
+
+from __future__ import annotations
+
+import json
+import re
+import shutil
+import subprocess
+import sys
+
+import pytest
+
+from analysis.extensions import CAUSES
+from analysis.hdf5_records import load_hdf5_steps
+from rig.cli import main
+from rig.config import load_config
+from rig.recording_reader import open_recording
+
+pytestmark = pytest.mark.slow
+
+TRUE_L_M = load_config().constants.L_m
+PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
+SECTION_6_KEYS = {"experiment", "cause", "ranking", "baseline", "extended", "gain", "localization"}
+GAIN_KEYS = {
+    "rms_reduction",
+    "heldout_rms_baseline",
+    "heldout_rms_extended",
+    "information_criterion_delta",
+}
+
+
+def _command() -> list[str]:
+    script = shutil.which("impact-rig")
+    return [script] if script else [sys.executable, "-m", "rig.cli"]
+
+
+@pytest.fixture(scope="module")
+def demo(tmp_path_factory):
+    """One quick demo into a fresh folder: (folder, completed process)."""
+    folder = tmp_path_factory.mktemp("demo") / "report"
+    done = subprocess.run(
+        [*_command(), "demo", "--quick", "--out", str(folder)],
+        capture_output=True,
+        text=True,
+        timeout=600,
+        check=False,
+    )
+    return folder, done
+
+
+def _json(folder, name):
+    return json.loads((folder / name).read_text(encoding="utf-8"))
+
+
+def _assert_estimate(estimate, *, interval=True):
+    assert isinstance(estimate["value"], float)
+    if interval:
+        low, high = estimate["ci95"]
+        assert low <= estimate["value"] <= high
+
+
+def test_the_demo_succeeds_shows_progress_and_prints_where_the_report_is(demo):
+    folder, done = demo
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert str(folder / "report.md") in done.stdout
+    for stage in range(1, 7):
+        assert f"[{stage}/6]" in done.stderr
+    assert "hidden in the virtual rig: coulomb_friction" in done.stdout
+
+
+def test_the_report_shows_figures_that_exist(demo):
+    folder, _ = demo
+    report = (folder / "report.md").read_text(encoding="utf-8")
+    figures = re.findall(r"!\[[^\]]*\]\(([^)]+)\)", report)
+    expected = {
+        "figures/bifurcation.png",
+        "analysis/free_decay_fit.png",
+        "analysis/impact_decay_fit.png",
+    }
+    assert set(figures) >= expected
+    for figure in figures:
+        data = (folder / figure).read_bytes()
+        assert data[:8] == PNG_MAGIC and len(data) > 10_000
+
+
+def test_the_identification_reports_carry_the_section_7_keys_with_intervals(demo):
+    folder, _ = demo
+    free = _json(folder, "identify_free_decay.json")
+    assert free["experiment"] == "free_decay"
+    for key in ("L_m", "omega_rad_s", "zeta"):
+        _assert_estimate(free["parameters"][key])
+    impact = _json(folder, "identify_impact_decay.json")
+    assert impact["experiment"] == "impact_decay"
+    for key in ("K_N_per_m1.5", "E_Pa", "mu0_s_per_m"):
+        _assert_estimate(impact["parameters"][key])
+    combined = _json(folder, "parameters.json")
+    for key in ("L_m", "zeta", "K_N_per_m1.5", "mu0_s_per_m"):
+        _assert_estimate(combined["parameters"][key])
+        _assert_estimate(combined["baseline_identification"][key])
+
+
+def test_the_identified_length_is_the_rigs_within_a_narrow_interval(demo):
+    folder, _ = demo
+    estimate = _json(folder, "parameters.json")["parameters"]["L_m"]
+    low, high = estimate["ci95"]
+    assert low <= TRUE_L_M <= high
+    assert high - low < 0.002 * TRUE_L_M  # an interval that says something
+
+
+def test_the_recordings_open_complete_and_hold_the_sweep_steps(demo):
+    folder, _ = demo
+    experiments = {
+        "free_decay.h5": "free_decay",
+        "impact_decay.h5": "impact_decay",
+        "sweep_10Hz.h5": "forced",
+    }
+    for name, experiment in experiments.items():
+        with open_recording(folder / "recordings" / name) as recording:
+            status = recording.status()
+            assert status.closed and status.stop_reason.startswith("completed")
+            assert recording.info.experiment == experiment
+            assert len(recording.channel("angle")) > 1000
+    steps = load_hdf5_steps(folder / "recordings" / "sweep_10Hz.h5")
+    regimes = _json(folder, "sweep_regimes.json")["steps"]
+    assert len(steps) == len(regimes) == 5  # three amplitudes up, two back down
+    betas = [step["beta"] for step in regimes]
+    assert betas == pytest.approx(betas[::-1])
+    assert [step["direction"] for step in regimes] == ["up"] * 3 + ["down"] * 2
+    for step in regimes:
+        assert step["kind"] in ("periodic", "quasi_periodic", "chaotic", "unclassified")
+        assert step["poincare_points"] >= 40  # one tachometer pulse per drive period
+
+
+def test_the_discrepancy_reports_follow_section_6_and_name_the_hidden_cause(demo):
+    folder, _ = demo
+    pytest.importorskip("analysis.discrepancy")
+    for name in ("analysis/free_decay.json", "analysis/impact_decay.json"):
+        report = _json(folder, name)
+        assert set(report) >= SECTION_6_KEYS
+        assert set(report["gain"]) >= GAIN_KEYS
+        assert report["cause"] in (*CAUSES, "none")
+        for entry in report["ranking"]:
+            assert {"cause", "score", "parameters"} <= set(entry)
+    # the demo never told the analysis which effect the virtual rig had
+    free = _json(folder, "analysis/free_decay.json")
+    assert free["cause"] == "coulomb_friction"
+    tc = free["extended"]["parameters"]["Tc_N_m"]
+    assert tc["ci95"][0] <= 2.0e-5 <= tc["ci95"][1]
+
+
+def test_a_folder_with_files_in_it_is_refused_before_anything_runs(tmp_path, capsys):
+    folder = tmp_path / "taken"
+    folder.mkdir()
+    keep = folder / "notes.txt"
+    keep.write_text("mine")
+    assert main(["demo", "--quick", "--out", str(folder)]) == 2
+    assert "not empty" in capsys.readouterr().err
+    assert keep.read_text() == "mine" and sorted(folder.iterdir()) == [keep]
+
+
+@pytest.mark.parametrize(
+    ("options", "message"),
+    [
+        (["--cause", "friction"], "unknown cause 'friction'"),
+        (["--param", "Tc_N_m=5"], "coulomb_friction.Tc_N_m = 5.0"),
+        (["--param", "Tc=1e-5"], "unknown parameter(s) ['Tc']"),
+        (["--param", "Tc_N_m"], "expected NAME=VALUE"),
+        (["--param", "Tc_N_m=abc"], "'abc' is not a number"),
+        (["--cause", "none", "--param", "Tc_N_m=1e-5"], "takes no parameters"),
+    ],
+)
+def test_a_bad_cause_is_refused_with_what_was_wrong(tmp_path, capsys, options, message):
+    folder = tmp_path / "out"
+    assert main(["demo", "--quick", "--out", str(folder), *options]) == 2
+    assert message in capsys.readouterr().err
+    assert not folder.exists()
