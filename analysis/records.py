@@ -8,6 +8,8 @@ unchanged on either source.
 
 from __future__ import annotations
 
+import contextlib
+import importlib
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -108,6 +110,11 @@ def load_record(path: str | Path, meta_path: str | Path | None = None) -> Record
     if suffix in (".h5", ".hdf5") and suffix not in _LOADERS:
         import analysis.hdf5_records  # noqa: F401 - registers the recorder's HDF5 loader
     loader = _LOADERS.get(suffix)
+    if loader is None and suffix in (".h5", ".hdf5"):
+        # The recorder's layout is read by analysis.hdf5_records, which registers itself.
+        with contextlib.suppress(ImportError):
+            importlib.import_module("analysis.hdf5_records")
+        loader = _LOADERS.get(suffix)
     if loader is None:
         if suffix in (".h5", ".hdf5"):
             raise RecordFormatError(
