@@ -41,7 +41,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         epilog=EPILOG,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    parser.add_argument("file", type=Path, help="exchange CSV (NAME.json beside it) or recording")
+    parser.add_argument(
+        "files", type=Path, nargs="+", metavar="FILE",
+        help="exchange CSV (NAME.json beside it) or HDF5 recording; several free decays of "
+        "one pendulum are fitted one by one and pooled (inverse-variance, Birge-widened)",
+    )
     parser.add_argument("--meta", type=Path, help="JSON sidecar, if not NAME.json beside FILE")
     parser.add_argument("--json", type=Path, dest="json_out", help="write the report here")
     parser.add_argument(
@@ -73,44 +77,60 @@ def _parse_hold(text: str) -> dict[str, float]:
 
 def run(args: argparse.Namespace) -> int:
     """Load the record, run the fit its experiment calls for, print and save the report."""
-    from analysis.identify import (
-        Estimate,
-        IdentificationError,
-        fit_drive,
-        fit_free_decay,
-        fit_impact_decay,
-    )
+    from analysis.identify import IdentificationError, fit_free_decay, pool_free_decays
     from analysis.records import load_record
 
+    if len(args.files) > 1 and args.meta:
+        raise CommandError("--meta applies to a single FILE; give each CSV its NAME.json")
     try:
-        record = load_record(args.file, args.meta)
-        print(
-            f"identifying {args.file} ({record.experiment}, {record.time_s.size} samples)...",
-            file=sys.stderr,
-        )
-        if record.experiment == "free_decay":
-            result = fit_free_decay(record)
+        records = [load_record(path, args.meta) for path in args.files]
+        if len(records) > 1:
+            kinds = {r.experiment for r in records}
+            if kinds != {"free_decay"}:
+                raise CommandError(
+                    f"several files can only be pooled as free decays; got {sorted(kinds)}"
+                )
+            fits = []
+            for path, record in zip(args.files, records, strict=True):
+                print(f"identifying {path} ({record.time_s.size} samples)...", file=sys.stderr)
+                try:
+                    fits.append(fit_free_decay(record))
+                except IdentificationError as error:
+                    raise CommandError(f"{path}: cannot identify: {error}") from None
+            result = pool_free_decays(fits)
         else:
-            hold = _parse_hold(args.hold)
-            if args.free_decay:
-                decay = fit_free_decay(load_record(args.free_decay))
-                hold.setdefault("L_m", decay["L_m"].value)
-                hold.setdefault("zeta", decay["zeta"].value)
-            if record.experiment == "impact_decay":
-                result = fit_impact_decay(record, hold=hold)
-            else:
-                result = fit_drive(record)
-                # The model of a forced run is held from the decay fits; report what was held.
-                for key, value in hold.items():
-                    result.parameters.setdefault(key, Estimate(value))
+            result = _identify_one(args, records[0])
     except IdentificationError as error:
-        raise CommandError(f"{args.file}: cannot identify: {error}") from None
+        raise CommandError(f"{args.files[0]}: cannot identify: {error}") from None
     except ValueError as error:  # format errors name the file and field themselves
         raise CommandError(str(error)) from None
     print(result.summary())
     if args.json_out:
         report = result.as_json()
-        report["source"] = str(args.file)
+        report["source"] = [str(path) for path in args.files]
         args.json_out.write_text(json.dumps(report, indent=1) + "\n", encoding="utf-8")
         print(f"report written to {args.json_out}")
     return 0
+
+
+def _identify_one(args: argparse.Namespace, record):
+    """The fit that the record's experiment calls for."""
+    from analysis.identify import Estimate, fit_drive, fit_free_decay, fit_impact_decay
+    from analysis.records import load_record
+
+    print(f"identifying {record.source} ({record.experiment}, {record.time_s.size} samples)...",
+          file=sys.stderr)
+    if record.experiment == "free_decay":
+        return fit_free_decay(record)
+    hold = _parse_hold(args.hold)
+    if args.free_decay:
+        decay = fit_free_decay(load_record(args.free_decay))
+        hold.setdefault("L_m", decay["L_m"].value)
+        hold.setdefault("zeta", decay["zeta"].value)
+    if record.experiment == "impact_decay":
+        return fit_impact_decay(record, hold=hold)
+    result = fit_drive(record)
+    # The model of a forced run is held from the decay fits; report what was held.
+    for key, value in hold.items():
+        result.parameters.setdefault(key, Estimate(value))
+    return result

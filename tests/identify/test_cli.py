@@ -80,3 +80,19 @@ def test_unfittable_record_names_the_reason(tmp_path, capsys):
     path, _ = write_exchange(tmp_path / "flat.csv", ExchangeRecord(t, flat, meta))
     assert main(["identify", str(path)]) != 0
     assert "no oscillation" in capsys.readouterr().err
+
+
+def test_several_free_decays_are_pooled(tmp_path):
+    paths = []
+    for k in range(2):
+        t, theta = free_decay(0.1 + 0.03 * k, 0.015, 0.25, duration_s=8.0, fs_hz=300.0)
+        theta = theta + np.random.default_rng(k).normal(0.0, 5e-4, t.size)
+        meta = ExchangeMeta("free_decay", rig={"g": 9.81})
+        paths.append(write_exchange(tmp_path / f"d{k}.csv", ExchangeRecord(t, theta, meta))[0])
+    out = tmp_path / "pooled.json"
+    assert main(["identify", *map(str, paths), "--json", str(out)]) == 0
+    report = json.loads(out.read_text())
+    assert report["method"].startswith("inverse-variance pooling of 2")
+    low, high = report["parameters"]["L_m"]["ci95"]
+    assert low < 0.25 < high
+    assert len(report["details"]["records"]) == 2
