@@ -68,7 +68,7 @@ class Status(IntFlag):
 
     ENABLED = 0x0001  # drive output on
     RAMPING = 0x0002  # amplitude or frequency still moving toward the setpoint
-    AT_ZERO = 0x0004  # measured amplitude below 1 micrometre
+    AT_ZERO = 0x0004  # MEASURED_AMPLITUDE_UM reads 0 (below half a micrometre)
     FAULTED = 0x0008  # at least one fault latched
 
 

@@ -99,12 +99,13 @@ class AmplifierFirmware:
             self.service()
             _check_range(address, count, INPUT_COUNT, "input")
             out = self.response.output()
+            amplitude_um = min(round(out.amplitude_m * 1e6), 0xFFFF)
             status = Status(0)
             if self._set.enable:
                 status |= Status.ENABLED
             if out.ramping:
                 status |= Status.RAMPING
-            if out.at_zero:
+            if amplitude_um == 0:  # the bit never contradicts the register beside it
                 status |= Status.AT_ZERO
             if self._faults:
                 status |= Status.FAULTED
@@ -117,7 +118,7 @@ class AmplifierFirmware:
             hi, lo = split_u32(min(round(out.frequency_hz * 1000), 0xFFFF_FFFF))
             regs[Input.MEASURED_FREQUENCY_MHZ_HI] = hi
             regs[Input.MEASURED_FREQUENCY_MHZ_LO] = lo
-            regs[Input.MEASURED_AMPLITUDE_UM] = min(round(out.amplitude_m * 1e6), 0xFFFF)
+            regs[Input.MEASURED_AMPLITUDE_UM] = amplitude_um
             regs[Input.HEARTBEAT_ECHO] = self._set.heartbeat
             return regs[address : address + count]
 

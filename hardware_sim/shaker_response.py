@@ -14,7 +14,7 @@ import math
 import threading
 from dataclasses import dataclass
 
-AT_ZERO_M = 1e-6  # below this the output counts as stopped (1 micrometre)
+AT_ZERO_M = 0.5e-6  # below this the output counts as stopped: it reads 0 in whole micrometres
 
 
 @dataclass(frozen=True)
