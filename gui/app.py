@@ -27,7 +27,6 @@ from PySide6.QtWidgets import (
 )
 
 from gui.live_data import LiveData
-from gui.model_overlay import ModelOverlay, identify_recording
 from gui.panels.analysis import AnalysisPanel
 from gui.panels.connection import RECORDING, RIG_FILE, VIRTUAL, ConnectionPanel
 from gui.panels.recording import RecordingPanel
@@ -388,13 +387,15 @@ class MainWindow(QMainWindow):
 
     def run_analysis(self, path: str, experiment: str) -> None:
         """Identify ``path`` on the analysis thread, then draw the overlay."""
+        from gui.model_overlay import identify_recording  # scipy and numba: load when needed
+
         self.analysis_tasks.submit(
             lambda: identify_recording(path, experiment or None),
             self._analysis_done,
             self.analysis_panel.show_error,
         )
 
-    def _analysis_done(self, overlay: ModelOverlay) -> None:
+    def _analysis_done(self, overlay) -> None:
         self.analysis_panel.show_result(overlay)
 
     # -- the frame and status timers ------------------------------------------------------------
@@ -421,12 +422,14 @@ class MainWindow(QMainWindow):
         self.frames += 1
         if isinstance(session, ReplaySession):
             end = data.angle.end_index or session.span.first_index
+            finished = session.finished
             self.replay_panel.show_position(
-                (end - session.span.first_index) / session.sample_rate_hz, session.span.duration_s
+                (end - session.span.first_index) / session.sample_rate_hz,
+                session.span.duration_s,
+                finished,
             )
-            if session.finished and self.replay_panel.playing:
+            if finished and self.replay_panel.playing:
                 self.replay_panel.show_playing(False)
-                self.replay_panel.time.setText(self.replay_panel.time.text() + " (end)")
         elif isinstance(session, LiveSession) and session.recording is not None:
             run = session.recording
             if not run.stopped:

@@ -60,7 +60,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         type=float,
         default=5.0,
         metavar="SECONDS",
-        help="with --screenshot: how long to run before saving (default 5)",
+        help="with --screenshot: seconds to run after connecting, then save (default 5)",
     )
     parser.set_defaults(func=run)
 
@@ -98,7 +98,16 @@ def run(args: argparse.Namespace) -> int:
             window.close()
             app.quit()
 
-        QTimer.singleShot(round(args.after * 1000), save)
+        asked = args.sim or args.config or args.replay
+
+        def when_connected() -> None:
+            # --after counts from the moment the source is open (or failed to open)
+            if not asked or window.session is not None or window.last_error:
+                QTimer.singleShot(round(args.after * 1000), save)
+            else:
+                QTimer.singleShot(100, when_connected)
+
+        when_connected()
     app.exec()
     if window.last_error and window.session is None and args.screenshot is None:
         raise CommandError(window.last_error)

@@ -525,7 +525,7 @@ class ReplaySession(Session):
 
 def speed_from_text(text: str) -> float:
     """'1x', '4', 'max' -> replay speed (math.inf for as fast as possible)."""
-    cleaned = text.strip().lower().rstrip("x").strip()
+    cleaned = text.strip().lower()
     if cleaned in ("max", "asap", "inf"):
         return math.inf
-    return float(cleaned)
+    return float(cleaned.removesuffix("x").strip())

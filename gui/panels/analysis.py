@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import pyqtgraph as pg
 from PySide6.QtCore import Qt, Signal
 from PySide6.QtWidgets import (
@@ -18,7 +20,9 @@ from PySide6.QtWidgets import (
 )
 
 from gui.decimate import min_max_decimate
-from gui.model_overlay import ModelOverlay
+
+if TYPE_CHECKING:
+    from gui.model_overlay import ModelOverlay
 
 EXPERIMENTS = ("as recorded", "free_decay", "impact_decay", "forced")
 

@@ -58,8 +58,10 @@ class ReplayPanel(QGroupBox):
         self.playing = playing
         self.play_pause.setText("Pause" if playing else "Play")
 
-    def show_position(self, position_s: float, duration_s: float) -> None:
+    def show_position(self, position_s: float, duration_s: float, finished: bool = False) -> None:
         """Where the replay is (the slider follows unless the user holds it)."""
-        self.time.setText(f"{position_s:.1f} s of {duration_s:.1f} s")
+        self.time.setText(
+            f"{position_s:.1f} s of {duration_s:.1f} s" + (" (end)" if finished else "")
+        )
         if not self.position.isSliderDown() and duration_s > 0:
             self.position.setValue(round(SLIDER_STEPS * min(1.0, position_s / duration_s)))
