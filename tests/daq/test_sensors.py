@@ -21,6 +21,7 @@ from drivers.sensors import (
 )
 from hardware_sim.daq_faults import CORRUPT_CRC, DaqFaults
 from hardware_sim.sample_source import CounterSource, expected_table_counts
+from hardware_sim.virtual_rig import VirtualRig, VirtualRigSettings, compile_physics
 from tests.daq.test_stream import read_past_faults, read_until
 
 
@@ -149,10 +150,9 @@ def test_a_role_nobody_reads_loses_its_oldest_samples_and_says_how_many(make_boa
 
 
 def test_stream_from_the_virtual_rig_matches_the_rig_itself(make_board):
-    virtual_rig = pytest.importorskip("hardware_sim.virtual_rig")
-    settings = virtual_rig.VirtualRigSettings(theta0_rad=0.2, sample_rate_hz=2000.0)
-    virtual_rig.VirtualRig(settings).generate(20)  # compile the physics before the clock runs
-    board = make_board(virtual_rig.VirtualRig(settings), sample_rate_hz=2000.0)
+    settings = VirtualRigSettings(theta0_rad=0.2, sample_rate_hz=2000.0)
+    compile_physics(settings)  # before the board's clock runs
+    board = make_board(VirtualRig(settings), sample_rate_hz=2000.0)
     zero_counts, rad_per_count = settings.angle_counts_to_rad()
     volts_per_count = 10.0 / 32768
     calibration = PotentiometerCalibration(
@@ -164,7 +164,7 @@ def test_stream_from_the_virtual_rig_matches_the_rig_itself(make_board):
     assert all(b.lost_before == 0 for b in blocks) and blocks[0].first_index == 0
     raw = np.concatenate([b.raw for b in blocks])
     # Oracle: an identical rig asked directly, frame by frame (20 samples per frame at 2 kHz).
-    twin = virtual_rig.VirtualRig(settings)
+    twin = VirtualRig(settings)
     direct = np.concatenate([twin.generate(20)["angle"] for _ in range(raw.size // 20)])
     assert np.array_equal(raw[: direct.size], np.clip(direct, -32768, 32767))
     values = np.concatenate([b.values for b in blocks])
