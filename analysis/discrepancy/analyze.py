@@ -15,7 +15,7 @@ from __future__ import annotations
 import math
 import os
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
 from typing import Any
@@ -24,6 +24,7 @@ import numpy as np
 
 from analysis.discrepancy.candidates import RecordScale, candidates_for, excluded_for
 from analysis.discrepancy.fitting import FitData, FitResult, fit, predict
+from analysis.discrepancy.invariants import Invariants, invariant_distance, invariants
 from analysis.discrepancy.localize import Localization, localize
 from analysis.discrepancy.restitution import fit_restitution, restitution_from_hunt_crossley
 from analysis.discrepancy.selection import (
@@ -32,6 +33,7 @@ from analysis.discrepancy.selection import (
     heldout_rms,
     information_criterion_delta,
 )
+from analysis.dynamics.chaos01 import zero_one_test
 from analysis.extensions import NONE, cause
 from analysis.identify import IdentificationError, fit_drive, fit_free_decay, fit_impact_decay
 from analysis.identify.preprocess import find_bad_samples, noise_and_quantum, prepare
@@ -40,6 +42,8 @@ from analysis.model import Drive
 from analysis.records import Record
 
 TRAIN_FRACTION = 0.6
+CHAOTIC_FIT_PERIODS = 6  # a chaotic record is fitted only over its first drive periods
+CHAOS_K = 0.8  # 0-1 test K above this: chaotic
 MAX_FIT_SAMPLES = 4000
 MAX_FIT_SAMPLES_WITH_CONTACT = 8000  # contacts last milliseconds: keep more samples
 
@@ -244,7 +248,7 @@ def _drive_of(record: Record, stated: Drive) -> tuple[Drive, float, list[str]]:
 
 
 def baseline_start(
-    record: Record, data: FitData
+    record: Record, data: FitData, priors: Mapping[str, float] | None = None
 ) -> tuple[dict[str, float], dict[str, float], list[str]]:
     """Start values of the baseline fit from ``analysis.identify``, and hints: identified
     values of parameters the baseline holds (sensor zero, barrier position), which start
@@ -277,23 +281,54 @@ def baseline_start(
             "K_N_per_m1.5": result["K_N_per_m1.5"].value,
             "mu0_s_per_m": max(result["mu0_s_per_m"].value, 1e-3),
         }, hints, notes
-    return _forced_start(data), {}, notes
+    start = _forced_start(data, priors or {})
+    if not priors:
+        notes.append(
+            "forced record without decay records: the fit starts from L = l and the model's "
+            "default contact values; pass the rig's decays (--free-decay/--impact-decay) for a "
+            "start the data support"
+        )
+    return start, {}, notes
 
 
-def _forced_start(data: FitData) -> dict[str, float]:
-    """Forced records carry no decay to identify from: the paper's rig values scaled to the
-    stated rig, the initial state from the first samples."""
+def _forced_start(data: FitData, priors: Mapping[str, float]) -> dict[str, float]:
+    """Forced records carry no decay of their own: the model values come from the rig's
+    decay records (``priors``) or, failing that, L = l and the default contact values;
+    the initial state from the first samples."""
     rig = data.rig
     y = data.y
     good = np.flatnonzero(data.valid[:5])
     theta0 = float(y[good[0]]) if good.size else 0.0
     theta_dot0 = float((y[good[-1]] - y[good[0]]) / ((good[-1] - good[0]) * data.dt)) \
         if good.size > 1 else 0.0
-    return {
+    start = {
         "theta0_rad": min(theta0, 0.0), "theta_dot0_rad_s": theta_dot0,
-        "omega_rad_s": rig.omega_rad_s, "zeta": rig.zeta,
+        "omega_rad_s": math.sqrt(rig.g_m_s2 / rig.l_m), "zeta": 0.01,
         "K_N_per_m1.5": rig.K_N_per_m1_5, "mu0_s_per_m": rig.mu0_s_per_m,
     }
+    start.update({k: float(v) for k, v in priors.items() if k in start})
+    return start
+
+
+def priors_from_decays(
+    free_decay: Record | None = None, impact_decay: Record | None = None
+) -> dict[str, float]:
+    """Model values identified from the rig's decay records, to start a forced-record fit."""
+    priors: dict[str, float] = {}
+    if free_decay is not None:
+        result = fit_free_decay(free_decay)
+        priors.update(omega_rad_s=result["omega_rad_s"].value, zeta=result["zeta"].value)
+    if impact_decay is not None:
+        hold = {"L_m": free_decay and result["L_m"].value, "zeta": priors.get("zeta")}
+        result = fit_impact_decay(
+            impact_decay, hold={k: v for k, v in hold.items() if v}
+        )
+        priors["K_N_per_m1.5"] = result["K_N_per_m1.5"].value
+        priors["mu0_s_per_m"] = result["mu0_s_per_m"].value
+        if "omega_rad_s" in result.parameters:
+            priors.setdefault("omega_rad_s", result["omega_rad_s"].value)
+        priors.setdefault("zeta", result["zeta"].value)
+    return priors
 
 
 def record_scale(data: FitData, baseline: FitResult, contacts_delta: float) -> RecordScale:
@@ -321,8 +356,13 @@ def assess_candidate(
     cause_name: str, data: FitData, n_train: int, baseline_train: FitResult,
     baseline: FitResult, baseline_heldout: float, scale: RecordScale,
     hints: dict[str, float] | None = None,
+    reference: tuple[FitData, Invariants, float] | None = None,
 ) -> CandidateOutcome:
-    """Fit one cause on the training part and on the whole record; judge it."""
+    """Fit one cause on the training part and on the whole record; judge it.
+
+    ``reference`` (chaotic records): the whole record, its invariants and the baseline's
+    invariant distance; the fitted model is then also judged on its invariant statistics.
+    """
     head = data.head(n_train / data.t.size)
     own = {s.name for s in cause(cause_name).parameters}
     start = {**baseline_train.values, **{k: v for k, v in (hints or {}).items() if k in own}}
@@ -330,6 +370,11 @@ def assess_candidate(
     prediction, _ = predict(data, cause_name, train.values)
     heldout = heldout_rms(prediction, data.y, data.valid, n_train)
     full = fit(data, cause_name, {**baseline.values, **_cause_values(train)}, scale)
+    distances: tuple[float | None, float | None] = (None, None)
+    if reference is not None:
+        whole, measured, base_distance = reference
+        distances = (base_distance, model_invariant_distance(whole, measured, cause_name,
+                                                              full.values))
     verdict = Verdict(
         cause=cause_name,
         information_criterion_delta=information_criterion_delta(baseline, full, data.noise_rad),
@@ -337,8 +382,31 @@ def assess_candidate(
         heldout_rms_extended=heldout,
         rms_baseline=baseline.rms,
         rms_extended=full.rms,
+        invariant_distance_baseline=distances[0],
+        invariant_distance_extended=distances[1],
     )
     return CandidateOutcome(cause_name, train, full, verdict, prediction)
+
+
+def model_invariant_distance(
+    whole: FitData, measured: Invariants, cause_name: str, values: Mapping[str, float]
+) -> float:
+    """Distance between the record's invariants and those of the model run over the record."""
+    theta, _ = predict(whole, cause_name, values)
+    return invariant_distance(
+        measured, invariants(whole.t, theta, whole.drive.frequency_hz, whole.phase0_rad)
+    )
+
+
+def is_chaotic(data: FitData) -> tuple[bool, float | None]:
+    """0-1 test on the record's Poincare section (needs at least 50 drive periods)."""
+    if not data.drive.is_forced:
+        return False, None
+    measured = invariants(data.t, data.y, data.drive.frequency_hz, data.phase0_rad)
+    if measured.poincare_rad.size < 50:
+        return False, None
+    k = float(zero_one_test(measured.poincare_rad).K)
+    return k > CHAOS_K, k
 
 
 def _cause_values(result: FitResult) -> dict[str, float]:
@@ -353,9 +421,13 @@ def _assess_job(args: tuple) -> CandidateOutcome:
 
 def analyze_record(
     record: Record, *, workers: int | None = None, progress: Progress | None = None,
-    causes: list[str] | None = None,
+    causes: list[str] | None = None, priors: Mapping[str, float] | None = None,
 ) -> Analysis:
-    """Run the whole discrepancy analysis on one record."""
+    """Run the whole discrepancy analysis on one record.
+
+    ``priors`` start the model values of a forced record (see :func:`priors_from_decays`);
+    ``causes`` restricts the candidates (default: every cause that can show).
+    """
     say = progress or (lambda message: None)
     clock = time.perf_counter()
     timings: dict[str, float] = {}
@@ -365,10 +437,24 @@ def analyze_record(
     say(f"{data.experiment}: {data.n_valid} samples at {1 / data.dt:.4g} Hz, "
         f"noise {data.noise_rad:.3g} rad")
     try:
-        start, hints, start_notes = baseline_start(record, data)
+        start, hints, start_notes = baseline_start(record, data, priors)
     except IdentificationError as error:
         raise AnalysisError(f"{record.source or 'record'}: {error}") from error
     notes.extend(start_notes)
+    reference = None
+    chaotic, k01 = is_chaotic(data)
+    if k01 is not None:
+        notes.append(f"0-1 test on the Poincare section: K = {k01:.2f}")
+    if chaotic:
+        whole = data
+        measured = invariants(data.t, data.y, data.drive.frequency_hz, data.phase0_rad)
+        span = CHAOTIC_FIT_PERIODS * data.drive.period_s / max(float(data.t[-1]), 1e-12)
+        data = data.head(min(1.0, span))
+        notes.append(
+            f"chaotic response: models fitted over the first {CHAOTIC_FIT_PERIODS} drive periods "
+            "and judged on invariant statistics (Poincare section, turning points, spectral "
+            "lines) of the whole record, not point by point"
+        )
     n_train = round(TRAIN_FRACTION * data.t.size)
     neutral = RecordScale(
         amplitude_rad=float(np.nanmax(np.abs(data.y))), omega_rad_s=start["omega_rad_s"],
@@ -382,6 +468,9 @@ def analyze_record(
     baseline = fit(data, NONE, baseline_train.values, neutral)
     baseline_prediction, base_sim = predict(data, NONE, baseline_train.values)
     baseline_heldout = heldout_rms(baseline_prediction, data.y, data.valid, n_train)
+    if chaotic:
+        reference = (whole, measured,
+                     model_invariant_distance(whole, measured, NONE, baseline.values))
     timings["baseline"] = time.perf_counter() - clock
     _, full_sim = predict(data, NONE, baseline.values)
     deltas = full_sim.contacts.delta_max_m
@@ -392,7 +481,7 @@ def analyze_record(
     if causes is not None:
         names = [n for n in names if n in causes]
     jobs = [
-        (n, data, n_train, baseline_train, baseline, baseline_heldout, scale, hints)
+        (n, data, n_train, baseline_train, baseline, baseline_heldout, scale, hints, reference)
         for n in names
     ]
     workers = workers if workers is not None else min(2, os.cpu_count() or 1)

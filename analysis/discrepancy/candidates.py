@@ -106,7 +106,9 @@ def _nonlinearity(s: RecordScale) -> dict[str, ParameterPlan]:
 
 
 def _lag(s: RecordScale) -> dict[str, ParameterPlan]:
-    return {"tau_s": ParameterPlan(0.0, 1e-3 * s.dt_s)}
+    # A sampled first-order lag with tau << dt is the identity to exp(-dt/tau): no gradient
+    # there. Start at half a sample period, where the fit can move either way.
+    return {"tau_s": ParameterPlan(0.5 * s.dt_s, 1e-2 * s.dt_s)}
 
 
 def _distortion(s: RecordScale) -> dict[str, ParameterPlan]:

@@ -21,6 +21,7 @@ from analysis.identify.intervals import autocorrelation
 
 BIC_MARGIN = 10.0  # "very strong" evidence on the Kass-Raftery scale
 HELDOUT_RATIO = 0.95  # the extension must predict the unseen part at least 5 % better
+INVARIANT_RATIO = 0.7  # chaotic records: invariants at least 30 % closer to the data's
 CORRELATION_CUTOFF = 0.05
 
 
@@ -58,6 +59,8 @@ class Verdict:
     heldout_rms_extended: float
     rms_baseline: float
     rms_extended: float
+    invariant_distance_baseline: float | None = None  # chaotic records: statistics, not points
+    invariant_distance_extended: float | None = None
 
     @property
     def heldout_ratio(self) -> float:
@@ -67,11 +70,24 @@ class Verdict:
         return self.heldout_rms_extended / self.heldout_rms_baseline
 
     @property
+    def invariant_ratio(self) -> float | None:
+        """Extended over baseline distance of the invariant statistics (chaotic records)."""
+        if self.invariant_distance_baseline is None or self.invariant_distance_extended is None:
+            return None
+        if not self.invariant_distance_baseline > 0:
+            return math.inf
+        return self.invariant_distance_extended / self.invariant_distance_baseline
+
+    @property
     def earns_keep(self) -> bool:
-        """True when both judges say the extension helps by a clear margin."""
-        return (
-            self.information_criterion_delta > BIC_MARGIN and self.heldout_ratio < HELDOUT_RATIO
-        )
+        """True when both judges say the extension helps by a clear margin (for a chaotic
+        record the second judge is the invariant statistics, not the held-out points)."""
+        if self.information_criterion_delta <= BIC_MARGIN:
+            return False
+        ratio = self.invariant_ratio
+        if ratio is not None:
+            return ratio < INVARIANT_RATIO
+        return self.heldout_ratio < HELDOUT_RATIO
 
     @property
     def why(self) -> str:
@@ -83,6 +99,11 @@ class Verdict:
             f"held-out error x{ratio:.3g} ({'<' if ratio < HELDOUT_RATIO else '>='} "
             f"{HELDOUT_RATIO:g})",
         ]
+        if self.invariant_ratio is not None:
+            parts[1] = (
+                f"invariant-statistics distance x{self.invariant_ratio:.3g} "
+                f"({'<' if self.invariant_ratio < INVARIANT_RATIO else '>='} {INVARIANT_RATIO:g})"
+            )
         return ", ".join(parts)
 
 

@@ -29,6 +29,7 @@ examples:
   impact-rig analyze decay.csv
   impact-rig analyze impacts.csv --json impacts_analysis.json --report out/
   impact-rig analyze run.h5 --workers 1
+  impact-rig analyze forced.csv --impact-decay impacts.csv --report out/
 """
 
 
@@ -46,6 +47,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--json", type=Path, dest="json_out", help="write the JSON report here")
     parser.add_argument("--report", type=Path, help="write a Markdown report with figures here")
     parser.add_argument(
+        "--free-decay", type=Path, dest="free_decay",
+        help="forced records: a free decay of the same rig (CSV/HDF5) to start L and zeta",
+    )
+    parser.add_argument(
+        "--impact-decay", type=Path, dest="impact_decay",
+        help="forced records: an impact decay of the same rig to start K and mu0",
+    )
+    parser.add_argument(
         "--workers", type=int, default=None, help="processes fitting candidates (default: 2)"
     )
     parser.add_argument("--quiet", action="store_true", help="no progress messages")
@@ -56,6 +65,7 @@ def run(args: argparse.Namespace) -> int:
     """Analyse the record and print the verdict (and the JSON when no --json is given)."""
     import analysis.hdf5_records
     from analysis.discrepancy import AnalysisError, analyze_record
+    from analysis.discrepancy.analyze import priors_from_decays
     from analysis.identify import IdentificationError
     from analysis.records import RecordFormatError, load_record
     from analysis.report import write_json, write_report
@@ -72,7 +82,15 @@ def run(args: argparse.Namespace) -> int:
 
     try:
         record = load_record(args.file, args.meta)
-        analysis = analyze_record(record, workers=args.workers, progress=progress)
+        priors = None
+        if args.free_decay or args.impact_decay:
+            priors = priors_from_decays(
+                load_record(args.free_decay) if args.free_decay else None,
+                load_record(args.impact_decay) if args.impact_decay else None,
+            )
+            progress(f"start values from the decays: {priors}")
+        analysis = analyze_record(record, workers=args.workers, progress=progress,
+                                  priors=priors)
     except (RecordFormatError, AnalysisError, IdentificationError, ValueError) as error:
         raise CommandError(str(error)) from error
     if args.json_out:

@@ -23,6 +23,8 @@ SHOWS_IN = {
     "impact_decay": ("none", "coulomb_friction", "quadratic_drag", "barrier_offset",
                      "contact_exponent", "contact_damping_law", "sensor_offset",
                      "sensor_nonlinearity", "sensor_lag"),
+    "forced": ("none", "excitation_amplitude", "excitation_distortion", "sensor_offset",
+               "barrier_offset"),
 }
 
 
@@ -72,6 +74,10 @@ def draw_case(
         theta0 = float(rng.uniform(0.12, 0.4)) * float(rng.choice([-1.0, 1.0]))
         periods = float(rng.uniform(25, 60))
         fs = float(rng.choice([200.0, 500.0, 1000.0]))
+    elif experiment == "forced":
+        theta0 = -float(rng.uniform(0.02, 0.08))
+        periods = 0.0  # set from the drive below
+        fs = float(rng.choice([1000.0, 2000.0]))
     else:
         # impacts that lose 10-35 % of their speed (e ~ 1 - (2/3) mu0 v): a decay of many
         # impacts, neither a single thud nor an elastic bounce
@@ -80,6 +86,13 @@ def draw_case(
         periods = float(rng.uniform(8, 20))
         fs = float(rng.choice([1000.0, 2000.0, 5000.0]))
     duration = periods * 2 * math.pi / omega
+    extra: dict[str, float] = {}
+    if experiment == "forced":
+        # near resonance (eta = omega / Omega in 1.05..1.3), table amplitude a few % of L:
+        # a periodic response with impacts
+        frequency = omega / float(rng.uniform(1.05, 1.3)) / (2 * math.pi)
+        extra = {"frequency_hz": frequency, "amplitude_m": float(rng.uniform(0.03, 0.08)) * L}
+        duration = float(rng.uniform(15, 25)) / frequency
     # keep decays decaying: at least half the swing gone by the end
     if experiment == "free_decay" and rig.zeta * omega * duration < 0.7:
         rig = rig.with_values(zeta=0.7 / (omega * duration))
@@ -106,11 +119,16 @@ def draw_case(
         n = float(rng.choice([rng.uniform(1.1, 1.3), rng.uniform(1.7, 2.0)]))
         delta = _typical_penetration(rig, A, omega)
         values = {"n": n, "K_n": rig.K_N_per_m1_5 * delta ** (1.5 - n)}
+    elif cause_name == "excitation_amplitude":
+        values["eps"] = float(rng.uniform(0.05, 0.2)) * float(rng.choice([-1.0, 1.0]))
+    elif cause_name == "excitation_distortion":
+        values = {"h2": float(rng.uniform(0.05, 0.2)), "phi2_rad": float(rng.uniform(-3, 3))}
     elif cause_name == "contact_damping_law":
         delta = _typical_penetration(rig, A, omega)
         factor = float(rng.uniform(0.5, 1.5))
         values["c_N_s_per_m"] = factor * rig.K_N_per_m1_5 * rig.mu0_s_per_m * delta**1.5
-    return HiddenCase(seed, experiment, cause_name, values, rig, theta0, noise, fs, duration)
+    return HiddenCase(seed, experiment, cause_name, values, rig, theta0, noise, fs, duration,
+                      extra)
 
 
 def _typical_penetration(rig: RigParameters, amplitude: float, omega: float) -> float:
@@ -120,9 +138,16 @@ def _typical_penetration(rig: RigParameters, amplitude: float, omega: float) -> 
     return (5 * m_eff * v**2 / (4 * rig.K_N_per_m1_5)) ** 0.4
 
 
-def simulate_case(case: HiddenCase) -> tuple[np.ndarray, np.ndarray]:
-    """Time and measured angle from the virtual rig (ADC counts back through the calibration)."""
-    model = Model(rig=case.rig, drive=Drive(), barrier=case.experiment != "free_decay")
+def simulate_case(
+    case: HiddenCase,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, np.ndarray | None]:
+    """Time, measured angle, table and tach from the virtual rig (ADC counts back through
+    the calibrations); table and tach are None for decays."""
+    drive = Drive()
+    if case.experiment == "forced":
+        drive = Drive(amplitude_m=case.extra["amplitude_m"],
+                      frequency_hz=case.extra["frequency_hz"])
+    model = Model(rig=case.rig, drive=drive, barrier=case.experiment != "free_decay")
     if case.cause != "none":
         model = model.with_extension(case.cause, **case.values)
     settings = VirtualRigSettings(
@@ -130,27 +155,55 @@ def simulate_case(case: HiddenCase) -> tuple[np.ndarray, np.ndarray]:
         seed=case.seed, theta0_rad=case.theta0_rad,
     )
     rig = VirtualRig(settings)
-    hold = int(0.3 * case.sample_rate_hz)
-    rig.hold(case.theta0_rad)
-    held = rig.generate(hold)["angle"]
-    rig.release(case.theta0_rad)
-    moving = rig.generate(int(case.duration_s * case.sample_rate_hz))["angle"]
-    counts = np.concatenate([held, moving]).astype(float)
+    if case.experiment == "forced":
+        block = rig.generate(int(case.duration_s * case.sample_rate_hz))
+        counts = block["angle"].astype(float)
+        table_zero, m_per_count = settings.table_counts_to_m()
+        table = (block["table"].astype(float) - table_zero) * m_per_count
+        tach = block["tach"].astype(int)
+    else:
+        hold = int(0.3 * case.sample_rate_hz)
+        rig.hold(case.theta0_rad)
+        held = rig.generate(hold)["angle"]
+        rig.release(case.theta0_rad)
+        moving = rig.generate(int(case.duration_s * case.sample_rate_hz))["angle"]
+        counts = np.concatenate([held, moving]).astype(float)
+        table = tach = None
     zero, per_count = settings.angle_counts_to_rad()
     angle = (counts - zero) * per_count
     t = np.arange(angle.size) / case.sample_rate_hz
-    return t, angle
+    return t, angle, table, tach
 
 
 def write_case(case: HiddenCase, directory: Path, name: str = "record") -> Path:
     """Write the case as NAME.csv + NAME.json (neutral name and notes); returns the CSV path."""
-    t, angle = simulate_case(case)
+    t, angle, table, tach = simulate_case(case)
+    drive = None
+    if case.experiment == "forced":  # the stated drive: what the operator set
+        drive = {"frequency_hz": case.extra["frequency_hz"],
+                 "amplitude_m": case.extra["amplitude_m"]}
     meta = ExchangeMeta(
         experiment=case.experiment,
         rig={"m_kg": case.rig.m_kg, "l_m": case.rig.l_m, "R_m": case.rig.R_m, "g": 9.81},
-        drive=None,
+        drive=drive,
         notes="",
     )
     csv_path = Path(directory) / f"{name}.csv"
-    write_exchange(csv_path, ExchangeRecord(time_s=t, angle_rad=angle, meta=meta))
+    write_exchange(
+        csv_path,
+        ExchangeRecord(time_s=t, angle_rad=angle, meta=meta, table_m=table, tach=tach),
+    )
     return csv_path
+
+
+def write_companion_decay(case: HiddenCase, directory: Path, name: str = "impacts") -> Path:
+    """The impact decay a lab records on the same rig before a forced run (same hidden cause)."""
+    rng = np.random.default_rng(case.seed + 1)
+    omega = case.rig.omega_rad_s
+    loss = float(rng.uniform(0.15, 0.5))
+    theta0 = -min(max(loss / (case.rig.mu0_s_per_m * case.rig.l_m * omega), 0.08), 0.45)
+    companion = HiddenCase(
+        case.seed + 1, "impact_decay", case.cause, case.values, case.rig, theta0, case.noise_rad,
+        2000.0, 12 * 2 * math.pi / omega,
+    )
+    return write_case(companion, directory, name)
