@@ -60,8 +60,11 @@ class AdcSpec:
 
 
 @dataclass(frozen=True)
-class PotentiometerCalibration:
-    """Angle (rad) to volts: offset + gain theta + sum_k linearity_v[k] theta^(k+2)."""
+class PotentiometerOutput:
+    """The potentiometer's voltage at an angle (what the driver's calibration inverts).
+
+    ``v = offset_v + gain_v_per_rad theta + sum_k linearity_v[k] theta^(k+2)``
+    """
 
     offset_v: float = 0.0
     gain_v_per_rad: float = DEFAULT_POT_GAIN_V_PER_RAD
@@ -76,10 +79,11 @@ class PotentiometerCalibration:
 
 
 @dataclass(frozen=True)
-class LaserCalibration:
-    """Table displacement (m) to volts over a measuring range centred on the rest position.
+class LaserOutput:
+    """The laser's voltage at a table displacement (what the driver's calibration inverts).
 
-    Beyond +-range_m/2 the sensor's output stays at the edge of its range.
+    The measuring range is centred on the rest position; beyond +-range_m/2 the
+    sensor's output stays at the edge of its range.
     """
 
     offset_v: float = 0.0
@@ -99,8 +103,8 @@ class VirtualRigSettings:
     model: Model = field(default_factory=Model)
     sample_rate_hz: float = 2000.0
     adc: AdcSpec = field(default_factory=AdcSpec)
-    potentiometer: PotentiometerCalibration = field(default_factory=PotentiometerCalibration)
-    laser: LaserCalibration = field(default_factory=LaserCalibration)
+    potentiometer: PotentiometerOutput = field(default_factory=PotentiometerOutput)
+    laser: LaserOutput = field(default_factory=LaserOutput)
     angle_noise_rad: float = 0.0  # white noise on the angle reading (standard deviation)
     table_noise_m: float = 0.0  # white noise on the laser reading
     seed: int = 0
@@ -380,6 +384,12 @@ class VirtualRig:
         filtered, _ = lfilter([1.0 - a], [1.0, -a], theta, zi=[a * previous])
         self._lag_state["sensor_lag"] = float(filtered[-1])
         return filtered
+
+
+# The former names, which read like the drivers' (opposite) calibrations; rig/devices.py
+# still imports them.
+PotentiometerCalibration = PotentiometerOutput
+LaserCalibration = LaserOutput
 
 
 def compile_physics(settings: VirtualRigSettings) -> None:

@@ -17,8 +17,8 @@ from hardware_sim.amplifier_firmware import AmplifierFirmware
 from hardware_sim.sample_source import SampleSource
 from hardware_sim.sim_shaker_backend import SimShakerBackend
 from hardware_sim.virtual_rig import (
-    LaserCalibration,
-    PotentiometerCalibration,
+    LaserOutput,
+    PotentiometerOutput,
     VirtualRig,
     VirtualRigSettings,
 )
@@ -92,7 +92,7 @@ def test_table_follows_the_shaker_commanded_through_the_driver() -> None:
 
 
 def test_laser_clips_outside_its_range() -> None:
-    settings = VirtualRigSettings(sample_rate_hz=2000.0, laser=LaserCalibration(range_m=0.1))
+    settings = VirtualRigSettings(sample_rate_hz=2000.0, laser=LaserOutput(range_m=0.1))
     rig = VirtualRig(settings)
     rig.shaker.settle_at(amplitude_m=0.07, frequency_hz=2.0)
     x = _table_m(settings, rig.generate(2000)["table"])
@@ -120,7 +120,7 @@ def test_sensor_offset_shows_in_the_angle_channel(offset_rad: float) -> None:
     if offset_rad:
         model = model.with_extension("sensor_offset", offset_rad=offset_rad)
     settings = VirtualRigSettings(
-        model=model, potentiometer=PotentiometerCalibration(offset_v=0.5, gain_v_per_rad=4.0)
+        model=model, potentiometer=PotentiometerOutput(offset_v=0.5, gain_v_per_rad=4.0)
     )
     angle = _angle_rad(settings, VirtualRig(settings).generate(500)["angle"])
     per_count = settings.angle_counts_to_rad()[1]
@@ -237,7 +237,7 @@ def test_coulomb_friction_from_configuration_decays_linearly() -> None:
 
 
 def test_potentiometer_linearity_and_adc_saturation() -> None:
-    pot = PotentiometerCalibration(offset_v=0.2, gain_v_per_rad=3.0, linearity_v=(0.0, 0.5))
+    pot = PotentiometerOutput(offset_v=0.2, gain_v_per_rad=3.0, linearity_v=(0.0, 0.5))
     settings = VirtualRigSettings(potentiometer=pot)
     rig = VirtualRig(settings)
     lsb = settings.adc.lsb_v
