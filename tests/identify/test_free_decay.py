@@ -149,3 +149,20 @@ def test_unfittable_records_raise_a_clear_error(duration_s, fs_hz, amplitude, me
     measured = theta + rng.normal(0.0, 1e-3, t.size)
     with pytest.raises(IdentificationError, match=message):
         fit_free_decay(Record(t, measured, "free_decay"))
+
+
+def test_record_started_while_the_pendulum_is_still_being_lifted():
+    # A hand lifts the pendulum from rest to theta0 over 0.4 s (smooth ramp), then lets go:
+    # the motion before the top is not free; the fit must start at that turning point.
+    rng = np.random.default_rng(21)
+    case = {"L_m": 0.15, "zeta": 0.02, "theta0": -0.9, "offset": 0.0}
+    fs = 500.0
+    _t, theta = free_decay(case["theta0"], case["zeta"], case["L_m"], duration_s=6.0, fs_hz=fs)
+    ramp_t = np.arange(int(0.4 * fs)) / fs
+    lift = case["theta0"] * (0.4 + 0.6 * np.sin(0.5 * math.pi * ramp_t / 0.4))
+    angle = np.concatenate([lift, theta]) + rng.normal(0.0, 1e-3, lift.size + theta.size)
+    time = np.arange(angle.size) / fs
+    result = fit_free_decay(Record(time, angle, "free_decay"))
+    assert result.details["release_trim_s"] == pytest.approx(0.4, abs=0.03)
+    assert result["L_m"].contains(case["L_m"])
+    assert result["zeta"].contains(case["zeta"])
