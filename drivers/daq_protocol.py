@@ -136,11 +136,6 @@ class FrameParser:
     def __init__(self) -> None:
         self._pending = b""
 
-    @property
-    def pending_bytes(self) -> int:
-        """Bytes held back because they may begin a frame not yet complete."""
-        return len(self._pending)
-
     def feed(self, data: bytes) -> ParseResult:
         buf = self._pending + data if self._pending else bytes(data)
         result = ParseResult(runs=[], replies=[])

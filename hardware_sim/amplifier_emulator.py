@@ -97,7 +97,6 @@ class AmplifierEmulator:
         self.fault = TransportFault.NONE
         # bounded: a sim-rig left running for days must not grow without end
         self._requests: deque[ReceivedRequest] = deque(maxlen=LOG_LENGTH)
-        self._raw: deque[bytes] = deque(maxlen=LOG_LENGTH)
         self._log_lock = threading.Lock()
         self._loop: asyncio.AbstractEventLoop | None = None
         self._thread: threading.Thread | None = None
@@ -159,17 +158,10 @@ class AmplifierEmulator:
         with self._log_lock:
             return list(self._requests)
 
-    @property
-    def raw_received(self) -> list[bytes]:
-        """The raw bytes received, chunk by chunk as the transport delivered them."""
-        with self._log_lock:
-            return list(self._raw)
-
     def clear_log(self) -> None:
         """Forget the received requests (start of a test step)."""
         with self._log_lock:
             self._requests.clear()
-            self._raw.clear()
 
     # ------------------------------------------------------------------ server internals
 
@@ -206,7 +198,6 @@ class AmplifierEmulator:
             tcp = ModbusTcpServer(
                 self._device(),
                 address=(self.host, self._requested_port),
-                trace_packet=self._trace_packet,
                 trace_pdu=self._trace_pdu,
             )
             await tcp.serve_forever(background=True)
@@ -217,7 +208,6 @@ class AmplifierEmulator:
                 self._device(),
                 port=self._bridge.server_path,
                 baudrate=self._baudrate,
-                trace_packet=self._trace_packet,
                 trace_pdu=self._trace_pdu,
             )
             await rtu.serve_forever(background=True)
@@ -238,12 +228,6 @@ class AmplifierEmulator:
             await server.shutdown()
         self._servers.clear()
         asyncio.get_running_loop().call_soon(asyncio.get_running_loop().stop)
-
-    def _trace_packet(self, sending: bool, data: bytes) -> bytes:
-        if not sending and data:
-            with self._log_lock:
-                self._raw.append(bytes(data))
-        return data
 
     def _trace_pdu(self, sending: bool, pdu: ModbusPDU) -> ModbusPDU | None:
         if sending:

@@ -59,7 +59,6 @@ class SimDaqBackend:
         )
         self.faults = faults if faults is not None else DaqFaults()
         self._frames_rejected = 0
-        self._connected = False
         self._lock = threading.Lock()  # the reader thread acquires while the user stops
 
     @property
@@ -84,7 +83,6 @@ class SimDaqBackend:
     def connect(self) -> BoardIdentity:
         if self.faults.unplugged:
             raise DeviceNotFoundError(f"{self.description} is unplugged")
-        self._connected = True
         return BoardIdentity.from_reply(self._ask(COMMAND_IDENTIFY, COMMAND_IDENTIFY))
 
     def configure(self, sample_rate_hz: float, channels: tuple[int, ...]) -> BoardConfiguration:
@@ -101,7 +99,6 @@ class SimDaqBackend:
         with self._lock:
             if self.firmware.streaming:
                 self.firmware.handle(COMMAND_STOP)
-        self._connected = False
 
     def _due_frames(self) -> int:
         return self.firmware.frames_due() if self.firmware.paced else MAX_FRAMES_PER_CHUNK
