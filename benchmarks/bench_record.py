@@ -109,7 +109,7 @@ def specs(fs: float) -> list[ChannelSpec]:
     ]
 
 
-def run(seconds: float, path: Path | None) -> dict:
+def run(seconds: float, path: Path | None, compression: str | None = "auto") -> dict:
     """Acquire for ``seconds``; record into ``path`` (or drop everything when None)."""
     emulator = Emulator()
     reader = None
@@ -119,7 +119,10 @@ def run(seconds: float, path: Path | None) -> dict:
         recorder = thread = drain = None
         if path is not None:
             recorder = Recorder(
-                path, specs(board.sample_rate_hz), RecordingMetadata("forced", notes="bench_record")
+                path,
+                specs(board.sample_rate_hz),
+                RecordingMetadata("forced", notes="bench_record"),
+                compression=compression,
             )
             thread = attach_recorder(engine, recorder)
         else:
@@ -250,6 +253,12 @@ def main(argv: list[str] | None = None) -> int:
         default=None,
         help="acquisition-only baseline length (default: min(10, --seconds))",
     )
+    parser.add_argument(
+        "--compression",
+        choices=("auto", "gzip", "lzf", "none"),
+        default="auto",
+        help="recorder compression (auto: lzf at 200 kHz)",
+    )
     parser.add_argument("--reader", nargs=2, metavar=("FILE", "ORIGIN"), help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
     if args.reader:
@@ -257,13 +266,17 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     baseline_s = args.baseline_seconds or min(10.0, args.seconds)
     print(
+        f"load average before the run: {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores; "
+        f"compression {args.compression}"
+    )
+    print(
         f"4 analog channels + tach at {RATE_HZ:,.0f} Hz over a pty, emulator in its own "
         f"process; {args.seconds:g} s recorded, {baseline_s:g} s baseline"
     )
     base = run(baseline_s, None)
     with tempfile.TemporaryDirectory() as folder:
         path = Path(folder) / "bench.h5"
-        rec = run(args.seconds, path)
+        rec = run(args.seconds, path, None if args.compression == "none" else args.compression)
     print(
         f"baseline (acquire, drop): CPU {base['cpu_share']:.1%} of a core, "
         f"{base['samples']:,} samples, {base['lost']} lost"

@@ -132,6 +132,7 @@ class ProcedureSession:
         metadata: RecordingMetadata,
         *,
         overwrite: bool = False,
+        compression: str | None = "auto",
         pretrigger_s: float | None = None,
         flush_interval_s: float = 0.5,
         progress: Progress | None = None,
@@ -145,6 +146,7 @@ class ProcedureSession:
             metadata,
             overwrite=overwrite,
             flush_interval_s=flush_interval_s,
+            compression=compression,
         )
         self.engine = AcquisitionEngine(devices.streams)
         self._failed = threading.Event()
@@ -270,13 +272,16 @@ def record_timed(
     notes: str = "",
     overwrite: bool = False,
     progress: Progress | None = None,
+    compression: str | None = "auto",
 ) -> ProcedureResult:
     """A plain recording: optional steady drive, then ``duration_s`` of data."""
     driven = plan.frequency_hz is not None and plan.amplitude_m is not None
     drive = {"frequency_hz": plan.frequency_hz, "amplitude_m": plan.amplitude_m} if driven else None
     meta = base_metadata(devices, plan.experiment, notes, drive, asdict(plan))
     progress = progress or (lambda text: None)
-    session = ProcedureSession(devices, path, meta, overwrite=overwrite, progress=progress)
+    session = ProcedureSession(
+        devices, path, meta, overwrite=overwrite, progress=progress, compression=compression
+    )
     with session:
         if driven:
             session.set_drive(plan.frequency_hz, plan.amplitude_m)
@@ -325,6 +330,7 @@ def record_decay(
     notes: str = "",
     overwrite: bool = False,
     progress: Progress | None = None,
+    compression: str | None = "auto",
 ) -> ProcedureResult:
     """Free decay (barrier removed) or impact decay (barrier in): wait for the release with a
     pre-trigger buffer, then record until the amplitude falls below ``stop_below_rad``."""
@@ -338,6 +344,7 @@ def record_decay(
         path,
         meta,
         overwrite=overwrite,
+        compression=compression,
         pretrigger_s=plan.pretrigger_s,
         progress=progress,
     )
@@ -428,6 +435,7 @@ def run_sweep(
     notes: str = "",
     overwrite: bool = False,
     progress: Progress | None = None,
+    compression: str | None = "auto",
 ) -> ProcedureResult:
     """A forced-response sweep; each step is marked in the file (``/sweep_steps``)."""
     progress = progress or (lambda text: None)
@@ -441,7 +449,9 @@ def run_sweep(
     first = plan.steps()[0]
     drive = {"frequency_hz": first[1], "amplitude_m": first[2]}
     meta = base_metadata(devices, "forced", notes, drive, asdict(plan))
-    session = ProcedureSession(devices, path, meta, overwrite=overwrite, progress=progress)
+    session = ProcedureSession(
+        devices, path, meta, overwrite=overwrite, progress=progress, compression=compression
+    )
     steps = plan.steps()
     done = 0
     with session:

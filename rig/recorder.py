@@ -32,6 +32,7 @@ FORMAT_VERSION = 1
 DEFAULT_FLUSH_INTERVAL_S = 0.5
 MAX_FLUSH_INTERVAL_S = 1.0
 STOP_REASON_BYTES = 256
+FAST_CHANNEL_HZ = 50_000.0  # above this rate channels are compressed with lzf, not gzip
 DISK_RESERVE_BYTES = 1 << 20  # kept free besides what the next flush may need
 
 SAMPLE_BLOCK_DTYPE = np.dtype(
@@ -206,7 +207,7 @@ class Recorder:
         *,
         overwrite: bool = False,
         flush_interval_s: float = DEFAULT_FLUSH_INTERVAL_S,
-        compression: str | None = "gzip",
+        compression: str | None = "auto",
         min_free_bytes: int = 0,
     ) -> None:
         if not 0 < flush_interval_s <= MAX_FLUSH_INTERVAL_S:
@@ -267,10 +268,8 @@ class Recorder:
         f.attrs["extra_json"] = json.dumps(meta.extra)
         samples = f.create_group("channels")
         pulses = f.create_group("pulses")
-        packed = {"compression": compression, "shuffle": compression is not None}
-        if compression == "gzip":
-            packed["compression_opts"] = 1
         for spec in channels:
+            packed = _packing(compression, spec.sample_rate_hz)
             group = (samples if spec.kind == "samples" else pulses).create_group(spec.name)
             group.attrs["kind"] = spec.kind
             group.attrs["unit"] = spec.unit
@@ -536,6 +535,19 @@ class Recorder:
             reason = "interrupted" if issubclass(kind, KeyboardInterrupt) else f"error: {value}"
             with contextlib.suppress(RecordingError):  # the propagating exception says why
                 self.close(reason)
+
+
+def _packing(compression: str | None, sample_rate_hz: float) -> dict[str, Any]:
+    """Filters of a channel's datasets.  'auto': gzip level 1 (readable by every HDF5 tool)
+    up to FAST_CHANNEL_HZ, lzf above it (2-3 times less CPU for ~10 % more bytes)."""
+    if compression == "auto":
+        compression = "lzf" if sample_rate_hz > FAST_CHANNEL_HZ else "gzip"
+    if compression not in ("gzip", "lzf", None):
+        raise ValueError(f"compression {compression!r}; expected 'auto', 'gzip', 'lzf' or None")
+    packed: dict[str, Any] = {"compression": compression, "shuffle": compression is not None}
+    if compression == "gzip":
+        packed["compression_opts"] = 1
+    return packed
 
 
 def _table(group: h5py.Group, name: str, dtype: np.dtype) -> None:

@@ -9,6 +9,7 @@ from rig.commands.rig_options import (
     ProgressLine,
     add_rig_options,
     check_output,
+    compression,
     load_rig_config,
     open_devices,
     report,
@@ -153,7 +154,13 @@ def run(args: argparse.Namespace) -> int:
         if experiment == "forced":
             plan = TimedPlan(experiment, args.duration, args.drive_hz, amplitude_m, args.settle)
             result = record_timed(
-                devices, path, plan, notes=args.notes, overwrite=args.overwrite, progress=progress
+                devices,
+                path,
+                plan,
+                notes=args.notes,
+                overwrite=args.overwrite,
+                compression=compression(args),
+                progress=progress,
             )
         else:
             release = (
@@ -169,7 +176,13 @@ def run(args: argparse.Namespace) -> int:
                 max_duration_s=args.duration,
             )
             result = record_decay(
-                devices, path, plan, notes=args.notes, overwrite=args.overwrite, progress=progress
+                devices,
+                path,
+                plan,
+                notes=args.notes,
+                overwrite=args.overwrite,
+                compression=compression(args),
+                progress=progress,
             )
     except (
         DeviceError,

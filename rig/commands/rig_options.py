@@ -44,6 +44,18 @@ def add_rig_options(parser: argparse.ArgumentParser) -> None:
         help="replace FILE.h5 if it exists (without it an existing recording is never touched)",
     )
     out.add_argument("--notes", default="", help="operator notes kept in the recording")
+    out.add_argument(
+        "--compression",
+        choices=("auto", "gzip", "lzf", "none"),
+        default="auto",
+        help="HDF5 compression: auto = gzip level 1 (any HDF5 tool reads it) up to 50 kHz, "
+        "lzf (less CPU, h5py) above; none = least CPU, about twice the bytes (default auto)",
+    )
+
+
+def compression(args: argparse.Namespace) -> str | None:
+    """The recorder's compression argument from --compression."""
+    return None if args.compression == "none" else args.compression
 
 
 def load_rig_config(args: argparse.Namespace):

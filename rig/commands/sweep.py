@@ -11,6 +11,7 @@ from rig.commands.rig_options import (
     ProgressLine,
     add_rig_options,
     check_output,
+    compression,
     load_rig_config,
     open_devices,
     report,
@@ -142,6 +143,7 @@ def run(args: argparse.Namespace) -> int:
             plan,
             notes=args.notes,
             overwrite=args.overwrite,
+            compression=compression(args),
             progress=ProgressLine(args.quiet),
         )
     except (
