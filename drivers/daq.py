@@ -36,10 +36,12 @@ class RawChunk:
 
     @property
     def n_samples(self) -> int:
+        """Samples in the chunk."""
         return int(self.digital.shape[0])
 
     @property
     def end_index(self) -> int:
+        """Running index one past the last sample."""
         return self.first_index + self.n_samples
 
 
@@ -62,23 +64,37 @@ class DaqBackend(Protocol):
         """Frames discarded so far for a bad CRC or framing (their samples show as gaps)."""
         ...
 
-    def connect(self) -> BoardIdentity: ...
+    def connect(self) -> BoardIdentity:
+        """Reach the board, stop a stream left running, and return what ``IDN?`` says."""
+        ...
 
-    def configure(self, sample_rate_hz: float, channels: tuple[int, ...]) -> BoardConfiguration: ...
+    def configure(self, sample_rate_hz: float, channels: tuple[int, ...]) -> BoardConfiguration:
+        """``CONF``: returns the rate the board really runs and its frame size."""
+        ...
 
-    def start(self) -> None: ...
+    def start(self) -> None:
+        """``START``: a new stream whose running index begins at 0."""
+        ...
 
-    def read_chunk(self, timeout_s: float) -> RawChunk | None: ...
+    def read_chunk(self, timeout_s: float) -> RawChunk | None:
+        """The next samples in index order, or None when none came within ``timeout_s``."""
+        ...
 
-    def stop(self) -> None: ...
+    def stop(self) -> None:
+        """``STOP`` the stream (the connection stays open)."""
+        ...
 
-    def close(self) -> None: ...
+    def close(self) -> None:
+        """Release the transport; safe to call more than once."""
+        ...
 
 
 class BoardRole(Protocol):
     """A role driver that takes its samples from a :class:`DaqBoard` (see drivers.sensors)."""
 
-    def attach(self, *, start: bool = True) -> None: ...
+    def attach(self, *, start: bool = True) -> None:
+        """Subscribe to the board's stream, starting it if ``start`` and not yet running."""
+        ...
 
 
 class RoleQueue:
@@ -96,6 +112,7 @@ class RoleQueue:
         self.condition = threading.Condition()
 
     def push(self, chunk: RawChunk, lost_before: int) -> None:
+        """Queue a chunk (the reader thread); when full, wait or drop the oldest, as configured."""
         with self.condition:
             while (
                 self.wait_when_full

@@ -102,6 +102,7 @@ class DataRun:
 
     @property
     def n_samples(self) -> int:
+        """Samples in the run."""
         return int(self.digital.shape[0])
 
 
@@ -137,6 +138,7 @@ class FrameParser:
         self._pending = b""
 
     def feed(self, data: bytes) -> ParseResult:
+        """Parse ``data`` after what was held back; an incomplete frame is kept for next time."""
         buf = self._pending + data if self._pending else bytes(data)
         result = ParseResult(runs=[], replies=[])
         located: list[_Located] = []
@@ -252,6 +254,7 @@ class IndexUnwrapper:
         self.next_index = 0
 
     def unwrap(self, wire_index: int, n_samples: int) -> int | None:
+        """Running index of a run of ``n_samples`` sent as ``wire_index``; None if it goes back."""
         skipped = (wire_index - self.next_index) % INDEX_MODULUS
         if skipped >= INDEX_MODULUS // 2:
             return None
@@ -316,6 +319,7 @@ def format_fields(**fields: object) -> str:
 
 
 def format_channels(channels: tuple[int, ...]) -> str:
+    """(0, 1, 3) -> ``'0,1,3'``, the channel list of commands and replies."""
     return ",".join(str(c) for c in channels)
 
 
@@ -345,6 +349,7 @@ class BoardIdentity:
     range_v: float  # bipolar input range: counts span -range_v .. +range_v
 
     def to_reply(self) -> str:
+        """The ``IDN?`` reply text the board sends."""
         return format_fields(
             model=self.model,
             serial=self.serial,
@@ -385,6 +390,7 @@ class BoardConfiguration:
     samples_per_frame: int
 
     def to_reply(self) -> str:
+        """The ``CONF`` / ``CONF?`` reply text the board sends."""
         return format_fields(
             rate_hz=repr(self.sample_rate_hz),
             channels=format_channels(self.channels),
@@ -393,6 +399,7 @@ class BoardConfiguration:
 
     @classmethod
     def from_reply(cls, reply: Reply) -> BoardConfiguration:
+        """Parse a ``CONF`` reply; a ProtocolError names what is missing or malformed."""
         try:
             return cls(
                 sample_rate_hz=float(reply.fields["rate_hz"]),

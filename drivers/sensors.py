@@ -51,6 +51,7 @@ class PotentiometerCalibration:
             _require_finite("PotentiometerCalibration", **{f"linearity[{k}]": coefficient})
 
     def angle_rad(self, volts: np.ndarray) -> np.ndarray:
+        """Angle (rad) for potentiometer voltages."""
         linear = self.gain_rad_per_v * (np.asarray(volts, dtype=np.float64) - self.offset_v)
         if not self.linearity:
             return linear
@@ -94,9 +95,11 @@ class LaserCalibration:
             )
 
     def displacement_m(self, reading: np.ndarray) -> np.ndarray:
+        """Displacement (m) for readings in ``unit``."""
         return self.zero_m + self.m_per_unit * np.asarray(reading, dtype=np.float64)
 
     def range_flags(self, displacement_m: np.ndarray) -> np.ndarray:
+        """FLAG_OUT_OF_RANGE where a displacement lies outside the measuring range, else 0."""
         low, high = self.measuring_range_m
         return np.where(
             (displacement_m < low) | (displacement_m > high), FLAG_OUT_OF_RANGE, 0
@@ -179,7 +182,12 @@ class _AnalogRole(_BoardRole):
         return chunk, lost, chunk.analog[:, self._column]
 
     def _block(
-        self, chunk: RawChunk, lost: int, counts: np.ndarray, values: np.ndarray, flags=None
+        self,
+        chunk: RawChunk,
+        lost: int,
+        counts: np.ndarray,
+        values: np.ndarray,
+        flags: np.ndarray | None = None,
     ) -> SampleBlock:
         rate = self.board.sample_rate_hz
         return SampleBlock(

@@ -120,10 +120,12 @@ class DaqFaults:
     # --- state the backends consult ---------------------------------------------------
     @property
     def unplugged(self) -> bool:
+        """True once ``unplug()`` was called: the device is gone for good."""
         return self._unplugged.is_set()
 
     @property
     def stalled(self) -> bool:
+        """True while a stall lasts: the board sends nothing."""
         return time.monotonic() < self._stall_until
 
     def frame_fate(self, first_index: int, n_samples: int, frame_bytes: int) -> FrameFate:

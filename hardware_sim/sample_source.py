@@ -56,6 +56,7 @@ class CounterSource:
         self.next_index = 0
 
     def configure(self, sample_rate_hz: float) -> None:
+        """Set the rate (the counter itself does not depend on it)."""
         self.sample_rate_hz = float(sample_rate_hz)
 
     def restart(self) -> None:
@@ -63,6 +64,7 @@ class CounterSource:
         self.next_index = 0
 
     def generate(self, n: int) -> dict[str, np.ndarray]:
+        """The next ``n`` samples, each telling its own index (see the class docstring)."""
         index = np.arange(self.next_index, self.next_index + n, dtype=np.int64)
         self.next_index += n
         return {
@@ -72,6 +74,7 @@ class CounterSource:
         }
 
     def expected_tach(self, index: np.ndarray) -> np.ndarray:
+        """The tach level this source gives at the running indices ``index``."""
         return (np.asarray(index) - self.tach_phase) % self.tach_period < self.tach_width
 
     def expected_rising_edges(self, start: int, stop: int) -> np.ndarray:
