@@ -26,6 +26,7 @@ examples:
   impact-rig gui --sim
   impact-rig gui --config lab.toml
   impact-rig gui --replay run.h5
+  impact-rig gui --identify decay.h5
   impact-rig gui --sim --drive-hz 10 --beta 0.06 --view spectrum \\
       --screenshot spectrum.png --after 12
 """
@@ -53,6 +54,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     parser.add_argument("--view", choices=VIEWS, help="the view to show first")
     parser.add_argument(
+        "--identify",
+        metavar="FILE",
+        help="identify this recording at start and show it in the analysis view",
+    )
+    parser.add_argument(
         "--screenshot", metavar="PNG", type=Path, help="save the main window to PNG and exit"
     )
     parser.add_argument(
@@ -69,7 +75,7 @@ def run(args: argparse.Namespace) -> int:
     """Start the Qt application and the main window; optionally save a screenshot and exit."""
     if args.screenshot is not None and not args.after >= 0:
         raise CommandError(f"--after {args.after}: expected a number of seconds >= 0")
-    for name in (args.config, args.replay):
+    for name in (args.config, args.replay, args.identify):
         if name and not Path(name).is_file():
             raise CommandError(f"{name}: file not found")
     from PySide6.QtCore import QTimer
@@ -86,6 +92,10 @@ def run(args: argparse.Namespace) -> int:
     open_source(window, args.sim, args.config, args.replay)
     if args.drive_hz is not None:
         _start_drive_when_connected(window, args.drive_hz, args.beta)
+    if args.identify:
+        window.show_view("analysis")
+        window.analysis_panel.path.setText(args.identify)
+        window.analysis_panel.run.click()
     status = {"code": 0}
     if args.screenshot is not None:
 

@@ -24,7 +24,7 @@ from gui.live_data import LiveData
 
 WINDOWS = ("hann", "blackman", "flattop", "boxcar")
 MAX_SPECTRUM_SAMPLES = 1 << 19
-MAX_LABELS = 8
+MAX_LABELS = 12
 
 
 class SpectrumView(QWidget):
