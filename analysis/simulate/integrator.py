@@ -120,6 +120,7 @@ ERROR_EXPONENT = -1.0 / 8.0
 SAFETY = 0.9
 MIN_FACTOR = 0.2
 MAX_FACTOR = 10.0
+ENTRY_STEP_FRACTION = 0.005
 STUCK_SCAN_PER_PERIOD = 128  # release search resolution while stuck under forcing
 
 
@@ -854,6 +855,13 @@ def integrate(
                 S[S_ENTRY_OM] = om_ev
                 S[S_ENTRY_GRAZE] = 1.0 if grazing else 0.0
                 S[S_THMAX] = th_ev
+                # first contact step: a fraction of the Hertz contact time at this entry speed
+                # (the force's delta^1.5 onset makes larger trial steps fail repeatedly)
+                speed = k_contact[K_SHAFT] * abs(om_ev)
+                rate = k_contact[K_SHAFT] * k_contact[K_GAIN] * k_contact[K_STIFFNESS]
+                if speed > 0.0 and rate > 0.0:
+                    t_hertz = 3.2181 * (1.0 / (rate * rate * speed)) ** 0.2
+                    S[S_H] = min(S[S_H], ENTRY_STEP_FRACTION * t_hertz)
         else:
             new_slide = _stick_test(t_ev, th_ev, pr, tc)
             S[S_SLIDE] = new_slide
