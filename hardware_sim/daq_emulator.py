@@ -76,7 +76,9 @@ class DaqEmulator:
 
     # --- life cycle ------------------------------------------------------------------
     def start(self) -> DaqEmulator:
-        """Open the pty pair and serve it from a background thread."""
+        """Open the pty pair and serve it from a background thread (once; again: no-op)."""
+        if self._thread is not None:
+            return self
         self._master, self._slave = os.openpty()
         tty.setraw(self._slave)  # no echo, no line editing: bytes pass untouched
         os.set_blocking(self._master, False)
@@ -89,9 +91,16 @@ class DaqEmulator:
     def close(self) -> None:
         """Stop serving and close the pty (the driver sees the device disappear)."""
         self._running.clear()
-        if self._thread is not None and self._thread is not threading.current_thread():
-            self._thread.join(timeout=5)
-        self._close_fds()
+        thread = self._thread
+        if thread is not None and thread is not threading.current_thread():
+            thread.join(timeout=5)
+        if thread is None or not thread.is_alive():
+            self._close_fds()  # else the serving thread closes them as it ends: never under it
+
+    @property
+    def serving(self) -> bool:
+        """True from start() until close(), an unplug fault or an I/O error ends the service."""
+        return self._running.is_set()
 
     def __enter__(self) -> DaqEmulator:
         return self.start()
@@ -112,8 +121,6 @@ class DaqEmulator:
             while self._running.is_set():
                 if self.faults.unplugged:
                     self.faults.record(UNPLUG, self.firmware.next_index, 0)
-                    self._running.clear()
-                    self._close_fds()
                     return
                 wait = self._time_to_next_frame()
                 writable = [self._master] if self._out else []
@@ -128,7 +135,9 @@ class DaqEmulator:
             if self._running.is_set():
                 print(f"daq emulator on {self.port} stopped: {error}", file=sys.stderr)
         finally:
+            # however the service ends, the device is gone: the driver sees the pty close
             self._running.clear()
+            self._close_fds()
 
     def _time_to_next_frame(self) -> float:
         if not self.firmware.streaming:
@@ -221,7 +230,7 @@ def _main(argv: list[str] | None = None) -> int:
     ).start()
     print(emulator.port, flush=True)
     try:
-        while emulator._running.is_set():
+        while emulator.serving:
             line = sys.stdin.readline()
             if not line:  # parent went away
                 break
