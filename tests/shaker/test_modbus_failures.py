@@ -53,27 +53,38 @@ def test_missing_serial_port_is_a_clear_error() -> None:
         ShakerAmplifier(ModbusRtuBackend("/dev/no-such-tty"), LIMITS).connect()
 
 
-def test_timeout_fails_cleanly_and_the_amplifier_ends_at_zero(emulator: AmplifierEmulator) -> None:
-    shaker = ShakerAmplifier(_tcp(emulator), LIMITS, watchdog_s=0.3).connect()
+@pytest.mark.parametrize("transport", ["tcp", "rtu"])
+def test_timeout_fails_cleanly_and_the_amplifier_ends_at_zero(transport: str) -> None:
+    emulator = AmplifierEmulator(make_firmware(), tcp=transport == "tcp", rtu=transport == "rtu")
+    emulator.start()
+    if transport == "tcp":
+        backend: ModbusTcpBackend | ModbusRtuBackend = _tcp(emulator)
+    else:
+        assert emulator.rtu_path is not None
+        backend = ModbusRtuBackend(emulator.rtu_path, timeout_s=0.3, retries=0)
+    shaker = ShakerAmplifier(backend, LIMITS, watchdog_s=1.0).connect()
+    firmware = emulator.firmware
     try:
         shaker.ramp_rate_m_s = 0.05
         shaker.frequency_hz = 10.0
         shaker.amplitude_m = 0.002
         shaker.enabled = True
-        shaker.wait_settled(timeout_s=5.0)
+        assert shaker.wait_settled(timeout_s=5.0).amplitude_m == pytest.approx(0.002)
+        assert firmware.faults == Fault(0)  # driving, and the heartbeat got through
         emulator.fault = TransportFault.NO_REPLY
         with pytest.raises(DeviceError, match="no reply"):
             shaker.measured()
         with pytest.raises(DeviceError, match="communication failed earlier"):
             shaker.amplitude_m = 0.001
         assert not shaker.status().connected
-        # the host stopped its heartbeat: the amplifier's own watchdog stops the table
-        firmware = emulator.firmware
-        assert _wait_for(lambda: firmware.response.output().at_zero, 3.0)
+        # requests are swallowed, so the driver's own stop cannot arrive either: the host
+        # stopped its heartbeat and the amplifier's watchdog stops the table
+        assert _wait_for(lambda: firmware.response.output().at_zero, 5.0)
         assert firmware.faults & Fault.WATCHDOG_EXPIRED
     finally:
         emulator.fault = TransportFault.NONE
         shaker.close()
+        emulator.stop()
 
 
 @pytest.mark.parametrize(
