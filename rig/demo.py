@@ -677,6 +677,9 @@ def explained_parameters(
     L, omega, zeta come from the free decay's extended fit, K, E, mu0, theta_b from the
     impact decay's (each record's own finding); without a finding, the baseline's values.
     Each cause takes its parameters from the record that found it (the impact decay first).
+    A forced record's finding is reported but not merged: its fit starts from the decays'
+    values and judges a short steady state, so it refines what they found rather than
+    founding the model.
     """
     from analysis.extensions import NONE as NO_CAUSE
     from analysis.extensions import cause
@@ -687,7 +690,7 @@ def explained_parameters(
         "impact_decay": ("K_N_per_m1.5", "E_Pa", "mu0_s_per_m", "theta_b_rad"),
     }
     causes: dict[str, dict[str, float]] = {}
-    for name in ("impact_decay", "free_decay", "forced_step"):
+    for name in ("impact_decay", "free_decay"):
         report = findings.get(name)
         if not report:
             continue

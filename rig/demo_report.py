@@ -24,7 +24,7 @@ def write_figures(folder: Path, diagrams, settings) -> dict[str, str]:
     )
     for collection, diagram in zip(figure.axes[0].collections, diagrams, strict=False):
         # few simulated points at the demo's resolution: make them show, the measured more so
-        collection.set_sizes([12.0 if diagram.direction == "recorded" else 4.0])
+        collection.set_sizes([30.0 if diagram.direction == "recorded" else 4.0])
     figure.savefig(folder / path, format="png")
     return {"bifurcation": str(path)}
 

@@ -63,10 +63,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     parser.add_argument(
         "--cause",
-        default="coulomb_friction",
         metavar="NAME",
-        help="the effect the virtual rig hides (default coulomb_friction with Tc_N_m = 2e-5; "
-        "'none' for the baseline model alone)",
+        help="the effect the virtual rig hides (default: the one in the rig file's "
+        "[virtual.causes], else coulomb_friction with Tc_N_m = 2e-5; 'none' for the "
+        "baseline model alone)",
     )
     parser.add_argument(
         "--param",
@@ -98,6 +98,26 @@ def _parse_params(items: list[str]) -> dict[str, float]:
     return values
 
 
+def _cause_from_rig_file(config_path: str | None, params: dict[str, float]):
+    """The cause the rig file's [virtual.causes] switches on (the default cause without one)."""
+    from rig.config import ConfigError, load_config
+    from rig.demo import DEFAULT_CAUSE
+
+    try:
+        causes = load_config(config_path).virtual.causes
+    except ConfigError as error:
+        raise CommandError(str(error)) from None
+    if not causes:
+        return DEFAULT_CAUSE, params
+    if len(causes) > 1 or params:
+        raise CommandError(
+            f"the rig file switches on {', '.join(causes)} in [virtual.causes]; the demo hides "
+            "one effect: choose it with --cause NAME (and --param NAME=VALUE)"
+        )
+    (name, values), = causes.items()
+    return name, dict(values)
+
+
 def run(args: argparse.Namespace) -> int:
     """Validate the options, run the demo, print where the report is."""
     from rig.config import ConfigError
@@ -113,7 +133,10 @@ def run(args: argparse.Namespace) -> int:
     )
 
     params = _parse_params(args.param)
-    if args.cause == DEFAULT_CAUSE and not params:
+    name = args.cause
+    if name is None:
+        name, params = _cause_from_rig_file(args.config, params)
+    if name == DEFAULT_CAUSE and not params:
         params = dict(DEFAULT_CAUSE_VALUES)
     started = time.monotonic()
 
@@ -122,7 +145,7 @@ def run(args: argparse.Namespace) -> int:
             print(f"[{time.monotonic() - started:5.1f} s] {text}", file=sys.stderr, flush=True)
 
     try:
-        hidden = hidden_cause(args.cause, params)
+        hidden = hidden_cause(name, params)
         prepare_folder(Path(args.out), overwrite=args.overwrite)  # refuse before any work
         result = run_demo(
             Path(args.out),

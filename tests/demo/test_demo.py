@@ -175,3 +175,16 @@ def test_a_bad_cause_is_refused_with_what_was_wrong(tmp_path, capsys, options, m
     assert main(["demo", "--quick", "--out", str(folder), *options]) == 2
     assert message in capsys.readouterr().err
     assert not folder.exists()
+
+
+def test_a_rig_file_with_several_hidden_causes_needs_a_choice(tmp_path, capsys):
+    rig_file = tmp_path / "lab.toml"
+    rig_file.write_text(
+        load_config().text
+        + "\n[virtual.causes]\ncoulomb_friction = { Tc_N_m = 1e-5 }\n"
+        + "sensor_offset = { offset_rad = 0.002 }\n"
+    )
+    folder = tmp_path / "out"
+    assert main(["demo", "--quick", "--config", str(rig_file), "--out", str(folder)]) == 2
+    assert "choose it with --cause" in capsys.readouterr().err
+    assert not folder.exists()
