@@ -97,20 +97,22 @@ def test_timeout_fails_cleanly_and_the_amplifier_ends_at_zero(transport: str) ->
 def test_exception_reply_fails_cleanly_and_the_amplifier_ends_at_zero(
     emulator: AmplifierEmulator, fault: TransportFault, code: int, words: str
 ) -> None:
-    shaker = ShakerAmplifier(_tcp(emulator), LIMITS, watchdog_s=0.3).connect()
+    shaker = ShakerAmplifier(_tcp(emulator), LIMITS, watchdog_s=1.0).connect()
+    firmware = emulator.firmware
     try:
         shaker.ramp_rate_m_s = 0.05
         shaker.frequency_hz = 10.0
         shaker.amplitude_m = 0.002
         shaker.enabled = True
-        shaker.wait_settled(timeout_s=5.0)
+        assert shaker.wait_settled(timeout_s=5.0).amplitude_m == pytest.approx(0.002)
+        assert firmware.faults == Fault(0)  # driving, and the heartbeat got through
         emulator.fault = fault
         with pytest.raises(CommandRefusedError, match=words) as refused:
             shaker.frequency_hz = 12.0
         assert refused.value.code == code
         emulator.fault = TransportFault.NONE  # the controller recovers; the host does not resume
-        firmware = emulator.firmware
-        assert _wait_for(lambda: firmware.response.output().at_zero, 3.0)
+        assert _wait_for(lambda: firmware.response.output().at_zero, 5.0)
+        assert firmware.faults == Fault.WATCHDOG_EXPIRED  # the host's silence stopped it
         assert not firmware.enabled
         assert firmware.read_holding(0, 2) == [0, 10000]  # the refused setpoint never applied
     finally:
