@@ -102,16 +102,23 @@ def test_measurement_model_and_hdf5_output(tmp_path):
     assert abs(residual.mean()) < 1e-4
 
 
-def test_bad_parameter_is_a_clear_error_with_the_valid_names(tmp_path):
+def test_bad_parameter_is_a_clear_error_with_the_valid_names(tmp_path, capsys):
     done = _impact_rig("--param", "L_mm=46", "--out", str(tmp_path / "x.csv"))
     assert done.returncode == 2
     assert "unknown parameter(s) L_mm" in done.stderr and "L_m" in done.stderr
     assert "Traceback" not in done.stderr
     assert not (tmp_path / "x.csv").exists()
-    done = _impact_rig("--case", "z", "--out", str(tmp_path / "x.csv"))
-    assert done.returncode == 2 and "unknown paper case" in done.stderr
-    done = _impact_rig("--experiment", "forced", "--out", str(tmp_path / "x.csv"))
-    assert done.returncode == 2 and "needs a drive" in done.stderr
+    for args, message in (
+        (["--case", "z"], "unknown paper case"),
+        (["--experiment", "forced"], "needs a drive"),
+        (["--case", "h", "--experiment", "free_decay"], "forced case"),
+        (["--param", "zeta"], "expected NAME=VALUE"),
+        (["--param", "zeta=-1"], "zeta"),
+        (["--cause", "gremlins"], "unknown cause"),
+    ):
+        assert main(["simulate", *args, "--out", str(tmp_path / "x.csv")]) == 2
+        assert message in capsys.readouterr().err
+    assert not (tmp_path / "x.csv").exists()
 
 
 def test_cause_parameter_switches_the_cause_on(tmp_path):
