@@ -4,6 +4,10 @@ Each member is an independent run of the compiled integrator (a packed parameter
 vector and an initial state); members run in parallel in a numba ``prange`` loop,
 so a bifurcation diagram (hundreds of parameter values x hundreds of periods) or a
 basin of attraction (a grid of initial states) is one call.
+
+numba's on-disk cache of ``_run_members`` is keyed on this file only: after editing
+``integrator.py`` (or the layout ``analysis.model.P``) delete this package's
+``__pycache__`` so that the parallel kernel is rebuilt with the new integrator.
 """
 
 from __future__ import annotations
