@@ -7,6 +7,7 @@ pendulum, the barrier and the laser (100 mm range) from a typo in a procedure.
 from __future__ import annotations
 
 import math
+import numbers
 from collections.abc import Mapping
 from dataclasses import dataclass, fields
 from typing import Any
@@ -17,6 +18,13 @@ from drivers.amplifier_registers import (
     DEVICE_MAX_RAMP_RATE_UM_S,
 )
 from drivers.interfaces import LimitError
+
+RAMP_RATE_RESOLUTION_M_S = 1e-6  # the ramp-rate register counts whole micrometres per second
+
+
+def _is_number(value: object) -> bool:
+    """A real number (Python or numpy), not a bool."""
+    return isinstance(value, numbers.Real) and not isinstance(value, bool)
 
 
 class LimitsConfigError(ValueError):
@@ -36,7 +44,7 @@ class ShakerLimits:
     def __post_init__(self) -> None:
         for f in fields(self):
             value = getattr(self, f.name)
-            if isinstance(value, bool) or not isinstance(value, int | float):
+            if not _is_number(value):
                 raise LimitsConfigError(f"shaker limit {f.name} = {value!r}: expected a number")
             if not math.isfinite(value) or value < 0:
                 raise LimitsConfigError(
@@ -58,10 +66,11 @@ class ShakerLimits:
                 f"shaker limits: min_frequency_hz {self.min_frequency_hz} > "
                 f"max_frequency_hz {self.max_frequency_hz}"
             )
-        if not 0 < self.min_ramp_rate_m_s <= self.max_ramp_rate_m_s:
+        if not RAMP_RATE_RESOLUTION_M_S <= self.min_ramp_rate_m_s <= self.max_ramp_rate_m_s:
             raise LimitsConfigError(
-                f"shaker limits: need 0 < min_ramp_rate_m_s ({self.min_ramp_rate_m_s}) <= "
-                f"max_ramp_rate_m_s ({self.max_ramp_rate_m_s})"
+                f"shaker limits: need {RAMP_RATE_RESOLUTION_M_S:g} (the register's resolution) "
+                f"<= min_ramp_rate_m_s ({self.min_ramp_rate_m_s}) <= max_ramp_rate_m_s "
+                f"({self.max_ramp_rate_m_s})"
             )
 
     @classmethod
@@ -80,7 +89,7 @@ class ShakerLimits:
 
     def check(self, name: str, value: float, low: float, high: float, unit: str) -> float:
         """``value`` as float if low <= value <= high, else LimitError (nothing is sent)."""
-        if isinstance(value, bool) or not isinstance(value, int | float):
+        if not _is_number(value):
             raise LimitError(f"shaker {name} = {value!r}: expected a number in {unit}")
         value = float(value)
         if not math.isfinite(value) or not low <= value <= high:
