@@ -72,9 +72,11 @@ class DaqFaults:
 
         With ``every=n`` random garbage of that length goes before every n-th frame.
         """
+        if every and not isinstance(garbage, int):
+            raise ValueError("inject_garbage(every=n) takes a length in bytes, not the bytes")
         with self._lock:
             if every:
-                self._garbage_every, self._garbage_length = every, int(garbage)  # type: ignore[arg-type]
+                self._garbage_every, self._garbage_length = every, garbage
             elif isinstance(garbage, int):
                 self._garbage.append(self._random_bytes(garbage))
             else:
