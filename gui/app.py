@@ -69,6 +69,8 @@ class MainWindow(QMainWindow):
         self.tasks = TaskRunner("gui-device", self)  # commands, in order
         self.polls = TaskRunner("gui-poll", self)  # status reads (never delay a STOP)
         self.analysis_tasks = TaskRunner("gui-analysis", self)
+        self.view_tasks = TaskRunner("gui-views", self)  # heavy view computations (spectrum)
+        self._spectrum_busy = False
         self.session: Session | None = None
         self.data: LiveData | None = None
         self.frame_times: deque[float] = deque(maxlen=2000)  # perf_counter of each frame
@@ -412,9 +414,8 @@ class MainWindow(QMainWindow):
             self.time_view.refresh(data)
         elif current is self.spectrum_view:
             now = time.monotonic()
-            if now - self._last_spectrum >= SPECTRUM_PERIOD_S:
-                self._last_spectrum = now
-                self.spectrum_view.refresh(data)
+            if now - self._last_spectrum >= SPECTRUM_PERIOD_S and not self._spectrum_busy:
+                self._start_spectrum(data, now)
         elif current is self.poincare_view:
             self.poincare_view.refresh(data)
         elif current is self.phase_view:
@@ -434,6 +435,23 @@ class MainWindow(QMainWindow):
             run = session.recording
             if not run.stopped:
                 self.recording_panel.show_progress(run.elapsed_s, run.file_size_bytes)
+
+    def _start_spectrum(self, data: LiveData, now: float) -> None:
+        """Compute the spectrum on the view thread; draw it when it is ready."""
+        snapshot = self.spectrum_view.snapshot(data)
+        if snapshot is None:
+            return
+        self._last_spectrum = now
+        self._spectrum_busy = True
+
+        def done(spectrum) -> None:
+            self._spectrum_busy = False
+            self.spectrum_view.show(spectrum)
+
+        def failed(error: BaseException) -> None:
+            self._spectrum_busy = False
+
+        self.view_tasks.submit(lambda: SpectrumView.compute(snapshot), done, failed)
 
     def _update_status(self) -> None:
         session = self.session
@@ -521,6 +539,7 @@ class MainWindow(QMainWindow):
         self.tasks.shutdown()
         self.polls.shutdown()
         self.analysis_tasks.shutdown(wait=False)
+        self.view_tasks.shutdown(wait=False)
 
     def closeEvent(self, event: QCloseEvent) -> None:
         self.shutdown()

@@ -68,6 +68,7 @@ class PoincareView(QWidget):
     def __init__(self, parent: QWidget | None = None) -> None:
         super().__init__(parent)
         self.accumulator = PoincareAccumulator()
+        self._drawn: tuple = ()
         self.mode = QComboBox()
         self.mode.addItems(MODES)
         self.clear_button = QPushButton("Clear")
@@ -96,8 +97,12 @@ class PoincareView(QWidget):
         self.accumulator.update(data)
 
     def refresh(self, data: LiveData) -> None:
-        """Redraw the points."""
+        """Redraw the points (only when there are new ones or the choice of axes changed)."""
         theta, rate = self.accumulator.theta, self.accumulator.theta_dot
+        drawn = (theta.size, float(theta[-1]) if theta.size else 0.0, self.mode.currentIndex())
+        if drawn == self._drawn:
+            return
+        self._drawn = drawn
         self.count.setText(f"{theta.size} points")
         if self.mode.currentIndex() == 0:
             x, y = theta, rate

@@ -66,16 +66,29 @@ class SpectrumView(QWidget):
         layout.addWidget(self.plot)
         self.spectrum: Spectrum | None = None
 
-    def refresh(self, data: LiveData) -> None:
-        """Recompute the spectrum of the newest ``length_s`` seconds and redraw it."""
+    def snapshot(self, data: LiveData) -> tuple | None:
+        """What a spectrum needs, copied on the GUI thread (None: too short or a gap)."""
         n = min(int(self.length_s.value() * data.sample_rate_hz), MAX_SPECTRUM_SAMPLES)
         index, angle = data.angle.latest(n)
         if angle.size < 64 or np.any(np.diff(index) != 1):
-            return  # too short, or a gap in the stretch: a spectrum would invent samples
-        drive = data.drive_frequency_hz()
-        spectrum = amplitude_spectrum(
-            angle, data.sample_rate_hz, drive_frequency_hz=drive, window=self.window.currentText()
-        )
+            return None  # a spectrum across a gap would invent samples
+        return angle, data.sample_rate_hz, data.drive_frequency_hz(), self.window.currentText()
+
+    @staticmethod
+    def compute(snapshot: tuple) -> Spectrum:
+        """The spectrum of a snapshot (pure: runs on a worker thread)."""
+        angle, fs, drive, window = snapshot
+        return amplitude_spectrum(angle, fs, drive_frequency_hz=drive, window=window)
+
+    def refresh(self, data: LiveData) -> None:
+        """Recompute the spectrum of the newest ``length_s`` seconds and redraw it (blocking)."""
+        snapshot = self.snapshot(data)
+        if snapshot is not None:
+            self.show(self.compute(snapshot))
+
+    def show(self, spectrum: Spectrum) -> None:
+        """Draw a computed spectrum with its peak labels."""
+        drive = spectrum.drive_frequency_hz
         self.spectrum = spectrum
         keep = spectrum.frequency_hz <= self.max_frequency.value()
         f = spectrum.frequency_hz[keep]

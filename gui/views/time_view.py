@@ -27,11 +27,10 @@ class TimeTraceView(QWidget):
         controls.addStretch(1)
         self.angle_plot = pg.PlotWidget()
         self.angle_plot.setLabel("left", "angle", units="rad")
-        self.angle_plot.showGrid(x=True, y=True, alpha=0.2)
+        # no grid on the live traces: alpha-blended grid lines cost more than the data to paint
         self.table_plot = pg.PlotWidget()
         self.table_plot.setLabel("left", "table", units="m")
         self.table_plot.setLabel("bottom", "time", units="s")
-        self.table_plot.showGrid(x=True, y=True, alpha=0.2)
         self.table_plot.setXLink(self.angle_plot)
         self.angle_curve = self.angle_plot.plot(pen=ANGLE_PEN)
         self.table_curve = self.table_plot.plot(pen=TABLE_PEN)
