@@ -215,7 +215,7 @@ def read_while_written(path: str, origin: float) -> None:
     print(json.dumps(summary), flush=True)
 
 
-def realistic_bytes_per_sample(seconds: float = 5.0) -> float:
+def realistic_bytes_per_sample(compression: str | None, seconds: float = 5.0) -> float:
     """Bytes per sample for rig-like content: a swinging angle and a sine table with ADC noise
     (a few counts), written by the recorder directly (no transport), 4 channels at 200 kHz."""
     import numpy as np
@@ -225,7 +225,9 @@ def realistic_bytes_per_sample(seconds: float = 5.0) -> float:
     rng = np.random.default_rng(1)
     with tempfile.TemporaryDirectory() as folder:
         path = Path(folder) / "content.h5"
-        recorder = Recorder(path, specs(RATE_HZ)[:4], RecordingMetadata("forced"))
+        recorder = Recorder(
+            path, specs(RATE_HZ)[:4], RecordingMetadata("forced"), compression=compression
+        )
         block = 2048
         n_blocks = int(seconds * RATE_HZ) // block
         for k in range(n_blocks):
@@ -265,6 +267,7 @@ def main(argv: list[str] | None = None) -> int:
         read_while_written(args.reader[0], float(args.reader[1]))
         return 0
     baseline_s = args.baseline_seconds or min(10.0, args.seconds)
+    compression = None if args.compression == "none" else args.compression
     print(
         f"load average before the run: {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores; "
         f"compression {args.compression}"
@@ -276,7 +279,7 @@ def main(argv: list[str] | None = None) -> int:
     base = run(baseline_s, None)
     with tempfile.TemporaryDirectory() as folder:
         path = Path(folder) / "bench.h5"
-        rec = run(args.seconds, path, None if args.compression == "none" else args.compression)
+        rec = run(args.seconds, path, compression)
     print(
         f"baseline (acquire, drop): CPU {base['cpu_share']:.1%} of a core, "
         f"{base['samples']:,} samples, {base['lost']} lost"
@@ -293,8 +296,8 @@ def main(argv: list[str] | None = None) -> int:
     )
     print(
         f"rig-like content (swinging signals + ADC noise of a few counts): "
-        f"{realistic_bytes_per_sample():.2f} bytes per sample (raw int16 + float32 = 6 bytes "
-        "uncompressed)"
+        f"{realistic_bytes_per_sample(compression):.2f} bytes per sample "
+        "(raw int16 + float32 = 6 bytes uncompressed)"
     )
     swmr = rec.get("swmr") or {}
     if swmr.get("max_s") is not None:

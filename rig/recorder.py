@@ -34,6 +34,7 @@ MAX_FLUSH_INTERVAL_S = 1.0
 STOP_REASON_BYTES = 256
 FAST_CHANNEL_HZ = 50_000.0  # above this rate channels are compressed with lzf, not gzip
 DISK_RESERVE_BYTES = 1 << 20  # kept free besides what the next flush may need
+RECORDER_NICENESS = 5  # the writer thread runs this much "nicer" than acquisition
 
 SAMPLE_BLOCK_DTYPE = np.dtype(
     [
@@ -582,6 +583,19 @@ class EventSource(Protocol):
     def get_many(self, timeout_s: float = 0.1) -> list[tuple[float, Event]]: ...
 
 
+def _lower_this_threads_priority(niceness: int) -> None:
+    """Make the calling thread yield the CPU to the acquisition threads when cores are busy.
+
+    Compressing and writing come in bursts; on a loaded machine a burst must not keep the
+    driver threads off the CPU long enough for the board's buffer to overflow.  The
+    recorder's privileged queue absorbs the delay instead.  (Linux: per-thread niceness.)
+    """
+    with contextlib.suppress(AttributeError, OSError):
+        tid = threading.get_native_id()
+        current = os.getpriority(os.PRIO_PROCESS, tid)
+        os.setpriority(os.PRIO_PROCESS, tid, min(19, current + niceness))
+
+
 class RecorderThread(threading.Thread):
     """Drains a (privileged) engine subscription into a ``Recorder`` and flushes on time.
 
@@ -603,6 +617,7 @@ class RecorderThread(threading.Thread):
         self.error: Exception | None = None
 
     def run(self) -> None:
+        _lower_this_threads_priority(RECORDER_NICENESS)
         try:
             while True:
                 batch = self.source.get_many(timeout_s=self.recorder.flush_interval_s / 4)
