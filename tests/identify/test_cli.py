@@ -96,3 +96,25 @@ def test_several_free_decays_are_pooled(tmp_path):
     low, high = report["parameters"]["L_m"]["ci95"]
     assert low < 0.25 < high
     assert len(report["details"]["records"]) == 2
+
+
+def test_impact_decay_with_length_and_damping_held_from_a_free_decay(decay_csv, tmp_path):
+    from analysis.model import Model, RigParameters
+    from analysis.simulate import simulate
+
+    truth = RigParameters(L_m=0.25, zeta=0.015, mu0_s_per_m=0.5).with_stiffness(3e5)
+    sim = simulate(Model(rig=truth, barrier=True), -0.3, 0.0, duration_s=4.0, fs_hz=3000.0,
+                   poincare_phase=None)
+    angle = sim.theta + np.random.default_rng(3).normal(0.0, 2e-4, sim.t.size)
+    meta = ExchangeMeta("impact_decay", rig={"m_kg": 0.0326, "l_m": 0.05, "R_m": 0.0095,
+                                             "g": 9.81})
+    path, _ = write_exchange(tmp_path / "impacts.csv", ExchangeRecord(sim.t, angle, meta))
+    out = tmp_path / "impacts.json"
+    assert main(["identify", str(path), "--free-decay", str(decay_csv), "--json", str(out)]) == 0
+    report = json.loads(out.read_text())["parameters"]
+    assert "ci95" not in report["L_m"]  # held from the free decay, not fitted
+    assert report["L_m"]["value"] == pytest.approx(0.25, rel=2e-3)
+    low, high = report["K_N_per_m1.5"]["ci95"]
+    assert low < 3e5 * 1.01 and high > 3e5 * 0.99  # held L is itself uncertain (~1e-3)
+    assert report["R_m"]["value"] == 0.0095
+    assert {"E_Pa", "mu0_s_per_m", "theta_b_rad", "theta0_rad"} <= set(report)
