@@ -10,7 +10,8 @@ from pathlib import Path
 from rig.cli import CommandError
 
 DESCRIPTION = """\
-Identify the model parameters of one record (MODEL.md section 7 keys, 95 % intervals).
+Identify the model parameters of a record (MODEL.md section 7 keys, 95 % intervals
+from the Jacobian, widened for correlated residuals by a Newey-West sandwich).
 
 The experiment named in the metadata decides the fit:
   free_decay    L (= g / omega^2, the effective length), zeta, theta0 and sensor offset;
