@@ -131,3 +131,34 @@ def test_replay_of_a_missing_channel_names_what_the_file_has(tmp_path):
     path = _make_recording(tmp_path / "c.h5", total=1000)
     with pytest.raises(ValueError, match="angle"):
         Replay(path, channels=["pressure"])
+
+
+def test_the_replay_command_plays_a_recording_and_can_record_it_again(tmp_path, capsys):
+    from rig.cli import main
+
+    path = _make_recording(tmp_path / "played.h5")
+    copy = tmp_path / "copy.h5"
+    assert main(["replay", str(path), "--fast", "--record", str(copy), "--quiet"]) == 0
+    out = capsys.readouterr().out
+    assert "angle: 39674 samples, 326 lost in 2 gap(s)" in out
+    assert "table: 39000 samples, 1000 lost in 1 gap(s)" in out
+    with open_recording(path) as a, open_recording(copy) as b:
+        np.testing.assert_array_equal(a.channel("angle").raw, b.channel("angle").raw)
+        assert b.info.extra["replayed_from"] == str(path.resolve())
+
+
+def test_export_refuses_gaps_unless_told_and_splits_into_uniform_segments(tmp_path, capsys):
+    from analysis.exchange import read_exchange
+    from rig.cli import main
+
+    path = _make_recording(tmp_path / "gappy.h5")
+    out = tmp_path / "gappy.csv"
+    assert main(["export", str(path), "--out", str(out)]) == 2
+    assert "--gaps split" in capsys.readouterr().err and not out.exists()
+    assert main(["export", str(path), "--out", str(out), "--gaps", "split"]) == 0
+    segments = [read_exchange(tmp_path / f"gappy_seg{k}.csv") for k in (1, 2, 3, 4)]
+    firsts = [round(float(s.time_s[0]) * 10_000) for s in segments]
+    assert firsts == [0, 7_321, 13_345, 25_005]
+    for segment, first in zip(segments, firsts, strict=True):
+        index = first + np.arange(segment.time_s.size)
+        np.testing.assert_allclose(segment.angle_rad, index * 1e-3, rtol=1e-7)
