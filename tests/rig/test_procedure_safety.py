@@ -131,3 +131,30 @@ def test_a_disk_that_fills_during_a_forced_run_stops_it_cleanly(two_megabyte_fil
     assert len(angle) >= 4_000  # what was recorded before the disk filled is kept, in order
     np.testing.assert_array_equal(np.diff(angle.indices), 1)
     assert drive["enabled"].tolist()[0] == 1 and drive["enabled"].tolist()[-1] == 0
+
+
+def test_a_sweep_beyond_the_limits_is_refused_before_anything_moves(tmp_path, capsys):
+    out = tmp_path / "too_fast.h5"
+    status = main(
+        [
+            "sweep",
+            "--sim",
+            "--sweep",
+            "frequency",
+            "--start",
+            "30",
+            "--stop",
+            "60",
+            "--steps",
+            "4",
+            "--amplitude-mm",
+            "1",
+            "--out",
+            str(out),
+        ]
+    )
+    assert status == 2
+    error = capsys.readouterr().err
+    assert "frequency_hz = 50.0" in error and "[0.0, 40.0] Hz" in error
+    assert "default_rig.toml" in error and "opening the devices" not in error
+    assert not out.exists()
