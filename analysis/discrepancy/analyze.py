@@ -384,6 +384,8 @@ def assess_candidate(
         rms_extended=full.rms,
         invariant_distance_baseline=distances[0],
         invariant_distance_extended=distances[1],
+        noise_rad=data.noise_rad,
+        n_heldout=int(np.count_nonzero(data.valid[n_train:])),
     )
     return CandidateOutcome(cause_name, train, full, verdict, prediction)
 

@@ -21,6 +21,8 @@ from analysis.identify.intervals import autocorrelation
 
 BIC_MARGIN = 10.0  # "very strong" evidence on the Kass-Raftery scale
 HELDOUT_RATIO = 0.95  # the extension must predict the unseen part at least 5 % better
+HELDOUT_EXCESS_RATIO = 0.9  # ... or shrink the error above the noise by 10 %, significantly
+HELDOUT_SIGMAS = 3.0
 INVARIANT_RATIO = 0.7  # chaotic records: invariants at least 30 % closer to the data's
 CORRELATION_CUTOFF = 0.05
 
@@ -61,6 +63,8 @@ class Verdict:
     rms_extended: float
     invariant_distance_baseline: float | None = None  # chaotic records: statistics, not points
     invariant_distance_extended: float | None = None
+    noise_rad: float = 0.0
+    n_heldout: int = 0
 
     @property
     def heldout_ratio(self) -> float:
@@ -68,6 +72,31 @@ class Verdict:
         if not (self.heldout_rms_baseline > 0):
             return math.inf
         return self.heldout_rms_extended / self.heldout_rms_baseline
+
+    @property
+    def heldout_excess_ratio(self) -> float:
+        """Like ``heldout_ratio`` for the part of the prediction error above the noise."""
+        s2 = self.noise_rad**2
+        base = self.heldout_rms_baseline**2 - s2
+        ext = max(self.heldout_rms_extended**2 - s2, 0.0)
+        return math.sqrt(ext / base) if base > 0 else math.inf
+
+    @property
+    def heldout_helps(self) -> bool:
+        """The held-out judge: a clearly smaller prediction error on the unseen part.
+
+        Either the error drops by HELDOUT_RATIO, or - when an effect fades with the swing
+        and the unseen part is close to the noise - its excess over the noise drops by
+        HELDOUT_EXCESS_RATIO and the mean-square gain is well beyond the scatter a finite
+        held-out sample allows (HELDOUT_SIGMAS standard errors of a noise variance).
+        """
+        if self.heldout_ratio < HELDOUT_RATIO:
+            return True
+        if self.n_heldout <= 0 or not self.noise_rad > 0:
+            return False
+        gain = self.heldout_rms_baseline**2 - self.heldout_rms_extended**2
+        scatter = self.noise_rad**2 * math.sqrt(2.0 / self.n_heldout)
+        return gain > HELDOUT_SIGMAS * scatter and self.heldout_excess_ratio < HELDOUT_EXCESS_RATIO
 
     @property
     def invariant_ratio(self) -> float | None:
@@ -87,7 +116,7 @@ class Verdict:
         ratio = self.invariant_ratio
         if ratio is not None:
             return ratio < INVARIANT_RATIO
-        return self.heldout_ratio < HELDOUT_RATIO
+        return self.heldout_helps
 
     @property
     def why(self) -> str:
@@ -96,8 +125,8 @@ class Verdict:
         ratio = self.heldout_ratio
         parts = [
             f"BIC gain {ic:.3g} ({'>' if ic > BIC_MARGIN else '<='} {BIC_MARGIN:g})",
-            f"held-out error x{ratio:.3g} ({'<' if ratio < HELDOUT_RATIO else '>='} "
-            f"{HELDOUT_RATIO:g})",
+            f"held-out error x{ratio:.3g} (above noise x{self.heldout_excess_ratio:.3g}): "
+            f"{'better' if self.heldout_helps else 'no clear gain'}",
         ]
         if self.invariant_ratio is not None:
             parts[1] = (
