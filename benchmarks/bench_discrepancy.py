@@ -26,7 +26,13 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from analysis.discrepancy import analyze_record
 from analysis.records import load_record
-from tests.discrepancy.hidden_cause import SHOWS_IN, draw_case, write_case
+from analysis.discrepancy.analyze import priors_from_decays
+from tests.discrepancy.hidden_cause import (
+    SHOWS_IN,
+    draw_case,
+    write_case,
+    write_companion_decay,
+)
 
 BUDGET_S = 60.0
 
@@ -39,8 +45,11 @@ def main() -> int:
     parser.add_argument("--quick", action="store_true", help="one case per (experiment, cause)")
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--seed", type=int, default=7000)
+    parser.add_argument("--kinds", default="free_decay,impact_decay,forced",
+                        help="experiment kinds to draw from (comma separated)")
     args = parser.parse_args()
-    pairs = [(kind, c) for kind, causes in SHOWS_IN.items() for c in causes]
+    kinds = args.kinds.split(",")
+    pairs = [(kind, c) for kind, causes in SHOWS_IN.items() if kind in kinds for c in causes]
     n = len(pairs) if args.quick else args.cases
     order = np.random.default_rng(args.seed).permutation(n) % len(pairs)
     rows = []
@@ -50,9 +59,15 @@ def main() -> int:
         case = draw_case(args.seed + i, kind, truth)
         with tempfile.TemporaryDirectory() as tmp:
             path = write_case(case, Path(tmp), name="record")
+            companion = write_companion_decay(case, Path(tmp)) if kind == "forced" else None
             start = time.perf_counter()
             try:
-                report = analyze_record(load_record(path), workers=args.workers).as_json()
+                # a forced run comes with the rig's impact decay, which starts the model values
+                priors = priors_from_decays(impact_decay=load_record(companion)) \
+                    if companion is not None else None
+                report = analyze_record(
+                    load_record(path), workers=args.workers, priors=priors
+                ).as_json()
                 found = report["cause"]
             except Exception as error:  # a failure counts as a miss, with its reason shown
                 report, found = None, f"error: {type(error).__name__}: {error}"[:80]
