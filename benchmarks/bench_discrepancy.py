@@ -25,8 +25,8 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from analysis.discrepancy import analyze_record
-from analysis.records import load_record
 from analysis.discrepancy.analyze import priors_from_decays
+from analysis.records import load_record
 from tests.discrepancy.hidden_cause import (
     SHOWS_IN,
     draw_case,
