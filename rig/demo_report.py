@@ -3,10 +3,13 @@ recordings, the identified parameters, the discrepancy findings and the regimes 
 
 from __future__ import annotations
 
+import json
 import math
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
+
+import numpy as np
 
 from rig.demo import FIGURES
 
@@ -189,3 +192,23 @@ def _num(value: Any) -> str:
         return f"{float(value):.3g}"
     except (TypeError, ValueError):
         return str(value)
+
+
+def write_json(path: Path, data: Any) -> None:
+    """Write ``data`` as indented JSON (numpy values made plain)."""
+    path.write_text(json.dumps(_plain(data), indent=1, allow_nan=True) + "\n", encoding="utf-8")
+
+
+def _plain(value: Any) -> Any:
+    """JSON-ready copy: numpy scalars and arrays, tuples and mappings made plain."""
+    if isinstance(value, Mapping):
+        return {str(k): _plain(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_plain(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return _plain(value.tolist())
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, Path):
+        return str(value)
+    return value

@@ -1,0 +1,308 @@
+"""The demo's analysis of its recordings: identification, regimes of the sweep steps, the
+discrepancy analysis, the model it arrives at, and the bifurcation diagrams.
+
+Each step calls the project's analysis (``analysis.identify``, ``analysis.dynamics``,
+``analysis.discrepancy``); what lives here is only the demo's choice of what to run on
+which record and how the results are combined.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from rig.demo import ANALYSIS, NONE, DemoError, DemoSettings, Progress, indented
+from rig.demo_report import write_json
+
+
+def load_records(results: Mapping[str, Any], notes: list[str]) -> dict[str, Any]:
+    """Decays as their longest gap-free stretch, the sweep one record per step."""
+    from analysis.hdf5_records import load_hdf5_segments, load_hdf5_steps
+    from analysis.records import RecordFormatError
+
+    records: dict[str, Any] = {}
+    for name in ("free_decay", "impact_decay"):
+        segments = load_hdf5_segments(results[name].path)
+        if len(segments) > 1:
+            notes.append(
+                f"{results[name].path.name}: {len(segments) - 1} gap(s); the longest gap-free "
+                "stretch is analysed"
+            )
+        records[name] = max(segments, key=lambda r: r.time_s.size)
+    try:
+        records["sweep_steps"] = load_hdf5_steps(results["sweep"].path)
+    except RecordFormatError as error:  # samples lost in a step's dwell: no regimes then
+        notes.append(f"the sweep's steps cannot be analysed: {error}")
+        records["sweep_steps"] = []
+    return records
+
+
+def identify(records: Mapping[str, Any], folder: Path, say: Progress) -> dict[str, Any]:
+    """The baseline model's identification: L, zeta from the free decay, then K, mu0 (and
+    theta_b) from the impact decay with L and zeta held; each report written as JSON."""
+    from analysis.identify import IdentificationError, fit_free_decay, fit_impact_decay
+
+    try:
+        free = fit_free_decay(records["free_decay"])
+        say("  free decay: " + free.summary().splitlines()[1].strip())
+        hold = {"L_m": free["L_m"].value, "zeta": free["zeta"].value}
+        impact = fit_impact_decay(records["impact_decay"], hold=hold)
+    except IdentificationError as error:
+        raise DemoError(f"identification failed: {error}") from None
+    for name, result in (("free_decay", free), ("impact_decay", impact)):
+        report = result.as_json()
+        report["source"] = str(records[name].source)
+        write_json(folder / f"identify_{name}.json", report)
+    say(
+        f"  impact decay: K = {impact['K_N_per_m1.5'].value:.4g} N/m^1.5, "
+        f"mu0 = {impact['mu0_s_per_m'].value:.3g} s/m"
+    )
+    return {"free_decay": free, "impact_decay": impact}
+
+
+def combined_parameters(identified: Mapping[str, Any]) -> dict[str, dict[str, Any]]:
+    """L, omega, zeta from the free decay; K, E, R, mu0, theta_b from the impact decay."""
+    out: dict[str, dict[str, Any]] = {}
+    free, impact = identified["free_decay"], identified["impact_decay"]
+    for key in ("L_m", "omega_rad_s", "zeta"):
+        out[key] = free[key].as_json() | {"from": "free_decay"}
+    for key in ("K_N_per_m1.5", "E_Pa", "R_m", "mu0_s_per_m", "theta_b_rad"):
+        if key in impact.parameters:
+            out[key] = impact[key].as_json() | {"from": "impact_decay"}
+    return out
+
+
+def classify_steps(steps: list[Any], say: Progress) -> tuple[list[dict[str, Any]], list[Any]]:
+    """Regime of each step from its tachometer Poincare section (one point per drive period)."""
+    from analysis.dynamics import poincare_from_pulses
+
+    regimes, sections = [], []
+    previous_beta = -math.inf
+    for number, record in enumerate(steps):
+        drive = record.drive
+        beta = drive["amplitude_m"] / record.rig_parameters().L_m
+        direction = "up" if beta >= previous_beta else "down"
+        previous_beta = beta
+        entry: dict[str, Any] = {
+            "step": number,
+            "direction": direction,
+            "beta": beta,
+            "amplitude_m": drive["amplitude_m"],
+            "frequency_hz": drive["frequency_hz"],
+            "duration_s": float(record.time_s[-1] - record.time_s[0]),
+            "poincare_points": int(record.tach_indices.size),
+        }
+        section = None
+        try:
+            section = poincare_from_pulses(record.angle_rad, record.sample_rate_hz,
+                                           record.tach_indices)
+            regime = _regime(record, section)
+            entry.update(kind=regime.kind, period=regime.period, label=regime.label)
+            entry["short"] = regime.short_name
+        except ValueError as error:
+            entry.update(kind="unclassified", period=None, label=f"unclassified: {error}")
+            entry["short"] = "unclassified"
+        sections.append(section.theta[-SETTLED_POINTS:] if section is not None else np.zeros(0))
+        say(f"  step {number} ({direction}) beta {beta:.3g}: {entry['label']}")
+        regimes.append(entry)
+    return regimes, sections
+
+
+# A measured Poincare point never returns exactly: sensor noise, the noise of the smoothed
+# rate and what is left of the transient keep it within a few percent of the attractor.
+MEASURED_RECURRENCE_TOLERANCE = 0.03
+SETTLED_POINTS = 30  # the last points of a step: the settled response
+
+
+def _regime(record, section):
+    """Periodic when the settled points (the last ones) recur; otherwise the 0-1 test on all."""
+    from analysis.dynamics import classify_motion
+
+    fs, f = record.sample_rate_hz, record.drive["frequency_hz"]
+    noise, _ = _noise(record.angle_rad)
+    tolerance = max(MEASURED_RECURRENCE_TOLERANCE, 10.0 * noise / (np.ptp(record.angle_rad) or 1.0))
+    tail = section.tail(min(len(section), max(SETTLED_POINTS, len(section) // 2)))
+    with contextlib.suppress(ValueError):  # too few settled points to call it non-periodic
+        settled = classify_motion(record.angle_rad, fs, f, tail, tolerance=tolerance)
+        if settled.kind == "periodic":
+            return settled
+    return classify_motion(record.angle_rad, fs, f, section, tolerance=tolerance)
+
+
+def _noise(angle: np.ndarray) -> tuple[float, float]:
+    from analysis.identify.preprocess import noise_and_quantum
+
+    return noise_and_quantum(np.asarray(angle, dtype=float))
+
+
+def analyse_discrepancies(
+    records: Mapping[str, Any],
+    regimes: list[dict[str, Any]],
+    folder: Path,
+    settings: DemoSettings,
+    say: Progress,
+    notes: list[str],
+) -> dict[str, dict[str, Any]]:
+    """The discrepancy analysis (analysis.discrepancy) on each decay and on one sweep step."""
+    try:
+        from analysis.discrepancy import AnalysisError, analyze_record
+        from analysis.report import write_report as write_analysis_report
+    except ImportError as error:
+        notes.append(f"the discrepancy analysis is not available in this installation ({error})")
+        say(f"  skipped: {notes[-1]}")
+        return {}
+    chosen = {
+        "free_decay": records["free_decay"],
+        "impact_decay": records["impact_decay"],
+    }
+    steps = records["sweep_steps"]
+    if steps and settings.analyze_forced_step:
+        chosen["forced_step"] = _forced_step_to_analyse(steps, regimes)
+    findings: dict[str, dict[str, Any]] = {}
+    for name, record in chosen.items():
+        causes = None
+        found = findings.get("free_decay", {}).get("cause", NONE)
+        if name == "impact_decay" and settings.carry_free_decay_finding and found != NONE:
+            causes = [found]
+            notes.append(
+                f"quick demo: the impact decay was checked for {found} only (what the free "
+                "decay showed); the full demo tries every candidate cause"
+            )
+        say(f"  {name}:" + (f" (candidates: {', '.join(causes)})" if causes else ""))
+        try:
+            analysis = analyze_record(record, progress=indented(say), causes=causes)
+        except (AnalysisError, ValueError) as error:
+            notes.append(f"discrepancy analysis of {name} failed: {error}")
+            say(f"    failed: {error}")
+            continue
+        page = write_analysis_report(analysis, folder / ANALYSIS, name=name)
+        findings[name] = {**analysis.as_json(), "page": str(page.relative_to(folder))}
+    return findings
+
+
+def _forced_step_to_analyse(steps: list[Any], regimes: list[dict[str, Any]]):
+    """A settled periodic step (a forced record is fitted point by point): the lowest period,
+    then the smallest drive, preferring the way down (longer settled); else the first step."""
+    periodic = [
+        (r["period"], r["direction"] != "down", r["beta"], r["step"])
+        for r in regimes
+        if r["kind"] == "periodic"
+    ]
+    return steps[min(periodic)[-1]] if periodic else steps[0]
+
+
+def bifurcation_diagrams(
+    model,
+    settings: DemoSettings,
+    regimes: list[dict[str, Any]],
+    sections: list[np.ndarray],
+    folder: Path,
+    say: Progress,
+):
+    """Simulated (the identified model, continuation up and down) and measured diagrams."""
+    from analysis.dynamics import bifurcation_from_recording, simulate_bifurcation
+
+    betas = np.linspace(
+        min(settings.sweep_betas) * 0.5, max(settings.sweep_betas) * 1.04, settings.simulated_betas
+    )
+    say(
+        f"  simulating {betas.size} beta values x {settings.simulated_periods} periods, "
+        "up and down"
+    )
+    simulated = simulate_bifurcation(
+        model,
+        betas,
+        periods=settings.simulated_periods,
+        record_periods=settings.simulated_record_periods,
+        mode="continuation",
+    )
+    diagrams = simulated
+    if regimes:
+        measured = bifurcation_from_recording([r["beta"] for r in regimes], sections)
+        diagrams = (*simulated, measured)
+    write_json(
+        folder / "bifurcation.json",
+        {
+            "frequency_hz": settings.sweep_frequency_hz,
+            "model": {
+                "rig": model.rig.as_dict(),
+                "extensions": {k: dict(v) for k, v in model.extensions.items()},
+            },
+            "diagrams": [
+                {
+                    "direction": d.direction,
+                    "parameter": d.parameter_name,
+                    "values": d.parameter.tolist(),
+                    "theta_rad": [[v for v in row if math.isfinite(v)] for row in d.theta.tolist()],
+                }
+                for d in diagrams
+            ],
+        },
+    )
+    return diagrams
+
+
+def identified_model(
+    parameters: Mapping[str, Mapping[str, Any]],
+    rig,
+    frequency_hz: float,
+    causes: Mapping[str, Mapping[str, float]] | None = None,
+):
+    """The model with identified L, zeta, K, mu0 (and theta_b) on the recording's rig constants
+    (m, l, R, g: ``rig``), the found causes switched on, driven at ``frequency_hz``."""
+    from analysis.model import Drive, Model
+
+    values = {
+        key: parameters[key]["value"]
+        for key in ("L_m", "zeta", "mu0_s_per_m", "theta_b_rad")
+        if key in parameters
+    }
+    fitted = rig.with_values(**values).with_stiffness(parameters["K_N_per_m1.5"]["value"])
+    model = Model(rig=fitted, drive=Drive(amplitude_m=0.0, frequency_hz=frequency_hz))
+    for name, cause_values in (causes or {}).items():
+        model = model.with_extension(name, **cause_values)
+    return model
+
+
+def explained_parameters(
+    baseline: Mapping[str, Mapping[str, Any]], findings: Mapping[str, Mapping[str, Any]]
+) -> tuple[dict[str, dict[str, Any]], dict[str, dict[str, float]]]:
+    """Parameters of the model the discrepancy analysis arrived at, and the causes it added.
+
+    L, omega, zeta come from the free decay's extended fit, K, E, mu0, theta_b from the
+    impact decay's (each record's own finding); without a finding, the baseline's values.
+    Each cause takes its parameters from the record that found it (the impact decay first).
+    A forced record's finding is reported but not merged: its fit starts from the decays'
+    values and judges a short steady state, so it refines what they found rather than
+    founding the model.
+    """
+    from analysis.extensions import NONE as NO_CAUSE
+    from analysis.extensions import cause
+
+    out = {key: dict(value) for key, value in baseline.items()}
+    sources = {
+        "free_decay": ("L_m", "omega_rad_s", "zeta"),
+        "impact_decay": ("K_N_per_m1.5", "E_Pa", "mu0_s_per_m", "theta_b_rad"),
+    }
+    causes: dict[str, dict[str, float]] = {}
+    for name in ("impact_decay", "free_decay"):
+        report = findings.get(name)
+        if not report:
+            continue
+        extended = report.get("extended", {}).get("parameters", {})
+        for key in sources.get(name, ()):
+            if key in extended and "value" in extended[key]:
+                out[key] = {**extended[key], "from": f"{name}, extended model"}
+        found = report.get("cause", NO_CAUSE)
+        if found != NO_CAUSE and found not in causes:
+            names = [spec.name for spec in cause(found).parameters]
+            causes[found] = {k: extended[k]["value"] for k in names if k in extended}
+            for k in names:
+                if k in extended:
+                    out[k] = {**extended[k], "from": f"{name}, extended model"}
+    return out, causes
