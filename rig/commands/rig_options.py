@@ -113,7 +113,8 @@ class ProgressLine:
 def report(result) -> None:
     """One summary line on stdout."""
     print(
-        f"{result.path}: {result.experiment}, {result.samples_written} samples written, "
+        f"{result.path}: {result.experiment}, {result.samples_written} samples written "
+        "(all channels), "
         f"{result.samples_lost} lost, {result.duration_s:.1f} s"
         + (f", {result.steps} sweep steps" if result.steps else "")
         + f" ({result.stop_reason})"
