@@ -260,3 +260,61 @@ def test_recorder_refuses_blocks_of_an_undeclared_channel(tmp_path):
         recorder.add(stray.read(), 0.0)
     recorder.add(DriveSetting(0.0, 0, 1.0, 0.001, True), 0.0)
     recorder.close()
+
+
+def test_impact_rig_record_killed_with_sigkill_leaves_a_readable_prefix(tmp_path):
+    """The product path: the CLI recording the virtual rig (pty + Modbus) is killed -9."""
+    path = tmp_path / "cli_killed.h5"
+    process = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "rig.cli",
+            "record",
+            "--sim",
+            "--experiment",
+            "forced",
+            "--drive-hz",
+            "5",
+            "--beta",
+            "0.02",
+            "--settle",
+            "0.2",
+            "--duration",
+            "120",
+            "--fs",
+            "2000",
+            "--out",
+            str(path),
+            "--quiet",
+        ],
+        cwd=REPO,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    try:
+
+        def reader_sees_data():
+            if process.poll() is not None:
+                raise AssertionError(f"the recording ended early: {process.stderr.read()}")
+            if not path.exists():
+                return False
+            try:
+                with open_recording(path) as live:
+                    return len(live.channel("angle")) >= 4_000
+            except (OSError, ValueError):
+                return False
+
+        assert _wait_until(reader_sees_data, 120)
+    finally:
+        os.kill(process.pid, signal.SIGKILL)
+        process.wait(10)
+    with open_recording(path) as rec:
+        assert not rec.status().closed
+        angle, table = rec.channel("angle"), rec.channel("table")
+        assert len(angle) >= 4_000
+        np.testing.assert_array_equal(np.diff(angle.indices), 1)
+        np.testing.assert_array_equal(angle.indices[: len(table)], table.indices[: len(angle)])
+        assert rec.drive_log()["enabled"][0] == 1
+        assert rec.info.devices["daq"]["model"] == "IRDAQ-4"
