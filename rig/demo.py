@@ -296,7 +296,7 @@ def run_demo(
     lap("regimes")
 
     say("[5/6] discrepancy analysis (it is not told what the virtual rig hides)")
-    findings = analyse_discrepancies(records, regimes, folder, settings, say, notes)
+    findings = analyse_discrepancies(records, regimes, baseline, folder, settings, say, notes)
     parameters, causes = explained_parameters(baseline, findings)
     write_json(
         folder / "parameters.json",

@@ -143,12 +143,14 @@ def _noise(angle: np.ndarray) -> tuple[float, float]:
 def analyse_discrepancies(
     records: Mapping[str, Any],
     regimes: list[dict[str, Any]],
+    baseline: Mapping[str, Mapping[str, Any]],
     folder: Path,
     settings: DemoSettings,
     say: Progress,
     notes: list[str],
 ) -> dict[str, dict[str, Any]]:
-    """The discrepancy analysis (analysis.discrepancy) on each decay and on one sweep step."""
+    """The discrepancy analysis (analysis.discrepancy) on each decay, then on one sweep step
+    started from the model the decays arrived at (``baseline`` when they found nothing)."""
     try:
         from analysis.discrepancy import AnalysisError, analyze_record
         from analysis.report import write_report as write_analysis_report
@@ -173,9 +175,15 @@ def analyse_discrepancies(
                 f"quick demo: the impact decay was checked for {found} only (what the free "
                 "decay showed); the full demo tries every candidate cause"
             )
+        priors = None
+        if name == "forced_step":
+            explained, _ = explained_parameters(baseline, findings)
+            priors = {key: explained[key]["value"] for key in FORCED_PRIORS if key in explained}
         say(f"  {name}:" + (f" (candidates: {', '.join(causes)})" if causes else ""))
         try:
-            analysis = analyze_record(record, progress=indented(say), causes=causes)
+            analysis = analyze_record(
+                record, progress=indented(say), causes=causes, priors=priors
+            )
         except (AnalysisError, ValueError) as error:
             notes.append(f"discrepancy analysis of {name} failed: {error}")
             say(f"    failed: {error}")
@@ -183,6 +191,9 @@ def analyse_discrepancies(
         page = write_analysis_report(analysis, folder / ANALYSIS, name=name)
         findings[name] = {**analysis.as_json(), "page": str(page.relative_to(folder))}
     return findings
+
+
+FORCED_PRIORS = ("omega_rad_s", "zeta", "K_N_per_m1.5", "mu0_s_per_m")
 
 
 def _forced_step_to_analyse(steps: list[Any], regimes: list[dict[str, Any]]):
