@@ -154,10 +154,11 @@ def run_with_gui(seconds: float, folder: Path, view: str) -> dict:
     from PySide6.QtCore import QTimer
     from PySide6.QtWidgets import QApplication
 
-    from gui.app import VIEW_NAMES, MainWindow, frames_per_second
+    from gui.app import GIL_SWITCH_INTERVAL_S, VIEW_NAMES, MainWindow, frames_per_second
     from gui.live_data import LiveData
     from gui.worker import Session
 
+    sys.setswitchinterval(GIL_SWITCH_INTERVAL_S)  # as `impact-rig gui` does
     app = QApplication.instance() or QApplication([])
     window = MainWindow()
     window.resize(1280, 800)

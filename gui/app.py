@@ -46,6 +46,9 @@ from rig.devices import virtual_config
 DEFAULT_FRAME_RATE_HZ = 33.0  # a 30 ms timer: at least 30 frames drawn per second
 SPECTRUM_PERIOD_S = 0.5
 STATUS_PERIOD_MS = 500
+# The GUI thread makes hundreds of Qt calls per frame and each gives up the GIL; with the
+# default 5 ms switch interval a busy acquisition thread can make every one of them wait.
+GIL_SWITCH_INTERVAL_S = 0.001
 VIEW_NAMES = ("time", "spectrum", "poincare", "phase", "analysis")
 
 pg.setConfigOptions(background="w", foreground="k", antialias=False)
@@ -67,7 +70,8 @@ class MainWindow(QMainWindow):
         self.settings = settings or AppSettings()
         self.sample_rate_override = sample_rate_hz
         self.tasks = TaskRunner("gui-device", self)  # commands, in order
-        self.polls = TaskRunner("gui-poll", self)  # status reads (never delay a STOP)
+        self.polls = TaskRunner("gui-poll", self)  # status reads
+        self.stops = TaskRunner("gui-stop", self)  # STOP never waits behind another command
         self.analysis_tasks = TaskRunner("gui-analysis", self)
         self.view_tasks = TaskRunner("gui-views", self)  # heavy view computations (spectrum)
         self._spectrum_busy = False
@@ -269,7 +273,7 @@ class MainWindow(QMainWindow):
         self.shaker_panel.enable.setChecked(False)
         session = self.session
         if isinstance(session, LiveSession):
-            self.tasks.submit(
+            self.stops.submit(
                 session.stop_drive,
                 None,
                 lambda error: self.shaker_panel.show_message(f"STOP failed: {error}"),
@@ -536,6 +540,7 @@ class MainWindow(QMainWindow):
         session, self.session = self.session, None
         if session is not None:
             session.close()
+        self.stops.shutdown()
         self.tasks.shutdown()
         self.polls.shutdown()
         self.analysis_tasks.shutdown(wait=False)

@@ -81,8 +81,9 @@ def run(args: argparse.Namespace) -> int:
     from PySide6.QtCore import QTimer
     from PySide6.QtWidgets import QApplication
 
-    from gui.app import MainWindow, open_source
+    from gui.app import GIL_SWITCH_INTERVAL_S, MainWindow, open_source
 
+    sys.setswitchinterval(GIL_SWITCH_INTERVAL_S)  # keep the GUI thread responsive (see app.py)
     app = QApplication.instance() or QApplication(sys.argv[:1])
     app.setApplicationName("impact-rig")
     window = MainWindow(sample_rate_hz=args.fs)
