@@ -107,8 +107,6 @@ def load_record(path: str | Path, meta_path: str | Path | None = None) -> Record
     """Read a record: exchange CSV (sidecar beside it, or ``meta_path``) or a registered type."""
     path = Path(path)
     suffix = path.suffix.lower()
-    if suffix in (".h5", ".hdf5") and suffix not in _LOADERS:
-        import analysis.hdf5_records  # noqa: F401 - registers the recorder's HDF5 loader
     loader = _LOADERS.get(suffix)
     if loader is None and suffix in (".h5", ".hdf5"):
         # The recorder's layout is read by analysis.hdf5_records, which registers itself.
