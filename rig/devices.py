@@ -187,7 +187,7 @@ def _start_virtual_rig(config: RigConfig, sample_rate_hz: float, speed: float):
     from hardware_sim.sim_rig import SimRig
     from hardware_sim.virtual_rig import LaserCalibration as LaserOutput
     from hardware_sim.virtual_rig import PotentiometerCalibration as PotentiometerOutput
-    from hardware_sim.virtual_rig import VirtualRig, VirtualRigSettings
+    from hardware_sim.virtual_rig import VirtualRigSettings
 
     constants = config.constants
     pot, laser = config.angle_calibration, config.table_calibration
@@ -222,12 +222,7 @@ def _start_virtual_rig(config: RigConfig, sample_rate_hz: float, speed: float):
         seed=config.virtual.seed,
         speed_factor=speed,
     )
-    # The physics is numba-compiled on its first use (tens of seconds on a fresh install,
-    # holding the interpreter meanwhile): compile it on a throwaway rig, swinging into the
-    # barrier, before the emulators run, so the board does not stall on its first frames.
-    warm_up = VirtualRig(replace(settings, seed=0))
-    warm_up.release(-0.3)
-    warm_up.generate(round(sample_rate_hz))
+    # SimRig.start compiles the physics before its emulators serve (no stalled first frames)
     return SimRig(settings).start()
 
 
