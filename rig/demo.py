@@ -254,7 +254,7 @@ def run_demo(
     notes: list[str] = []
     folder = prepare_folder(folder, overwrite=overwrite)
     config = demo_config(load_config(config_path), hidden)
-    truth = _truth(config)
+    truth = {**_truth(config), **hidden.values}  # a hidden cause sets its own values
 
     def lap(name: str) -> None:
         timings[name] = round(time.monotonic() - clock - sum(timings.values()), 2)

@@ -79,8 +79,6 @@ def write_report(result, settings, recordings, findings, figures, config) -> Pat
     for key, estimate in result.parameters.items():
         base = result.baseline.get(key)
         truth = result.truth.get(key)
-        if truth is None:
-            truth = result.hidden.values.get(key)
         truth_text = f"{truth:.6g}" if truth is not None else "-"
         add(
             f"| `{key}` | {_value(base)} | {_interval(base, truth)} | {_value(estimate)} | "
