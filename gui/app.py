@@ -143,6 +143,7 @@ class MainWindow(QMainWindow):
         self.connection_panel.connect_requested.connect(self._connect_requested)
         self.connection_panel.disconnect_requested.connect(self.disconnect_source)
         self.shaker_panel.apply_requested.connect(self.apply_drive)
+        self.shaker_panel.clear_faults_requested.connect(self.clear_faults)
         self.recording_panel.start_requested.connect(self.start_recording)
         self.recording_panel.stop_requested.connect(self.stop_recording)
         self.recording_panel.sweep_requested.connect(self.start_sweep)
@@ -267,6 +268,16 @@ class MainWindow(QMainWindow):
             lambda _: self.shaker_panel.show_message(""),
             lambda error: self.shaker_panel.show_message(f"Refused: {error}"),
         )
+
+    def clear_faults(self) -> None:
+        """Clear the amplifier's latched faults (the drive stays off until enabled again)."""
+        session = self.session
+        if isinstance(session, LiveSession):
+            self.tasks.submit(
+                session.clear_faults,
+                lambda _: self.shaker_panel.show_message(""),
+                lambda error: self.shaker_panel.show_message(f"cannot clear faults: {error}"),
+            )
 
     def stop_drive(self) -> None:
         """The STOP button: ramp the drive to zero and switch it off."""

@@ -29,6 +29,7 @@ class ShakerPanel(QGroupBox):
     """Drive settings; ``apply_requested(frequency_hz, amplitude_m, enabled, ramp_m_s)``."""
 
     apply_requested = Signal(float, float, bool, float)
+    clear_faults_requested = Signal()
 
     def __init__(self, parent: QWidget | None = None) -> None:
         super().__init__("Shaker", parent)
@@ -48,6 +49,8 @@ class ShakerPanel(QGroupBox):
         self.ramp.setValue(5.0)
         self.enable = QCheckBox("drive on")
         self.apply = QPushButton("Apply")
+        self.clear_faults = QPushButton("Clear faults")
+        self.clear_faults.setToolTip("clear latched amplifier faults whose cause is gone")
         self.limits_label = QLabel("")
         self.limits_label.setWordWrap(True)
         self.message = QLabel("")
@@ -59,11 +62,13 @@ class ShakerPanel(QGroupBox):
         form.addRow("beta = A/L", self.beta)
         form.addRow("Ramp rate", self.ramp)
         form.addRow(self.enable, self.apply)
+        form.addRow(self.clear_faults)
         form.addRow(self.limits_label)
         form.addRow(self.message)
         self.amplitude_mm.valueChanged.connect(self._amplitude_changed)
         self.beta.valueChanged.connect(self._beta_changed)
         self.apply.clicked.connect(self._apply)
+        self.clear_faults.clicked.connect(self.clear_faults_requested.emit)
         self._syncing = False
         self.setEnabled(False)
 

@@ -80,3 +80,24 @@ def test_settings_persist_between_runs(qapp, tmp_path):
     finally:
         second.shutdown()
         second.close()
+
+
+def test_unreachable_real_rig_is_reported_in_words(qapp, tmp_path):
+    from rig.config import default_config_path
+    from tests.gui.conftest import wait_until
+
+    text = default_config_path().read_text()
+    text = text.replace('kind = "virtual"', 'kind = "real"')
+    text = text.replace('port = "sim"', f'port = "{tmp_path / "no-such-port"}"')
+    rig_file = tmp_path / "lab.toml"
+    rig_file.write_text(text)
+    window = MainWindow(AppSettings(str(tmp_path / "gui.ini")))
+    try:
+        window.open_rig_file(str(rig_file))
+        wait_until(qapp, lambda: window.last_error, 30, "the connection attempt to fail")
+        state = window.connection_panel.state.text()
+        assert state.startswith("cannot connect:") and "no-such-port" in state
+        assert window.session is None and window.connection_panel.connect_button.isEnabled()
+    finally:
+        window.shutdown()
+        window.close()

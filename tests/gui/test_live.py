@@ -202,7 +202,8 @@ def test_amplifier_fault_appears_in_plain_words(qapp, window):
         10,
         "the fault in the status panel",
     )
-    window.session.clear_faults()
+    assert window.status_panel.fields["faults"].styleSheet().startswith("color: #b00000")
+    window.shaker_panel.clear_faults.click()
     wait_until(qapp, lambda: window.status_panel.text("faults") == "none", 10, "the fault to clear")
 
 
