@@ -33,7 +33,6 @@ from gui.panels.recording import RecordingPanel
 from gui.panels.replay import ReplayPanel
 from gui.panels.shaker import ShakerPanel
 from gui.panels.status import StatusPanel
-from gui.refcount_guard import protect_singletons
 from gui.settings import AppSettings
 from gui.views.phase_view import PhasePortraitView
 from gui.views.poincare_view import PoincareView
@@ -52,7 +51,6 @@ GIL_SWITCH_INTERVAL_S = 0.001
 VIEW_NAMES = ("time", "spectrum", "poincare", "phase", "analysis")
 
 pg.setConfigOptions(background="w", foreground="k", antialias=False)
-protect_singletons()  # before any Qt call: see gui/refcount_guard.py
 
 
 class MainWindow(QMainWindow):
