@@ -41,7 +41,7 @@ BASELINE_PARAMETERS: dict[str, tuple[str, ...]] = {
 }
 POSITIVE = {"omega_rad_s", "K_N_per_m1.5"}  # fitted on a log scale
 BOUNDS = {
-    "theta0_rad": (-math.pi / 2, math.pi / 2),
+    "theta0_rad": (-math.pi, math.pi),  # large free swings start beyond the horizontal
     "theta_dot0_rad_s": (-math.inf, math.inf),
     "omega_rad_s": (0.0, math.inf),
     "zeta": (0.0, 0.5),

@@ -57,3 +57,22 @@ def test_restitution_model_conserves_energy_between_impacts(amplitude):
         expected = math.acos(1.0 - e ** (2 * k) * (1.0 - math.cos(amplitude)))
         assert -low == pytest.approx(expected, rel=1e-4)
     assert theta.max() <= 1e-9  # never through the barrier
+
+
+def test_invariants_poincare_section_of_a_sine_is_its_value_at_phase_zero():
+    from analysis.discrepancy.invariants import invariant_distance, invariants
+
+    f, phase0 = 2.0, 0.7
+    t = np.arange(0, 30, 1e-3)
+    theta = 0.2 * np.cos(2 * math.pi * f * t + phase0)  # at drive phase 0 it reads 0.2
+    inv = invariants(t, theta, f, phase0)
+    assert inv.poincare_rad.size >= 58
+    np.testing.assert_allclose(inv.poincare_rad, 0.2, atol=1e-4)
+    assert invariant_distance(inv, inv) == 0.0
+    # a period-2 subharmonic changes the statistics; the same motion with noise hardly
+    rng = np.random.default_rng(1)
+    sub = theta + 0.05 * np.cos(math.pi * f * t)
+    noisy = theta + rng.normal(0, 1e-4, t.size)
+    d_sub = invariant_distance(inv, invariants(t, sub, f, phase0))
+    d_noise = invariant_distance(inv, invariants(t, noisy, f, phase0))
+    assert d_sub > 5 * d_noise
