@@ -173,7 +173,7 @@ def coefficients(p, contact):
     )
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True)
 def region_acceleration(t, th, om, k):
     """analysis.model.smooth_acceleration for the coefficient tuple ``k`` (see above)."""
     s = math.sin(th)
@@ -198,13 +198,13 @@ def region_acceleration(t, th, om, k):
     return acc
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True)
 def _acc(t, th, om, pr, slide, tc):
     """theta'' of the current region: smooth terms plus friction in a fixed direction."""
     return region_acceleration(t, th, om, pr) - slide * tc
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True)
 def _rk_step(t, th, om, a1, h, pr, slide, tc, kth, kom, rtol, atol):
     """One DOP853 step: fills the stage slopes; returns theta, theta', theta'' at the end and
     the scaled error norm (Hairer's blend of the 5th- and 3rd-order estimates)."""
@@ -285,7 +285,7 @@ def _dense_coefficients(t, th, om, th1, om1, h, pr, slide, tc, kth, kom, S):
             S[base + j] = c
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True)
 def _poly(y0, S, base, s):
     acc = S[base + DEGREE - 1]
     for j in range(DEGREE - 2, -1, -1):
@@ -293,7 +293,7 @@ def _poly(y0, S, base, s):
     return y0 + s * acc
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True)
 def _poly_slope(S, base, s):
     acc = DEGREE * S[base + DEGREE - 1]
     for j in range(DEGREE - 2, -1, -1):
@@ -547,7 +547,7 @@ def _initial_step(t, th, om, a, pr, slide, tc, rtol, atol):
     return min(100.0 * h0, h1)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)  # nogil: ensembles run members in threads
 def integrate(
     p,
     S,

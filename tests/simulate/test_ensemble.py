@@ -12,9 +12,7 @@ from analysis.simulate import simulate_ensemble, simulate_packed
 def test_parameter_sweep_members_equal_individual_runs():
     rig, drive = paper_case("h").dimensional()
     base = Model(rig, drive).pack()
-    # non-chaotic members: the parallel build may round differently in the last bit, which a
-    # chaotic transient would amplify; equality is then to ~1e-12
-    betas = np.array([0.02, 0.03, 0.05, 0.08])
+    betas = np.array([0.02, 0.03, 0.114, 0.12])
     packed = np.tile(base, (betas.size, 1))
     packed[:, P.A1] = betas * rig.L_m
     packed[-1, P.OMEGA_DRIVE] *= 0.9  # another frequency: fewer Poincare samples, NaN padded
@@ -23,11 +21,11 @@ def test_parameter_sweep_members_equal_individual_runs():
     for i in range(betas.size):
         single = simulate_packed(packed[i], -0.2, 0.5, duration_s=3.0, fs_hz=500.0, skip_s=2.0)
         count = single.poincare.theta.size
-        assert np.allclose(result.poincare[i, :count, 0], single.poincare.theta, 0, 1e-10)
-        assert np.allclose(result.poincare[i, :count, 1], single.poincare.theta_dot, 0, 1e-9)
+        assert np.array_equal(result.poincare[i, :count, 0], single.poincare.theta)
+        assert np.array_equal(result.poincare[i, :count, 1], single.poincare.theta_dot)
         assert np.all(np.isnan(result.poincare[i, count:]))
         assert np.allclose(result.poincare_t[i, :count], single.poincare.t, rtol=0, atol=1e-12)
-        assert np.allclose(result.samples[i, :, 0], single.theta, rtol=0, atol=1e-10)
+        assert np.array_equal(result.samples[i, :, 0], single.theta)
         assert result.n_steps[i] == single.n_steps
         assert result.record_start_s[i] == single.record_start_s
         assert result.contacts[i] == single.contacts.count > 0
@@ -43,7 +41,7 @@ def test_initial_state_grid_with_one_parameter_vector():
     assert result.samples is None and result.ok.all()
     for (theta0, theta_dot0), poincare in zip(grid, result.poincare, strict=True):
         single = simulate_packed(p, theta0, theta_dot0, duration_s=1.0, fs_hz=10, skip_s=5.0)
-        assert np.allclose(poincare[:, 0], single.poincare.theta, rtol=0, atol=1e-10)
+        assert np.array_equal(poincare[:, 0], single.poincare.theta)
 
 
 def test_mismatched_shapes_are_refused():
