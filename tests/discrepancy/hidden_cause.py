@@ -106,7 +106,15 @@ def draw_case(
         values["Tc_N_m"] = ratio * 2 * math.pi * rig.zeta * A * rig.m_kg * rig.L_m**2 * omega**2 / 4
     elif cause_name == "quadratic_drag":
         ratio = float(rng.uniform(*strength))
-        values["c2_per_rad"] = ratio * 2 * rig.zeta * 3 * math.pi / (8 * A)
+        zeta_drag = ratio * rig.zeta  # equivalent viscous damping (8 / 3 pi) c2 A / 2
+        if experiment != "free_decay":
+            # Drag's speed-dependent loss looks like Hunt-Crossley's speed-dependent
+            # restitution; it shows only when it rivals the impact loss per swing,
+            # 1 - e^2 ~ (4/3) mu0 v, against the drag's 4 pi zeta_drag.
+            speed = rig.l_m * omega * A
+            zeta_drag = float(rng.uniform(0.5, 1.5)) * (4 / 3) * rig.mu0_s_per_m * speed / (
+                4 * math.pi)
+        values["c2_per_rad"] = zeta_drag * 2 * 3 * math.pi / (8 * A)
     elif cause_name == "sensor_offset":
         values["offset_rad"] = float(rng.uniform(0.005, 0.03)) * float(rng.choice([-1.0, 1.0]))
     elif cause_name == "sensor_nonlinearity":
