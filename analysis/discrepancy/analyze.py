@@ -357,6 +357,7 @@ def assess_candidate(
     baseline: FitResult, baseline_heldout: float, scale: RecordScale,
     hints: dict[str, float] | None = None,
     reference: tuple[FitData, Invariants, float] | None = None,
+    identified: dict[str, float] | None = None,
 ) -> CandidateOutcome:
     """Fit one cause on the training part and on the whole record; judge it.
 
@@ -365,11 +366,17 @@ def assess_candidate(
     """
     head = data.head(n_train / data.t.size)
     own = {s.name for s in cause(cause_name).parameters}
-    start = {**baseline_train.values, **{k: v for k, v in (hints or {}).items() if k in own}}
-    train = fit(head, cause_name, start, scale)
+    hinted = {k: v for k, v in (hints or {}).items() if k in own}
+    train = fit(head, cause_name, baseline_train.values, scale)
+    if hinted and identified is not None:
+        # The identification fitted this parameter together with the baseline's: its
+        # whole solution is a second start, often in another basin than the baseline's.
+        second = fit(head, cause_name, {**identified, **hinted}, scale)
+        if second.rms < train.rms:
+            train = second
     prediction, _ = predict(data, cause_name, train.values)
     heldout = heldout_rms(prediction, data.y, data.valid, n_train)
-    full = fit(data, cause_name, {**baseline.values, **_cause_values(train)}, scale)
+    full = fit(data, cause_name, train.values, scale)
     distances: tuple[float | None, float | None] = (None, None)
     if reference is not None:
         whole, measured, base_distance = reference
@@ -483,7 +490,8 @@ def analyze_record(
     if causes is not None:
         names = [n for n in names if n in causes]
     jobs = [
-        (n, data, n_train, baseline_train, baseline, baseline_heldout, scale, hints, reference)
+        (n, data, n_train, baseline_train, baseline, baseline_heldout, scale, hints, reference,
+         start)
         for n in names
     ]
     workers = workers if workers is not None else min(2, os.cpu_count() or 1)
