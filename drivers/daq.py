@@ -114,17 +114,24 @@ class RoleQueue:
     def push(self, chunk: RawChunk, lost_before: int) -> None:
         """Queue a chunk (the reader thread); when full, wait or drop the oldest, as configured."""
         with self.condition:
-            while (
-                self.wait_when_full
-                and self.queued_samples >= self.max_samples
-                and not self.stopping.is_set()
-                and not self.closed
-            ):
-                self.condition.wait(0.05)  # back-pressure: the device drops, and says so
+            if self.wait_when_full:
+                # Back-pressure until the chunk fits (an empty queue takes any chunk): the
+                # device drops, and says so.  Nothing is dropped here.
+                while (
+                    self.queued_samples
+                    and self.queued_samples + chunk.n_samples > self.max_samples
+                    and not self.stopping.is_set()
+                    and not self.closed
+                ):
+                    self.condition.wait(0.05)
             self.chunks.append((chunk, lost_before))
             self.queued_samples += chunk.n_samples
             self.samples_lost += lost_before
-            while self.queued_samples > self.max_samples and len(self.chunks) > 1:
+            while (
+                not self.wait_when_full
+                and self.queued_samples > self.max_samples
+                and len(self.chunks) > 1
+            ):
                 # The role is not being read: drop its oldest samples, and say so.
                 dropped, lost = self.chunks.popleft()
                 self.queued_samples -= dropped.n_samples

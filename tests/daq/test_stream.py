@@ -9,13 +9,14 @@ from __future__ import annotations
 
 import itertools
 import math
+import threading
 import time
 from collections import Counter
 
 import numpy as np
 import pytest
 
-from drivers.daq import DaqBoard
+from drivers.daq import DaqBoard, RawChunk, RoleQueue
 from drivers.interfaces import (
     DeviceError,
     InputStream,
@@ -299,3 +300,23 @@ def test_board_declaration_validates_its_settings():
         DaqBoard(None, sample_rate_hz=1000, analog_channels=(1, 1))  # type: ignore[arg-type]
     with pytest.raises(LimitError, match="analog_channels is empty"):
         DaqBoard(None, sample_rate_hz=1000, analog_channels=())  # type: ignore[arg-type]
+
+
+def test_a_waiting_role_queue_holds_the_reader_back_and_never_drops():
+    def chunk(first: int, n: int) -> RawChunk:
+        return RawChunk(first, np.zeros((n, 1), dtype=np.int16), np.zeros(n, dtype=np.uint16))
+
+    queue = RoleQueue(100, wait_when_full=True, stopping=threading.Event())
+    queue.push(chunk(0, 60), 0)
+    reader = threading.Thread(target=queue.push, args=(chunk(60, 60), 0))
+    reader.start()
+    reader.join(0.3)
+    assert reader.is_alive()  # 60 + 60 would not fit in 100: the reader waits
+    assert queue.queued_samples == 60 and queue.samples_lost == 0
+    taken = queue.take(1.0, board=None)  # type: ignore[arg-type]
+    assert taken is not None and taken[0].n_samples == 60
+    reader.join(5.0)
+    assert not reader.is_alive()
+    taken = queue.take(1.0, board=None)  # type: ignore[arg-type]
+    assert taken is not None and taken[0].first_index == 60 and taken[1] == 0
+    assert queue.samples_lost == 0 and queue.samples_received == 120
