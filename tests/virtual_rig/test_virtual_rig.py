@@ -5,6 +5,7 @@ from __future__ import annotations
 import itertools
 import math
 import threading
+import time
 
 import numpy as np
 import pytest
@@ -196,15 +197,16 @@ def test_block_size_does_not_change_the_stream() -> None:
 def test_commands_from_another_thread_while_generating() -> None:
     rig = VirtualRig(VirtualRigSettings(sample_rate_hz=20_000.0))
     errors: list[BaseException] = []
+    commands = [0]
     done = threading.Event()
 
     def command() -> None:
         try:
-            i = 0
             while not done.is_set():
-                i += 1
+                i = commands[0] = commands[0] + 1
                 rig.shaker.set_targets(amplitude_m=0.001 * (i % 3), frequency_hz=5.0 + i % 4)
                 rig.set_barrier(i % 2 == 0)
+                time.sleep(0)  # let the generating thread in: locks are not fair
         except BaseException as error:  # reported below
             errors.append(error)
 
@@ -216,6 +218,7 @@ def test_commands_from_another_thread_while_generating() -> None:
         done.set()
         worker.join()
     assert errors == []
+    assert commands[0] > 0  # commands really came while it generated
     assert total == 40_000 and rig.samples_generated == 40_000
 
 
