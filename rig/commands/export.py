@@ -86,6 +86,9 @@ def run(args: argparse.Namespace) -> int:
     out = Path(args.out)
     if out.suffix.lower() != ".csv":
         raise CommandError(f"--out {out}: expected a file name ending in .csv")
+    folder = out.parent if str(out.parent) else Path(".")
+    if not folder.is_dir():
+        raise CommandError(f"--out {out}: folder {folder} does not exist")
     try:
         if args.per_step:
             records = load_hdf5_steps(args.recording)
@@ -115,7 +118,10 @@ def run(args: argparse.Namespace) -> int:
     for k, (record, name) in enumerate(zip(records, names, strict=True)):
         if len(records) > 1:
             print(f"writing {k + 1}/{len(records)} ...", file=sys.stderr, flush=True)
-        csv_path, json_path = write_exchange(name, to_exchange(record))
+        try:
+            csv_path, json_path = write_exchange(name, to_exchange(record))
+        except OSError as error:  # unwritable folder, full disk: say which file, no traceback
+            raise CommandError(f"{name}: cannot write ({error.strerror or error})") from None
         print(
             f"{csv_path} + {json_path.name}: {record.time_s.size} samples at "
             f"{record.sample_rate_hz:g} Hz ({record.experiment}"

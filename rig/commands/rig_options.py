@@ -8,6 +8,7 @@ Modbus TCP amplifier, started in this process).
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 import time
 from pathlib import Path
@@ -18,6 +19,17 @@ CONFIG_HELP = (
     "rig file (TOML): devices and ports, calibrations, safety limits, rig constants "
     "(default: the shipped rig/default_rig.toml, which is the virtual rig)"
 )
+
+
+def sample_rate(text: str) -> float:
+    """--fs as a positive, finite number of Hz (argparse names the option on refusal)."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number of Hz") from None
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"{text!r}: expected a positive sample rate in Hz")
+    return value
 
 
 def add_rig_options(parser: argparse.ArgumentParser) -> None:
@@ -32,7 +44,7 @@ def add_rig_options(parser: argparse.ArgumentParser) -> None:
     )
     group.add_argument(
         "--fs",
-        type=float,
+        type=sample_rate,
         metavar="HZ",
         help="DAQ sample rate in Hz (default: the rig file's daq.sample_rate_hz)",
     )
