@@ -284,6 +284,8 @@ class _PtyBridge:
             tty.setraw(fd)  # no echo or line editing: Modbus bytes pass untouched
         # Keep the slaves open ourselves so the masters never see a hang-up between sessions.
         self._slaves = (server_slave, client_slave)
+        for fd in (self._server_master, self._client_master):
+            os.set_blocking(fd, False)  # a side nobody reads must not block the copying
         self._stop_r, self._stop_w = os.pipe()
         self._thread = threading.Thread(target=self._copy, name="rtu-pty-bridge", daemon=True)
         self._thread.start()
@@ -300,11 +302,16 @@ class _PtyBridge:
                 except OSError:
                     continue
                 if data:
-                    os.write(peer[fd], data)
+                    # what does not fit is lost, as on a real line nobody reads
+                    with contextlib.suppress(BlockingIOError):
+                        os.write(peer[fd], data)
 
     def close(self) -> None:
+        """Stop copying and close both pseudo-terminals."""
         os.write(self._stop_w, b"x")
         self._thread.join(2.0)
+        if self._thread.is_alive():
+            return  # never close descriptors under a thread still using them (numbers get reused)
         for fd in (
             self._server_master,
             self._client_master,
