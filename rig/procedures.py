@@ -164,9 +164,9 @@ class ProcedureSession:
 
     def __enter__(self) -> ProcedureSession:
         self.writer.start()
-        self.engine.start()
         self.started = time.monotonic()
         try:
+            self.engine.start()  # a stream that cannot start still leaves a closed, valid file
             if not self.wait(FIRST_DATA_TIMEOUT_S, until=lambda: self.engine.latest_index):
                 raise ProcedureError(
                     f"no data from the DAQ board within {FIRST_DATA_TIMEOUT_S:g} s "

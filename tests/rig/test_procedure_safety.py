@@ -3,6 +3,8 @@ and the recording is a valid file saying why it stopped."""
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -12,6 +14,7 @@ from rig.devices import open_rig
 from rig.engine import AcquisitionError
 from rig.procedures import SweepPlan, TimedPlan, record_timed, run_sweep
 from rig.recording_reader import open_recording
+from tests.rig.streams import TachStream
 
 
 @pytest.fixture(scope="module")
@@ -50,6 +53,24 @@ def test_ctrl_c_during_a_sweep_ramps_the_shaker_to_zero_and_marks_the_step_incom
     assert steps["amplitude_m"].tolist() == [0.5e-3, 1.0e-3]
     assert drive["enabled"][-1] == 0 and drive["amplitude_m"][-1] == 0.0
     assert samples > 2000
+
+
+class _TachThatCannotStart(TachStream):
+    """A tach input whose start fails, as a board refusing to stream would."""
+
+    def start(self) -> None:
+        raise OSError("board refused to stream")
+
+
+def test_a_stream_that_cannot_start_leaves_a_closed_file_saying_why(devices, tmp_path):
+    path = tmp_path / "never_started.h5"
+    broken = dataclasses.replace(devices, tach=_TachThatCannotStart())
+    plan = TimedPlan("free_decay", duration_s=1.0)
+    with pytest.raises(AcquisitionError, match="tach: cannot start"):
+        record_timed(broken, path, plan)
+    with open_recording(path) as rec:
+        status = rec.status()
+    assert status.closed and "board refused to stream" in status.stop_reason
 
 
 def test_a_daq_that_goes_away_stops_the_drive_and_keeps_the_data(tmp_path):
