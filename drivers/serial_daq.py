@@ -163,13 +163,13 @@ class SerialDaqBackend:
                 break
         if self._replies:
             return self._replies.popleft()
+        if expect_reply and self._gone:  # the port itself failed: not a matter of who answers
+            raise DeviceError(self._gone)
         if wrong_device_on_silence:
             raise WrongDeviceError(
                 f"nothing on {self.description} answered {line.decode().strip()} within "
                 f"{self.reply_timeout_s:g} s in the DAQ protocol: is this the DAQ board?"
             )
-        if expect_reply and self._gone:
-            raise DeviceError(self._gone)
         return None
 
     def _write(self, line: bytes) -> None:

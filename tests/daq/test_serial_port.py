@@ -37,7 +37,8 @@ def test_a_path_that_is_not_a_serial_port_is_refused(tmp_path):
 class OtherDevice:
     """A pty whose far end answers every line with ``answer`` (None: stays silent)."""
 
-    def __init__(self, answer: bytes | None) -> None:
+    def __init__(self, answer: bytes | None, *, hang_up: bool = False) -> None:
+        self.hang_up = hang_up
         self.master, self.slave = os.openpty()
         tty.setraw(self.slave)
         self.port = os.ttyname(self.slave)
@@ -56,13 +57,18 @@ class OtherDevice:
                     data = os.read(self.master, 1024)
                 except OSError:
                     return
+                if self.hang_up and b"IDN?" in data:
+                    os.close(self.master)  # the device vanishes as it is asked who it is
+                    self.master = -1
+                    return
                 if self.answer is not None and b"\n" in data:
                     os.write(self.master, self.answer)
 
     def close(self) -> None:
         self.running = False
         self.thread.join()
-        os.close(self.master)
+        if self.master >= 0:
+            os.close(self.master)
         os.close(self.slave)
 
 
@@ -164,3 +170,15 @@ def test_a_refused_configuration_leaves_the_port_closed():
         with pytest.raises(LimitError, match="outside the range"):
             board.open()
         assert backend._serial is None  # released: another program may open the port
+
+
+def test_a_port_that_vanishes_while_connecting_is_not_called_a_wrong_device():
+    other = OtherDevice(None, hang_up=True)
+    try:
+        backend = SerialDaqBackend(other.port, reply_timeout_s=0.5)
+        with pytest.raises(DeviceError, match="went away") as caught:
+            backend.connect()
+        assert not isinstance(caught.value, WrongDeviceError)
+        assert backend._serial is None  # the port was released
+    finally:
+        other.close()
