@@ -86,6 +86,16 @@ def read_meta(path: str | Path) -> ExchangeMeta:
         ) from None
     except (json.JSONDecodeError, UnicodeDecodeError) as error:
         raise ExchangeFormatError(f"{path}: not valid JSON ({error})") from None
+    return meta_from_json(raw, path)
+
+
+def meta_from_json(raw: Any, path: str | Path) -> ExchangeMeta:
+    """Validate already parsed sidecar JSON (``path`` names its source in errors).
+
+    Simulated HDF5 files carry the same JSON as an attribute, so the check lives apart
+    from the file reading.
+    """
+    path = Path(path)
     if not isinstance(raw, dict):
         raise ExchangeFormatError(f"{path}: expected a JSON object at the top level")
     experiment = raw.get("experiment")
@@ -133,6 +143,8 @@ def _optional_positive(
 def read_exchange(csv_path: str | Path, meta_path: str | Path | None = None) -> ExchangeRecord:
     """Read NAME.csv and its sidecar (NAME.json, or ``meta_path``), validating both."""
     csv_path = Path(csv_path)
+    if not csv_path.is_file():  # name the missing data file, not its missing sidecar
+        raise ExchangeFormatError(f"{csv_path}: file not found")
     meta = read_meta(meta_path or sidecar_path(csv_path))
     columns = _read_columns(csv_path)
     time_s = columns["time_s"]

@@ -4,6 +4,7 @@ Analysis imports nothing of the rig, so this reads the documented layout with h5
 directly (file I/O, not device I/O).  A record must be uniformly sampled: a recording
 with gaps is returned as its gap-free segments, never with samples filled in; a
 sweep is returned one record per step (its steady-state dwell, with its drive).
+The flat file that ``impact-rig simulate --out FILE.h5`` writes is read as well.
 Importing this module registers the loader for ``.h5`` and ``.hdf5`` with
 :func:`analysis.records.load_record`.
 """
@@ -17,6 +18,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 
+from analysis.exchange import meta_from_json
 from analysis.records import Record, RecordFormatError, register_loader
 
 FORMAT_NAME = "impact-rig recording"
@@ -184,12 +186,55 @@ def load_hdf5_steps(path: str | Path) -> list[Record]:
     return out
 
 
+def _is_simulated_layout(path: Path) -> bool:
+    """True for the flat file ``impact-rig simulate`` writes (no recorder 'format' attribute)."""
+    try:
+        with h5py.File(path, "r") as f:
+            return "format" not in f.attrs and "metadata" in f.attrs and "angle_rad" in f
+    except OSError:
+        return False  # not found / not HDF5: read_recording_arrays says which
+
+
+def load_simulated_hdf5(path: str | Path) -> Record:
+    """A record from ``impact-rig simulate --out FILE.h5``: root datasets and JSON 'metadata'.
+
+    The layout (``time_s``, ``angle_rad``, optional ``table_m`` and int8 ``tach`` at the
+    root; the exchange sidecar's JSON as the root attribute ``metadata``) is documented
+    in ``rig/commands/simulate.py``.
+    """
+    path = Path(path)
+    with h5py.File(path, "r") as f:
+        try:
+            meta = meta_from_json(json.loads(f.attrs["metadata"]), path)
+        except json.JSONDecodeError as error:
+            raise RecordFormatError(f"{path}: attribute 'metadata' is not JSON ({error})") from None
+        missing = [name for name in ("time_s", "angle_rad") if name not in f]
+        if missing:
+            raise RecordFormatError(f"{path}: no dataset {missing[0]!r} at the root")
+        columns = {name: f[name][()] for name in ("time_s", "angle_rad", "table_m", "tach")
+                   if name in f}
+    tach = columns.get("tach")
+    return Record(
+        time_s=columns["time_s"],
+        angle_rad=columns["angle_rad"],
+        experiment=meta.experiment,
+        rig=meta.rig,
+        drive=meta.drive,
+        table_m=columns.get("table_m"),
+        tach_indices=np.zeros(0, dtype=np.int64) if tach is None else np.flatnonzero(tach > 0),
+        source=str(path),
+        notes=meta.notes,
+    )
+
+
 def load_hdf5_record(path: Path, meta_path: Path | None = None) -> Record:
     """The whole recording as one record; an error naming the gaps when it has any."""
     if meta_path is not None:
         raise RecordFormatError(
             f"{meta_path}: an HDF5 recording carries its own metadata; drop --meta"
         )
+    if _is_simulated_layout(path):
+        return load_simulated_hdf5(path)
     arrays = read_recording_arrays(path)
     segments = gap_free_segments(arrays.indices)
     if not segments:

@@ -37,7 +37,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     """Add the ``identify`` sub-command."""
     parser = subparsers.add_parser(
         "identify",
-        help="identify model parameters of a record (CSV + JSON, later HDF5)",
+        help="identify model parameters of a record (exchange CSV + JSON, or HDF5)",
         description=DESCRIPTION,
         epilog=EPILOG,
         formatter_class=argparse.RawDescriptionHelpFormatter,

@@ -4,10 +4,11 @@ The CSV output is the exchange format of MODEL.md section 5 (``time_s``, ``angle
 and for forced runs ``table_m`` and ``tach``; the JSON sidecar beside it), so every
 analysis command reads a simulated record like a measured one.
 
-HDF5 output (``.h5``/``.hdf5``) uses a minimal layout until the recorder's own layout
-replaces it: one-dimensional float64 datasets ``time_s``, ``angle_rad``, ``table_m``
-(forced runs) and an int8 dataset ``tach`` (forced runs) at the root, and a root
-attribute ``metadata`` holding the same JSON text as the CSV sidecar.
+HDF5 output (``.h5``/``.hdf5``) uses a flat layout, simpler than the recorder's:
+one-dimensional float64 datasets ``time_s``, ``angle_rad``, ``table_m`` (forced runs)
+and an int8 dataset ``tach`` (forced runs) at the root, and a root attribute
+``metadata`` holding the same JSON text as the CSV sidecar.  ``analysis.hdf5_records``
+reads it back, so ``impact-rig identify FILE.h5`` works on it.
 """
 
 from __future__ import annotations

@@ -118,3 +118,25 @@ def test_impact_decay_with_length_and_damping_held_from_a_free_decay(decay_csv, 
     assert low < 3e5 * 1.01 and high > 3e5 * 0.99  # held L is itself uncertain (~1e-3)
     assert report["R_m"]["value"] == 0.0095
     assert {"E_Pa", "mu0_s_per_m", "theta_b_rad", "theta0_rad"} <= set(report)
+
+
+def test_simulated_hdf5_is_identified_like_its_csv(tmp_path, capsys):
+    # `simulate --out FILE.h5` writes a flat layout, not the recorder's; identify must read it.
+    h5 = tmp_path / "decay.h5"
+    assert main([
+        "simulate", "--experiment", "free_decay", "--theta0", "0.1", "--param", "L_m=0.1",
+        "--param", "zeta=0.02", "--duration", "5", "--fs", "400", "--noise-rad", "3e-4",
+        "--seed", "5", "--out", str(h5),
+    ]) == 0
+    out = tmp_path / "report.json"
+    assert main(["identify", str(h5), "--json", str(out)]) == 0
+    report = json.loads(out.read_text())
+    assert report["experiment"] == "free_decay"
+    L = report["parameters"]["L_m"]
+    assert L["ci95"][0] < 0.1 < L["ci95"][1]
+    assert abs(L["value"] - 0.1) < 1e-3
+
+
+def test_missing_data_file_is_named(tmp_path, capsys):
+    assert main(["identify", str(tmp_path / "absent.csv")]) != 0
+    assert "absent.csv: file not found" in capsys.readouterr().err

@@ -46,3 +46,18 @@ def test_inconsistent_arrays_are_refused():
         Record(np.arange(3.0), np.zeros(4), "free_decay")
     with pytest.raises(RecordFormatError, match="experiment"):
         Record(np.arange(3.0), np.zeros(3), "spin_up")
+
+
+def test_simulated_hdf5_keeps_drive_table_and_tach(tmp_path):
+    from rig.cli import main
+
+    h5 = tmp_path / "forced.h5"
+    assert main(["simulate", "--case", "d", "--duration", "1", "--fs", "1000",
+                 "--out", str(h5)]) == 0
+    record = load_record(h5)
+    assert record.experiment == "forced"
+    assert record.drive["frequency_hz"] == 10.0
+    # tach marks drive phase 0 (time 0 and every 1/f = 100 samples): the table is at zero there
+    assert list(record.tach_indices) == list(range(0, 1000, 100))
+    assert np.max(np.abs(record.table_m[record.tach_indices])) < 1e-12
+    assert np.max(np.abs(record.table_m)) == pytest.approx(record.drive["amplitude_m"], rel=1e-3)
