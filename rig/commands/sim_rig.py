@@ -193,7 +193,7 @@ def _read_commands(sim: Any, stopped: threading.Event) -> None:
     for line in sys.stdin:
         try:
             reply = _command(sim, line.split())
-        except (ValueError, KeyError) as error:
+        except ValueError as error:
             reply = f"error: {error}"
         if reply:
             print(reply, flush=True)
@@ -218,10 +218,16 @@ def _command(sim: Any, words: list[str]) -> str:
         sim.rig.set_barrier(rest[0] == "in")
         return f"ok barrier {rest[0]}"
     if verb == "fault" and len(rest) == 1:
-        sim.set_transport_fault(TransportFault(rest[0]))
+        faults = {f.value: f for f in TransportFault}
+        if rest[0] not in faults:
+            raise ValueError(f"fault {rest[0]!r}: expected one of {', '.join(faults)}")
+        sim.set_transport_fault(faults[rest[0]])
         return f"ok fault {rest[0]}"
     if verb == "trip" and len(rest) == 1:
-        sim.trip(Fault[rest[0].upper()])
+        trips = {f.name.lower(): f for f in Fault}
+        if rest[0].lower() not in trips:
+            raise ValueError(f"trip {rest[0]!r}: expected one of {', '.join(trips)}")
+        sim.trip(trips[rest[0].lower()])
         return f"ok trip {rest[0]}"
     if verb == "interlock" and rest in (["open"], ["closed"]):
         sim.firmware.set_interlock(rest[0] == "open")

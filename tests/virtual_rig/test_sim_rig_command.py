@@ -129,3 +129,19 @@ def test_sim_rig_on_a_port_in_use_is_a_clear_error(capsys: pytest.CaptureFixture
     err = capsys.readouterr().err
     assert f"could not start the virtual rig on 127.0.0.1:{port}" in err
     assert "--port 0" in err
+
+
+@pytest.mark.parametrize(
+    ("line", "words"),
+    [
+        ("trip meltdown", "expected one of over_amplitude, over_current"),
+        ("fault flaky", "expected one of none, no_reply, device_failure, busy"),
+        ("release far", "could not convert"),
+        ("jump", "unknown command 'jump'"),
+    ],
+)
+def test_bad_stdin_commands_name_what_was_wrong(line: str, words: str) -> None:
+    from rig.commands.sim_rig import _command
+
+    with pytest.raises(ValueError, match=words):
+        _command(None, line.split())  # refused before it touches the rig
