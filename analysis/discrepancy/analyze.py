@@ -17,7 +17,7 @@ import os
 import time
 from collections.abc import Callable, Mapping
 from concurrent.futures import ProcessPoolExecutor
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -63,6 +63,7 @@ class CandidateOutcome:
     full: FitResult
     verdict: Verdict
     prediction: np.ndarray  # training fit run over the whole record (held-out part included)
+    rival: FitResult | None = None  # baseline refitted from this candidate's solution
 
 
 @dataclass
@@ -394,7 +395,15 @@ def assess_candidate(
         noise_rad=data.noise_rad,
         n_heldout=int(np.count_nonzero(data.valid[n_train:])),
     )
-    return CandidateOutcome(cause_name, train, full, verdict, prediction)
+    rival = None
+    if verdict.earns_keep:
+        # Is the gain the cause's, or did its fit only find a better basin of the baseline's
+        # own parameters?  Refit the baseline from the candidate's solution to find out.
+        keys = set(baseline_train.values)
+        rival_train = fit(head, NONE, {k: v for k, v in train.values.items() if k in keys}, scale)
+        if rival_train.rms < baseline_train.rms * (1.0 - 1e-3):
+            rival = rival_train
+    return CandidateOutcome(cause_name, train, full, verdict, prediction, rival)
 
 
 def model_invariant_distance(
@@ -416,6 +425,24 @@ def is_chaotic(data: FitData) -> tuple[bool, float | None]:
         return False, None
     k = float(zero_one_test(measured.poincare_rad).K)
     return k > CHAOS_K, k
+
+
+def rejudge(
+    outcome: CandidateOutcome, baseline: FitResult, baseline_heldout: float, data: FitData,
+    reference: tuple[FitData, Invariants, float] | None,
+) -> CandidateOutcome:
+    """The same candidate judged against a new baseline fit."""
+    v = outcome.verdict
+    verdict = replace(
+        v,
+        information_criterion_delta=information_criterion_delta(
+            baseline, outcome.full, data.noise_rad
+        ),
+        heldout_rms_baseline=baseline_heldout,
+        rms_baseline=baseline.rms,
+        invariant_distance_baseline=reference[2] if reference is not None else None,
+    )
+    return replace(outcome, verdict=verdict, rival=None)
 
 
 def _cause_values(result: FitResult) -> dict[str, float]:
@@ -506,6 +533,22 @@ def analyze_record(
             outcome = _assess_job(job)
             say(f"  {outcome.cause}: {outcome.verdict.why}")
             outcomes.append(outcome)
+    rivals = [o.rival for o in outcomes if o.rival is not None]
+    if rivals:
+        better = min(rivals, key=lambda r: r.rms)
+        say(f"a candidate's solution led the baseline to a better fit (training rms "
+            f"{better.rms:.3g} rad against {baseline_train.rms:.3g}): judging again")
+        notes.append("the baseline was refitted from a candidate's solution (better basin)")
+        baseline_train = better
+        baseline = fit(data, NONE, baseline_train.values, neutral)
+        baseline_prediction, base_sim = predict(data, NONE, baseline_train.values)
+        baseline_heldout = heldout_rms(baseline_prediction, data.y, data.valid, n_train)
+        if reference is not None:
+            reference = (whole, measured,
+                         model_invariant_distance(whole, measured, NONE, baseline.values))
+        outcomes = [rejudge(o, baseline, baseline_heldout, data, reference) for o in outcomes]
+        _, full_sim = predict(data, NONE, baseline.values)
+        localization = localize(data, baseline, full_sim)
     timings["candidates"] = time.perf_counter() - clock - timings["baseline"]
     verdict = choose([o.verdict for o in outcomes])
     chosen = verdict.cause if verdict is not None else NONE
