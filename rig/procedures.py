@@ -214,7 +214,7 @@ class ProcedureSession:
         if self.gate is not None:
             self.gate.open(self.engine.latest_index or 0)  # keep what was seen on a failure
         self.engine.stop()
-        self.writer.join(10.0)
+        self.writer.finish(self.progress)  # never close the file under a writing thread
         if self.recorder.error is not None and kind is None:
             self.stop_reason = f"error: {self.recorder.error}"
         self.recorder.close(self.stop_reason)

@@ -635,6 +635,17 @@ class RecorderThread(threading.Thread):
             if isinstance(error, DiskFullError):
                 self._keep_annotations()
 
+    def finish(self, progress: Callable[[str], None] | None = None) -> None:
+        """Wait until the writer has written everything queued (call after the engine stopped).
+
+        There is no time limit: the file must not be closed while this thread still writes
+        to it, and a writer behind by seconds of samples still ends once its queue is empty.
+        """
+        while self.is_alive():
+            self.join(1.0)
+            if self.is_alive() and progress is not None:
+                progress("finishing the file: writing what is still queued ...")
+
     def _keep_annotations(self) -> None:
         """After the disk filled: drain until the engine stops, keeping only drive settings and
         step marks (the recorder writes them into its reserve at close)."""

@@ -108,16 +108,25 @@ def run(args: argparse.Namespace) -> int:
         engine.start()
         replay.publish_annotations(engine)
         started = time.monotonic()
+        stop_reason = "completed"
         try:
             while not replay.finished and engine.error is None:
                 time.sleep(0.5 if math.isinf(speed) else 1.0)
                 if not args.quiet:
                     print(_live_line(engine), file=sys.stderr, flush=True)
+        except KeyboardInterrupt:
+            stop_reason = "interrupted (Ctrl-C)"
+            raise
         finally:
             engine.stop()
             if thread is not None:
-                thread.join(10)
-                recorder.close("completed" if engine.error is None else f"error: {engine.error}")
+                thread.finish()  # never close the file under a writing thread
+                if engine.error is not None:
+                    stop_reason = f"error: {engine.error}"
+                try:
+                    recorder.close(stop_reason)
+                except RecordingError as error:
+                    raise CommandError(str(error)) from None
         if engine.error is not None:
             raise CommandError(f"replay stopped: {engine.error}")
         stats = engine.stats()

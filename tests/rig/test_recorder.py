@@ -318,3 +318,25 @@ def test_impact_rig_record_killed_with_sigkill_leaves_a_readable_prefix(tmp_path
         np.testing.assert_array_equal(angle.indices[: len(table)], table.indices[: len(angle)])
         assert rec.drive_log()["enabled"][0] == 1
         assert rec.info.devices["daq"]["model"] == "IRDAQ-4"
+
+
+def test_finish_returns_only_when_everything_queued_is_written(tmp_path):
+    from drivers.interfaces import SampleBlock
+    from rig.engine import Subscription
+    from rig.recorder import RecorderThread
+
+    queue = Subscription("recorder", privileged=True)
+    n_blocks, block = 400, 1000
+    for k in range(n_blocks):
+        index = np.arange(k * block, (k + 1) * block)
+        sample_block = SampleBlock("angle", k * block, k * 0.1, 10_000.0, index, index * 1e-3)
+        queue.put((k * 0.1, sample_block))
+    queue.close()  # the engine stopped with a backlog still queued
+    recorder = Recorder(tmp_path / "backlog.h5", SPECS, META)
+    writer = RecorderThread(recorder, queue)
+    writer.start()
+    writer.finish()
+    assert not writer.is_alive() and writer.error is None
+    recorder.close()
+    with open_recording(tmp_path / "backlog.h5") as rec:
+        assert len(rec.channel("angle")) == n_blocks * block
