@@ -142,8 +142,14 @@ def run(args: argparse.Namespace) -> int:
             limits.check("amplitude_m", amplitude_m, 0.0, limits.max_amplitude_m, "m")
         except LimitError as error:
             raise CommandError(f"{error} (limits from {config.source})") from None
-    elif args.drive_hz is not None:
-        raise CommandError(f"--drive-hz makes no sense for a {experiment} (no drive)")
+    else:
+        for option, value in (
+            ("--drive-hz", args.drive_hz),
+            ("--beta", args.beta),
+            ("--amplitude-mm", args.amplitude_mm),
+        ):
+            if value is not None:
+                raise CommandError(f"{option} makes no sense for a {experiment} (no drive)")
     fs = args.fs
     if fs is None and experiment == "impact_decay":
         fs = IMPACT_DECAY_FS_HZ

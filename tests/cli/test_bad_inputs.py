@@ -26,3 +26,15 @@ def test_export_into_a_missing_folder_names_the_folder(tmp_path, capsys):
     assert main(["export", str(recording), "--out", str(out), "--gaps", "longest"]) == 2
     error = capsys.readouterr().err
     assert f"folder {out.parent} does not exist" in error
+
+
+@pytest.mark.parametrize(
+    "option", [["--drive-hz", "10"], ["--beta", "0.03"], ["--amplitude-mm", "1"]]
+)
+def test_a_drive_setting_for_a_decay_is_refused_not_ignored(tmp_path, capsys, option):
+    out = tmp_path / "decay.h5"
+    args = ["record", "--sim", "--experiment", "free_decay", *option, "--out", str(out)]
+    assert main(args) == 2
+    error = capsys.readouterr().err
+    assert f"{option[0]} makes no sense for a free_decay" in error
+    assert "opening the devices" not in error and not out.exists()
