@@ -198,6 +198,10 @@ def fit_impact_decay(
     unknown = sorted(set(hold) - set(FITTED))
     if unknown:
         raise ValueError(f"cannot hold {unknown}; holdable: {FITTED}")
+    if "L_m" in hold and not (math.isfinite(hold["L_m"]) and hold["L_m"] > 0):
+        raise ValueError(f"held L_m = {hold['L_m']!r}: must be a positive length in m")
+    if "zeta" in hold and not (math.isfinite(hold["zeta"]) and 0 <= hold["zeta"] < 1):
+        raise ValueError(f"held zeta = {hold['zeta']!r}: must lie in [0, 1)")
     rig0 = record.rig_parameters()
     g = record.gravity_m_s2
     signal = prepare(record.time_s, record.angle_rad, detect_release=detect_release)

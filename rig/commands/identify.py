@@ -6,8 +6,13 @@ import argparse
 import json
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from rig.cli import CommandError
+
+if TYPE_CHECKING:
+    from analysis.identify import IdentificationResult
+    from analysis.records import Record
 
 DESCRIPTION = """\
 Identify the model parameters of a record (MODEL.md section 7 keys, 95 % intervals
@@ -114,9 +119,15 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _identify_one(args: argparse.Namespace, record):
+def _identify_one(args: argparse.Namespace, record: Record) -> IdentificationResult:
     """The fit that the record's experiment calls for."""
-    from analysis.identify import Estimate, fit_drive, fit_free_decay, fit_impact_decay
+    from analysis.identify import (
+        Estimate,
+        IdentificationError,
+        fit_drive,
+        fit_free_decay,
+        fit_impact_decay,
+    )
     from analysis.records import load_record
 
     print(f"identifying {record.source} ({record.experiment}, {record.time_s.size} samples)...",
@@ -125,7 +136,18 @@ def _identify_one(args: argparse.Namespace, record):
         return fit_free_decay(record)
     hold = _parse_hold(args.hold)
     if args.free_decay:
-        decay = fit_free_decay(load_record(args.free_decay))
+        decay_record = load_record(args.free_decay)
+        if decay_record.experiment != "free_decay":
+            raise CommandError(
+                f"--free-decay {args.free_decay}: its experiment is {decay_record.experiment}, "
+                "not free_decay"
+            )
+        try:
+            decay = fit_free_decay(decay_record)
+        except IdentificationError as error:
+            raise CommandError(
+                f"--free-decay {args.free_decay}: cannot identify: {error}"
+            ) from None
         hold.setdefault("L_m", decay["L_m"].value)
         hold.setdefault("zeta", decay["zeta"].value)
     if record.experiment == "impact_decay":

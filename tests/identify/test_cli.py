@@ -140,3 +140,23 @@ def test_simulated_hdf5_is_identified_like_its_csv(tmp_path, capsys):
 def test_missing_data_file_is_named(tmp_path, capsys):
     assert main(["identify", str(tmp_path / "absent.csv")]) != 0
     assert "absent.csv: file not found" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    ("hold", "message"),
+    [("L_m=-0.05", "held L_m = -0.05"), ("zeta=nan", "held zeta = nan")],
+)
+def test_impossible_held_value_is_named(decay_csv, tmp_path, capsys, hold, message):
+    meta = ExchangeMeta("impact_decay", rig={"g": 9.81})
+    t = np.arange(3000) / 1000.0
+    path, _ = write_exchange(tmp_path / "imp.csv", ExchangeRecord(t, np.sin(10 * t), meta))
+    assert main(["identify", str(path), "--hold", hold]) != 0
+    assert message in capsys.readouterr().err
+
+
+def test_free_decay_option_refuses_a_record_of_another_experiment(tmp_path, capsys):
+    meta = ExchangeMeta("impact_decay", rig={"g": 9.81})
+    t = np.arange(3000) / 1000.0
+    path, _ = write_exchange(tmp_path / "imp.csv", ExchangeRecord(t, np.sin(10 * t), meta))
+    assert main(["identify", str(path), "--free-decay", str(path)]) != 0
+    assert "its experiment is impact_decay, not free_decay" in capsys.readouterr().err
