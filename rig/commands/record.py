@@ -8,11 +8,12 @@ from rig.cli import CommandError
 from rig.commands.rig_options import (
     ProgressLine,
     add_rig_options,
+    check_drive_limits,
     check_output,
     compression,
     load_rig_config,
-    open_devices,
     report,
+    run_procedure,
 )
 
 EXPERIMENTS = ("free_decay", "impact_decay", "forced")
@@ -107,41 +108,23 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     """Validate everything, open the rig, run the procedure, print a summary."""
     import math
+    from functools import partial
 
-    from drivers.interfaces import DeviceError, LimitError
-    from rig.engine import AcquisitionError, SubscriberOverrunError
-    from rig.procedures import (
-        DecayPlan,
-        ProcedureError,
-        TimedPlan,
-        record_decay,
-        record_timed,
-    )
-    from rig.recorder import RecordingError
+    from rig.procedures import DecayPlan, TimedPlan, record_decay, record_timed
 
     experiment = args.experiment or ("forced" if args.drive_hz is not None else "free_decay")
     if args.duration is None or not args.duration > 0:
         raise CommandError(f"--duration is {args.duration}; expected a positive number of seconds")
     config = load_rig_config(args)
-    amplitude_m = None
     if experiment == "forced":
         if args.drive_hz is None or (args.beta is None and args.amplitude_mm is None):
             raise CommandError("a forced recording needs --drive-hz and --beta (or --amplitude-mm)")
         amplitude_m = (
             args.beta * config.constants.L_m if args.beta is not None else args.amplitude_mm * 1e-3
         )
-        limits = config.limits
-        try:
-            limits.check(
-                "frequency_hz",
-                args.drive_hz,
-                limits.min_frequency_hz,
-                limits.max_frequency_hz,
-                "Hz",
-            )
-            limits.check("amplitude_m", amplitude_m, 0.0, limits.max_amplitude_m, "m")
-        except LimitError as error:
-            raise CommandError(f"{error} (limits from {config.source})") from None
+        check_drive_limits(config, [(args.drive_hz, amplitude_m)])
+        plan = TimedPlan(experiment, args.duration, args.drive_hz, amplitude_m, args.settle)
+        procedure = record_timed
     else:
         for option, value in (
             ("--drive-hz", args.drive_hz),
@@ -150,58 +133,31 @@ def run(args: argparse.Namespace) -> int:
         ):
             if value is not None:
                 raise CommandError(f"{option} makes no sense for a {experiment} (no drive)")
+        release = (
+            math.radians(args.release_deg)
+            if args.release_deg is not None
+            else config.virtual.release_angle_rad
+        )
+        plan = DecayPlan(
+            experiment=experiment,
+            release_angle_rad=release,
+            pretrigger_s=args.pretrigger,
+            stop_below_rad=args.stop_below_rad,
+            max_duration_s=args.duration,
+        )
+        procedure = record_decay
     fs = args.fs
     if fs is None and experiment == "impact_decay":
         fs = IMPACT_DECAY_FS_HZ
     path = check_output(args)
-    progress = ProgressLine(args.quiet)
-    devices = open_devices(config, fs)
-    try:
-        if experiment == "forced":
-            plan = TimedPlan(experiment, args.duration, args.drive_hz, amplitude_m, args.settle)
-            result = record_timed(
-                devices,
-                path,
-                plan,
-                notes=args.notes,
-                overwrite=args.overwrite,
-                compression=compression(args),
-                progress=progress,
-            )
-        else:
-            release = (
-                math.radians(args.release_deg)
-                if args.release_deg is not None
-                else config.virtual.release_angle_rad
-            )
-            plan = DecayPlan(
-                experiment=experiment,
-                release_angle_rad=release,
-                pretrigger_s=args.pretrigger,
-                stop_below_rad=args.stop_below_rad,
-                max_duration_s=args.duration,
-            )
-            result = record_decay(
-                devices,
-                path,
-                plan,
-                notes=args.notes,
-                overwrite=args.overwrite,
-                compression=compression(args),
-                progress=progress,
-            )
-    except (
-        DeviceError,
-        LimitError,
-        RecordingError,
-        ProcedureError,
-        AcquisitionError,
-        SubscriberOverrunError,
-    ) as error:
-        raise CommandError(
-            f"{error}\n(the drive was ramped to zero; {path} keeps the data recorded so far)"
-        ) from None
-    finally:
-        devices.close()
-    report(result)
+    run_plan = partial(
+        procedure,
+        path=path,
+        plan=plan,
+        notes=args.notes,
+        overwrite=args.overwrite,
+        compression=compression(args),
+        progress=ProgressLine(args.quiet),
+    )
+    report(run_procedure(config, fs, path, run_plan))
     return 0

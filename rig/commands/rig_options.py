@@ -11,6 +11,7 @@ import argparse
 import math
 import sys
 import time
+from collections.abc import Callable, Iterable
 from pathlib import Path
 
 from rig.cli import CommandError
@@ -103,6 +104,50 @@ def open_devices(config, fs: float | None):
         return open_rig(config, sample_rate_hz=fs)
     except (DeviceError, LimitError, OSError) as error:
         raise CommandError(f"cannot open the rig ({config.source}): {error}") from None
+
+
+def check_drive_limits(config, settings: Iterable[tuple[float, float]]) -> None:
+    """CommandError naming the rig file for any (frequency_hz, amplitude_m) its limits forbid."""
+    from drivers.interfaces import LimitError
+
+    limits = config.limits
+    try:
+        for frequency_hz, amplitude_m in settings:
+            limits.check(
+                "frequency_hz", frequency_hz, limits.min_frequency_hz, limits.max_frequency_hz, "Hz"
+            )
+            limits.check("amplitude_m", amplitude_m, 0.0, limits.max_amplitude_m, "m")
+    except LimitError as error:
+        raise CommandError(f"{error} (limits from {config.source})") from None
+
+
+def run_procedure(config, fs: float | None, path: Path, procedure: Callable):
+    """Open the rig, run ``procedure(devices)``, close the rig; its result.
+
+    A device, recording or acquisition failure becomes a CommandError that says the drive
+    went to zero and the file keeps what was recorded (the procedure saw to both).
+    """
+    from drivers.interfaces import DeviceError, LimitError
+    from rig.engine import AcquisitionError, SubscriberOverrunError
+    from rig.procedures import ProcedureError
+    from rig.recorder import RecordingError
+
+    devices = open_devices(config, fs)
+    try:
+        return procedure(devices)
+    except (
+        DeviceError,
+        LimitError,
+        RecordingError,
+        ProcedureError,
+        AcquisitionError,
+        SubscriberOverrunError,
+    ) as error:
+        raise CommandError(
+            f"{error}\n(the drive was ramped to zero; {path} keeps the data recorded so far)"
+        ) from None
+    finally:
+        devices.close()
 
 
 class ProgressLine:

@@ -10,11 +10,12 @@ from rig.cli import CommandError
 from rig.commands.rig_options import (
     ProgressLine,
     add_rig_options,
+    check_drive_limits,
     check_output,
     compression,
     load_rig_config,
-    open_devices,
     report,
+    run_procedure,
 )
 
 DESCRIPTION = """\
@@ -92,10 +93,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Build the plan, check it against the limits, open the rig and sweep."""
-    from drivers.interfaces import DeviceError, LimitError
-    from rig.engine import AcquisitionError, SubscriberOverrunError
-    from rig.procedures import ProcedureError, SweepPlan, run_sweep
-    from rig.recorder import RecordingError
+    from rig.procedures import SweepPlan, run_sweep
 
     if args.steps < 1:
         raise CommandError(f"--steps is {args.steps}; expected at least 1")
@@ -125,19 +123,13 @@ def run(args: argparse.Namespace) -> int:
         )
     except ValueError as error:
         raise CommandError(str(error)) from None
-    limits = config.limits
-    try:
-        for _, frequency_hz, amplitude_m in plan.steps():
-            limits.check(
-                "frequency_hz", frequency_hz, limits.min_frequency_hz, limits.max_frequency_hz, "Hz"
-            )
-            limits.check("amplitude_m", amplitude_m, 0.0, limits.max_amplitude_m, "m")
-    except LimitError as error:
-        raise CommandError(f"{error} (limits from {config.source})") from None
+    check_drive_limits(config, [(f, a) for _, f, a in plan.steps()])
     path = check_output(args)
-    devices = open_devices(config, args.fs)
-    try:
-        result = run_sweep(
+    result = run_procedure(
+        config,
+        args.fs,
+        path,
+        lambda devices: run_sweep(
             devices,
             path,
             plan,
@@ -145,19 +137,7 @@ def run(args: argparse.Namespace) -> int:
             overwrite=args.overwrite,
             compression=compression(args),
             progress=ProgressLine(args.quiet),
-        )
-    except (
-        DeviceError,
-        LimitError,
-        RecordingError,
-        ProcedureError,
-        AcquisitionError,
-        SubscriberOverrunError,
-    ) as error:
-        raise CommandError(
-            f"{error}\n(the drive was ramped to zero; {path} keeps the data recorded so far)"
-        ) from None
-    finally:
-        devices.close()
+        ),
+    )
     report(result)
     return 0
