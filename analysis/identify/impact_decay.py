@@ -284,7 +284,7 @@ def fit_impact_decay(
     if quality.rms_residual_rad > 3.0 * quality.noise_rad:
         warnings.append(
             f"poor fit: residual rms {quality.rms_residual_rad:.3g} rad is "
-            f"{quality.rms_residual_rad / quality.noise_rad:.3g} x the sample noise"
+            f"{quality.rms_residual_rad / max(quality.noise_rad, 1e-300):.3g} x the sample noise"
         )
     details = {
         "fit_model": "full simulation with barrier",

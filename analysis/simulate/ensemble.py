@@ -111,7 +111,7 @@ def simulate_ensemble(
         pc_th = np.empty(count)
         pc_om = np.empty(count)
         state = ig.new_state(0.0, initial[i, 0], initial[i, 1], p)
-        events, n_events, _, _, _, _ = ig.integrate(
+        events, n_events, _, _, _, pc_written = ig.integrate(
             p,
             state,
             out_t,
@@ -134,7 +134,8 @@ def simulate_ensemble(
         )
         poincare[i, :count, 0] = pc_th
         poincare[i, :count, 1] = pc_om
-        poincare_t[i, :count] = first + np.arange(count) * period
+        # (the integrator NaN-fills what a stopped member did not reach; times likewise)
+        poincare_t[i, :pc_written] = first + np.arange(pc_written) * period
         if samples is not None:
             samples[i, :, 0] = out_th
             samples[i, :, 1] = out_om

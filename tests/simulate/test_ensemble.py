@@ -50,3 +50,14 @@ def test_mismatched_shapes_are_refused():
         simulate_ensemble(np.tile(p, (3, 1)), np.zeros((2, 2)), duration_s=1.0)
     with pytest.raises(ValueError, match="expected"):
         simulate_ensemble(p[:5], np.zeros(2), duration_s=1.0)
+
+
+def test_member_that_leaves_the_regime_is_nan_padded_and_named():
+    rig, drive = paper_case("d").dimensional()
+    p = Model(rig, drive).pack()
+    result = simulate_ensemble(p, [[0.1, 0.0], [4.0, 0.0]], duration_s=1.0, fs_hz=100.0)
+    assert result.status.tolist() == ["ok", "over_the_top"]
+    assert np.all(np.isfinite(result.poincare[0])) and np.all(np.isfinite(result.poincare_t[0]))
+    # beyond the first sample (the initial state at t = 0) the stopped member has nothing
+    assert np.all(np.isnan(result.poincare[1, 1:])) and np.all(np.isnan(result.poincare_t[1, 1:]))
+    assert np.all(np.isnan(result.samples[1, 1:]))
