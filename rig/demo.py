@@ -355,6 +355,30 @@ def _truth(config: RigConfig) -> dict[str, float]:
 
 
 def _record_everything(config: RigConfig, folder: Path, settings: DemoSettings, say: Progress):
+    """The three recordings; a device or recording failure is a DemoError saying so."""
+    from drivers.interfaces import DeviceError, LimitError
+    from rig.engine import AcquisitionError, SubscriberOverrunError
+    from rig.procedures import ProcedureError
+    from rig.recorder import RecordingError
+
+    failures = (
+        DeviceError,
+        LimitError,
+        RecordingError,
+        ProcedureError,
+        AcquisitionError,
+        SubscriberOverrunError,
+    )
+    try:
+        return _record_on_open_rig(config, folder, settings, say)
+    except failures as error:
+        raise DemoError(
+            f"recording on the virtual rig failed: {error} (the drive was ramped to zero; the "
+            f"recordings so far are in {folder / RECORDINGS})"
+        ) from None
+
+
+def _record_on_open_rig(config: RigConfig, folder: Path, settings: DemoSettings, say: Progress):
     from rig.devices import open_rig
     from rig.procedures import DecayPlan, SweepPlan, record_decay, run_sweep
 
@@ -425,6 +449,7 @@ def _record_everything(config: RigConfig, folder: Path, settings: DemoSettings, 
 
 
 def indented(say: Progress) -> Progress:
+    """Progress one level deeper (the steps of a stage)."""
     return lambda text: say(f"    {text}")
 
 

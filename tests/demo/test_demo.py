@@ -188,3 +188,15 @@ def test_a_rig_file_with_several_hidden_causes_needs_a_choice(tmp_path, capsys):
     assert main(["demo", "--quick", "--config", str(rig_file), "--out", str(folder)]) == 2
     assert "choose it with --cause" in capsys.readouterr().err
     assert not folder.exists()
+
+
+def test_a_rig_the_virtual_rig_cannot_emulate_is_a_clear_error_not_a_traceback(tmp_path, capsys):
+    text = load_config().text
+    digital_laser = re.sub(r'(?m)^unit = "V"', 'unit = "count"', text)
+    assert digital_laser != text
+    rig_file = tmp_path / "digital_laser.toml"
+    rig_file.write_text(digital_laser)
+    folder = tmp_path / "out"
+    assert main(["demo", "--quick", "--config", str(rig_file), "--out", str(folder)]) == 2
+    error = capsys.readouterr().err
+    assert "recording on the virtual rig failed" in error and 'unit = "V"' in error
