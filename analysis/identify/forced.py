@@ -69,7 +69,7 @@ def fit_drive(record: Record, *, estimate_frequency: bool = False) -> Identifica
         rms_residual_rad=float(np.sqrt(np.mean(residual**2))), noise_rad=noise,
         n_samples=int(t.size), n_excluded=int(np.count_nonzero(~good)),
         variance_inflation=cov.variance_inflation,
-        residual_lag1_correlation=cov.lag1_correlation,
+        residual_lag1_correlation=cov.lag1_correlation, unit="m",
     )
     warnings = []
     stated_amp = (record.drive or {}).get("amplitude_m")

@@ -53,10 +53,12 @@ class FitQuality:
     n_excluded: int
     variance_inflation: float
     residual_lag1_correlation: float
+    unit: str = "rad"  # of the residual and noise: "m" for a fit of the table channel
 
     def as_json(self) -> dict[str, Any]:
-        """Plain dict for JSON."""
+        """Plain dict for JSON (residual and noise in ``unit`` despite the keys' '_rad')."""
         return {
+            "unit": self.unit,
             "rms_residual_rad": self.rms_residual_rad,
             "noise_rad": self.noise_rad,
             "n_samples": self.n_samples,
@@ -105,7 +107,8 @@ class IdentificationResult:
                 )
         q = self.quality
         lines.append(
-            f"fit: rms residual {q.rms_residual_rad:.3g} rad vs noise {q.noise_rad:.3g} rad, "
+            f"fit: rms residual {q.rms_residual_rad:.3g} {q.unit} vs noise {q.noise_rad:.3g} "
+            f"{q.unit}, "
             f"{q.n_samples} samples used, {q.n_excluded} excluded, interval inflation "
             f"x{math.sqrt(q.variance_inflation):.3g} for correlated residuals "
             f"(lag-1 correlation {q.residual_lag1_correlation:.3f})"

@@ -57,3 +57,10 @@ def test_tach_pulses_at_drive_phase_zero_agree_with_the_table():
     late = 2 * math.pi * f * 0.05
     assert shifted.details["table_phase_at_tach_rad"] == pytest.approx(late, abs=0.02)
     assert any("tach" in w for w in shifted.warnings)
+
+
+def test_table_fit_reports_its_residual_in_metres():
+    result = fit_drive(_forced(np.random.default_rng(3), 4e-3, 0.2, 5.0, 5.0, noise=2e-5))
+    assert result.as_json()["quality"]["unit"] == "m"
+    assert result.quality.rms_residual_rad == pytest.approx(2e-5, rel=0.1)  # the table noise
+    assert " m vs noise " in result.summary()
