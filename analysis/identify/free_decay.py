@@ -16,15 +16,13 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 
-import numba
 import numpy as np
 from scipy.optimize import least_squares
 
-from analysis.identify.intervals import Covariance, sandwich_covariance
+from analysis.identify.intervals import Z95, Covariance, sandwich_covariance
 from analysis.identify.preprocess import PreparedSignal, prepare
 from analysis.identify.result import Estimate, FitQuality, IdentificationError, IdentificationResult
 from analysis.identify.start_values import DecayGuess, guess_decay
-from analysis.model import smooth_acceleration
 from analysis.records import Record
 
 AVERAGING_MAX_AMPLITUDE_RAD = 0.2
@@ -63,24 +61,14 @@ def averaging_solution(
 def simulated_free_decay(
     t: np.ndarray, theta0: float, theta_dot0: float, zeta: float, omega: float, g: float
 ) -> np.ndarray:
-    """The full pendulum equation, no barrier nor drive, sampled at uniform ``t`` (t[0] = 0).
-
-    Uses the project's simulator when it is installed; otherwise integrates the
-    same compiled equation (``analysis.model.smooth_acceleration``) with classical
-    Runge-Kutta at a step far below the period, which is exact enough for smooth
-    motion without contact (global error below 1e-7 rad over a hundred periods).
-    """
+    """The full pendulum equation, no barrier nor drive, sampled at uniform ``t`` (t[0] = 0)."""
     from analysis.model import Drive, Model, RigParameters
+    from analysis.simulate import simulate
 
     dt = float(t[1] - t[0])
     model = Model(
         rig=RigParameters(L_m=g / omega**2, zeta=zeta, g_m_s2=g), drive=Drive(), barrier=False
     )
-    try:
-        from analysis.simulate import simulate
-    except ImportError:
-        substeps = max(1, math.ceil(dt * omega / (2.0 * math.pi / 400.0)))
-        return _rk4_samples(model.pack(), theta0, theta_dot0, dt, t.size, substeps)
     result = simulate(
         model, theta0, theta_dot0, duration_s=t.size * dt, fs_hz=1.0 / dt,
         poincare_phase=None, rtol=1e-10, atol=1e-12,
@@ -92,30 +80,6 @@ def simulated_free_decay(
         last = theta[-1] if theta.size else theta0
         theta = np.concatenate([theta, np.full(t.size - theta.size, last)])
     return theta
-
-
-@numba.njit(cache=True)
-def _rk4_samples(
-    p: np.ndarray, theta0: float, theta_dot0: float, dt: float, n: int, substeps: int
-) -> np.ndarray:
-    out = np.empty(n)
-    th, om = theta0, theta_dot0
-    h = dt / substeps
-    time = 0.0
-    for i in range(n):
-        out[i] = th
-        for _ in range(substeps):
-            k1t, k1o = om, smooth_acceleration(time, th, om, p)
-            k2t = om + 0.5 * h * k1o
-            k2o = smooth_acceleration(time + 0.5 * h, th + 0.5 * h * k1t, k2t, p)
-            k3t = om + 0.5 * h * k2o
-            k3o = smooth_acceleration(time + 0.5 * h, th + 0.5 * h * k2t, k3t, p)
-            k4t = om + h * k3o
-            k4o = smooth_acceleration(time + h, th + h * k3t, k4t, p)
-            th += h / 6.0 * (k1t + 2.0 * k2t + 2.0 * k3t + k4t)
-            om += h / 6.0 * (k1o + 2.0 * k2o + 2.0 * k3o + k4o)
-            time += h
-    return out
 
 
 def fit_free_decay(
@@ -374,7 +338,7 @@ def pool_free_decays(results: Sequence[IdentificationResult]) -> IdentificationR
     consistency: dict[str, float] = {}
     for key in ("omega_rad_s", "zeta"):
         values = np.array([r[key].value for r in results])
-        sigmas = np.array([max(r[key].half_width / 1.959963984540054, 1e-300) for r in results])
+        sigmas = np.array([max(r[key].half_width / Z95, 1e-300) for r in results])
         w = 1.0 / sigmas**2
         mean = float(np.sum(w * values) / np.sum(w))
         sigma = float(1.0 / math.sqrt(np.sum(w)))
@@ -383,7 +347,7 @@ def pool_free_decays(results: Sequence[IdentificationResult]) -> IdentificationR
             birge = math.sqrt(chi2 / (values.size - 1))
             consistency[f"{key}_birge_ratio"] = birge
             sigma *= max(1.0, birge)
-        half = 1.959963984540054 * sigma
+        half = Z95 * sigma
         parameters[key] = Estimate(mean, (mean - half, mean + half))
     omega = parameters["omega_rad_s"]
     L = g / omega.value**2
