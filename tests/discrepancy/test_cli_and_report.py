@@ -62,3 +62,22 @@ def test_record_without_motion_is_refused_with_reason(tmp_path):
     result = run_cli(str(csv), "--workers", "1")
     assert result.returncode != 0
     assert "flat.csv" in result.stderr or "oscillation" in result.stderr
+
+
+def test_analyze_reads_hdf5_records(tmp_path):
+    h5 = tmp_path / "decay.h5"
+    made = subprocess.run(
+        [sys.executable, "-m", "rig.cli", "simulate", "--experiment", "free_decay",
+         "--param", "L_m=0.08", "--param", "zeta=0.004", "--cause", "coulomb_friction",
+         "--param", "Tc_N_m=3e-5", "--theta0", "0.25", "--duration", "15", "--fs", "500",
+         "--noise-rad", "2e-4", "--seed", "3", "--out", str(h5)],
+        capture_output=True, text=True, timeout=300,
+    )
+    assert made.returncode == 0, made.stderr
+    out = tmp_path / "out.json"
+    result = run_cli(str(h5), "--json", str(out), "--workers", "1", "--quiet")
+    assert result.returncode == 0, result.stderr
+    report = json.loads(out.read_text())
+    assert report["cause"] == "coulomb_friction"
+    tc = report["ranking"][0]["parameters"]["Tc_N_m"]
+    assert tc["ci95"][0] <= 3e-5 <= tc["ci95"][1] or abs(tc["value"] / 3e-5 - 1) < 0.05
