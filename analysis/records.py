@@ -116,8 +116,8 @@ def load_record(path: str | Path, meta_path: str | Path | None = None) -> Record
     if loader is None:
         if suffix in (".h5", ".hdf5"):
             raise RecordFormatError(
-                f"{path}: HDF5 recordings are not yet supported by this analysis; export the "
-                "recording to CSV + JSON ('impact-rig export') and pass the CSV"
+                f"{path}: reading HDF5 needs h5py, which is not installed; install it, or "
+                "export the recording to CSV + JSON ('impact-rig export') and pass the CSV"
             )
         raise RecordFormatError(
             f"{path}: unknown file type {suffix or '(none)'!r}; expected an exchange .csv "
