@@ -78,6 +78,8 @@ class Subscription:
                 return True
             if self.privileged:
                 if self._backlog_samples + samples > self.max_backlog_samples:
+                    self.dropped_items += 1  # refused, not queued: counted like a viewer's loss
+                    self.dropped_samples += samples
                     return False
             elif len(self._items) >= self.max_items:
                 _, old = self._items.popleft()

@@ -86,11 +86,16 @@ def test_a_privileged_subscriber_that_falls_behind_stops_acquisition_loudly():
     engine = AcquisitionEngine([stream])
     failures = []
     engine.on_failure(failures.append)
-    engine.subscribe("recorder", privileged=True, max_backlog_samples=20_000)
+    recorder = engine.subscribe("recorder", privileged=True, max_backlog_samples=20_000)
     engine.start()
     assert _wait_until(lambda: engine.error is not None)
     engine.stop()
     assert isinstance(engine.error, SubscriberOverrunError)
+    # what was refused past the limit is counted, and the queue keeps an unbroken prefix
+    queued = [event for _, event in recorder.get_many(0.0) if isinstance(event, SampleBlock)]
+    assert [b.first_index for b in queued] == [1000 * k for k in range(len(queued))]
+    assert recorder.dropped_samples >= 1000
+    assert recorder.dropped_samples == stream.next_index - 1000 * len(queued)
     assert "recorder" in str(engine.error)
     assert failures == [engine.error]
     with pytest.raises(SubscriberOverrunError):
