@@ -13,8 +13,14 @@ import sys
 import time
 from collections.abc import Callable, Iterable
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from rig.cli import CommandError
+
+if TYPE_CHECKING:  # imported lazily at run time: a fast --help
+    from rig.config import RigConfig
+    from rig.devices import RigDevices
+    from rig.procedures import ProcedureResult
 
 CONFIG_HELP = (
     "rig file (TOML): devices and ports, calibrations, safety limits, rig constants "
@@ -71,7 +77,7 @@ def compression(args: argparse.Namespace) -> str | None:
     return None if args.compression == "none" else args.compression
 
 
-def load_rig_config(args: argparse.Namespace):
+def load_rig_config(args: argparse.Namespace) -> RigConfig:
     """The validated rig configuration the options ask for (CommandError on a bad file)."""
     from rig.config import ConfigError, load_config
     from rig.devices import virtual_config
@@ -93,7 +99,7 @@ def check_output(args: argparse.Namespace) -> Path:
         raise CommandError(str(error)) from None
 
 
-def open_devices(config, fs: float | None):
+def open_devices(config: RigConfig, fs: float | None) -> RigDevices:
     """Open the rig (CommandError naming the device when it cannot be reached)."""
     from drivers.interfaces import DeviceError, LimitError
     from rig.devices import open_rig
@@ -106,7 +112,7 @@ def open_devices(config, fs: float | None):
         raise CommandError(f"cannot open the rig ({config.source}): {error}") from None
 
 
-def check_drive_limits(config, settings: Iterable[tuple[float, float]]) -> None:
+def check_drive_limits(config: RigConfig, settings: Iterable[tuple[float, float]]) -> None:
     """CommandError naming the rig file for any (frequency_hz, amplitude_m) its limits forbid."""
     from drivers.interfaces import LimitError
 
@@ -121,7 +127,12 @@ def check_drive_limits(config, settings: Iterable[tuple[float, float]]) -> None:
         raise CommandError(f"{error} (limits from {config.source})") from None
 
 
-def run_procedure(config, fs: float | None, path: Path, procedure: Callable):
+def run_procedure(
+    config: RigConfig,
+    fs: float | None,
+    path: Path,
+    procedure: Callable[[RigDevices], ProcedureResult],
+) -> ProcedureResult:
     """Open the rig, run ``procedure(devices)``, close the rig; its result.
 
     A device, recording or acquisition failure becomes a CommandError that says the drive
@@ -167,7 +178,7 @@ class ProgressLine:
         print(text, file=sys.stderr, flush=True)
 
 
-def report(result) -> None:
+def report(result: ProcedureResult) -> None:
     """One summary line on stdout."""
     print(
         f"{result.path}: {result.experiment}, {result.samples_written} samples written "
