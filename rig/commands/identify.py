@@ -88,6 +88,8 @@ def run(args: argparse.Namespace) -> int:
 
     if len(args.files) > 1 and args.meta:
         raise CommandError("--meta applies to a single FILE; give each CSV its NAME.json")
+    if args.json_out and not args.json_out.parent.is_dir():  # say so before a long fit
+        raise CommandError(f"--json {args.json_out}: folder {args.json_out.parent} does not exist")
     try:
         records = [load_record(path, args.meta) for path in args.files]
         if len(records) > 1:
@@ -114,7 +116,10 @@ def run(args: argparse.Namespace) -> int:
     if args.json_out:
         report = result.as_json()
         report["source"] = [str(path) for path in args.files]
-        args.json_out.write_text(json.dumps(report, indent=1) + "\n", encoding="utf-8")
+        try:
+            args.json_out.write_text(json.dumps(report, indent=1) + "\n", encoding="utf-8")
+        except OSError as error:
+            raise CommandError(f"--json {args.json_out}: cannot write ({error.strerror})") from None
         print(f"report written to {args.json_out}")
     return 0
 

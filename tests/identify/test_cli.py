@@ -160,3 +160,10 @@ def test_free_decay_option_refuses_a_record_of_another_experiment(tmp_path, caps
     path, _ = write_exchange(tmp_path / "imp.csv", ExchangeRecord(t, np.sin(10 * t), meta))
     assert main(["identify", str(path), "--free-decay", str(path)]) != 0
     assert "its experiment is impact_decay, not free_decay" in capsys.readouterr().err
+
+
+def test_report_into_a_missing_folder_is_refused_before_fitting(decay_csv, tmp_path, capsys):
+    out = tmp_path / "no_such_folder" / "report.json"
+    assert main(["identify", str(decay_csv), "--json", str(out)]) != 0
+    captured = capsys.readouterr()
+    assert "does not exist" in captured.err and "identifying" not in captured.err
