@@ -246,6 +246,8 @@ class Recorder:
             self._file.flush()
         except (OSError, ValueError) as error:
             self._abandon()
+            with contextlib.suppress(OSError):  # the stub just created holds no data: a retry
+                self.path.unlink()  # must not be refused as "already exists"
             raise RecordingError(f"{self.path}: cannot set up the file ({error})") from None
 
     # -- layout -------------------------------------------------------------------------------

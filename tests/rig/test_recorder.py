@@ -340,3 +340,11 @@ def test_finish_returns_only_when_everything_queued_is_written(tmp_path):
     recorder.close()
     with open_recording(tmp_path / "backlog.h5") as rec:
         assert len(rec.channel("angle")) == n_blocks * block
+
+
+def test_a_file_that_cannot_be_set_up_is_not_left_behind(tmp_path):
+    path = tmp_path / "setup.h5"
+    with pytest.raises(RecordingError, match="cannot set up the file"):
+        Recorder(path, SPECS, META, compression="zip")
+    assert not path.exists()  # a retry with a valid setting is not refused as existing
+    Recorder(path, SPECS, META).close()
