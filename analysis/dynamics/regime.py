@@ -87,7 +87,8 @@ def classify_regime(
 
     Periodic with period n: the smallest n whose recurrence distance is within
     ``tolerance`` of the attractor size, or, for noisy measured orbits, within
-    ``noise_tolerance`` and a clear dip (5x below the median over the other lags).
+    ``noise_tolerance`` and a clear dip (5x below the median over the other lags);
+    period 1 when every lag stays within ``noise_tolerance`` (a noisy fixed point).
     Otherwise chaotic when the 0-1 test's K exceeds ``chaos_threshold`` or the given
     Lyapunov exponent exceeds ``lyapunov_threshold``, else quasi-periodic.  (The
     0-1 test reads measurement noise as chaos, hence the noisy-period rule first.)
@@ -141,6 +142,9 @@ def _period(recurrence: np.ndarray, tolerance: float, noise_tolerance: float) ->
         others = others[np.isfinite(others)]
         if others.size >= 2 and 5.0 * recurrence[n] <= np.median(others):
             return int(n + 1)
+    # A noisy fixed point has no dip: every lag returns to the same small cloud.
+    if finite.any() and np.all(recurrence[finite] <= noise_tolerance):
+        return 1
     return None
 
 

@@ -72,6 +72,17 @@ def test_noisy_period_three_from_a_measurement_is_still_period_three():
     assert classify_regime(points, noise_tolerance=0.0).kind != "periodic"
 
 
+def test_noisy_period_one_from_a_measurement_is_still_period_one():
+    # 1 % sensor noise on a fixed point: no lag dips below the others, yet every lag
+    # returns to the same small cloud (the 0-1 test alone would read the noise as chaos)
+    rng = np.random.default_rng(5)
+    scale = np.array([0.2, 3.0])  # the attractor's size, e.g. from the whole trajectory
+    points = np.array([0.12, -1.5]) + 0.01 * scale * rng.normal(size=(K.size, 2))
+    regime = classify_regime(points, scale=scale)
+    assert (regime.kind, regime.period) == ("periodic", 1)
+    assert classify_regime(points, scale=scale, noise_tolerance=0.0).kind == "chaotic"
+
+
 def test_noisy_chaos_is_not_mistaken_for_a_period(henon_orbit):
     rng = np.random.default_rng(6)
     noisy = henon_orbit[:600] + 0.01 * rng.normal(size=(600, 2))
