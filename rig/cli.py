@@ -69,4 +69,8 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    # Run as "python -m rig.cli": call the imported module's main, so commands and this
+    # dispatcher share one CommandError class (the __main__ copy would not catch theirs).
+    from rig.cli import main as installed_main
+
+    sys.exit(installed_main())

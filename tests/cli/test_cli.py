@@ -34,3 +34,10 @@ def test_no_command_prints_help_and_fails():
     result = run_cli()
     assert result.returncode != 0
     assert "commands" in result.stdout
+
+
+def test_user_errors_are_one_line_not_a_traceback(tmp_path):
+    result = run_cli("identify", str(tmp_path / "missing.csv"))
+    assert result.returncode == 2
+    assert "Traceback" not in result.stderr
+    assert "missing.csv" in result.stderr
