@@ -36,6 +36,7 @@ from analysis.discrepancy.selection import (
 from analysis.dynamics.chaos01 import zero_one_test
 from analysis.extensions import NONE, cause
 from analysis.identify import IdentificationError, fit_drive, fit_free_decay, fit_impact_decay
+from analysis.identify.impact_decay import impact_events
 from analysis.identify.preprocess import find_bad_samples, noise_and_quantum, prepare
 from analysis.identify.result import Estimate
 from analysis.model import Drive
@@ -270,7 +271,13 @@ def baseline_start(
             "omega_rad_s": omega, "zeta": zeta,
         }, hints, notes
     if data.experiment == "impact_decay":
-        result = fit_impact_decay(record)
+        try:
+            result = fit_impact_decay(record)
+        except (OverflowError, FloatingPointError) as error:
+            # identify's interval arithmetic can overflow on a poorly determined K; its
+            # impact-by-impact first estimate still gives a start
+            notes.append(f"identification failed ({error}); started from the impact events")
+            return (*_impact_events_start(record, data), notes)
         hints = {"offset_rad": result["offset_rad"].value,
                  "theta_b_rad": result["theta_b_rad"].value}
         fitted = result.details["fitted"]
@@ -290,6 +297,25 @@ def baseline_start(
             "start the data support"
         )
     return start, {}, notes
+
+
+def _impact_events_start(
+    record: Record, data: FitData
+) -> tuple[dict[str, float], dict[str, float]]:
+    """Start values from the free flights between impacts (identify's first estimate)."""
+    signal = prepare(record.time_s, record.angle_rad, detect_release=True)
+    rig = data.rig
+    events = impact_events(signal, rig)
+    good = np.flatnonzero(signal.valid[:5])
+    y = signal.angle_rad - events["offset_rad"]
+    theta_dot0 = float(np.polyfit(signal.time_s[good], y[good], 1)[0]) if good.size > 1 else 0.0
+    start = {
+        "theta0_rad": float(y[good[0]]), "theta_dot0_rad_s": theta_dot0,
+        "omega_rad_s": float(events["omega_rad_s"]), "zeta": 0.005,
+        "K_N_per_m1.5": float(events["K"]), "mu0_s_per_m": max(float(events["mu0"]), 1e-3),
+    }
+    hints = {"offset_rad": float(events["offset_rad"]), "theta_b_rad": float(events["theta_b_rad"])}
+    return start, hints
 
 
 def _forced_start(data: FitData, priors: Mapping[str, float]) -> dict[str, float]:
