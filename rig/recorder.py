@@ -487,15 +487,7 @@ class Recorder:
         if self._closed:
             return
         if isinstance(self._failed, DiskFullError):
-            try:
-                _append(self._file["drive"], self._drive, DRIVE_DTYPE)
-                _append(self._file["sweep_steps"], self._steps, STEP_DTYPE)
-                self._write_status(closed=True, reason=str(self._failed))
-                self._file.flush()
-                self._file.close()
-            except (OSError, ValueError, RuntimeError):
-                self._abandon()
-            self._closed = True
+            self._close_after_disk_full()
             return
         if self._failed is not None:
             self._abandon()
@@ -504,6 +496,9 @@ class Recorder:
             self.flush()
             self._write_status(closed=True, reason=stop_reason)
             self._file.flush()
+        except DiskFullError:  # the disk filled since the last flush: still say so in the file
+            self._close_after_disk_full()
+            raise
         except RecordingError:
             self._abandon()
             raise
@@ -511,6 +506,23 @@ class Recorder:
             self._abandon()
             raise RecordingError(f"{self.path}: closing failed ({_plain(error)})") from None
         self._file.close()
+        self._closed = True
+
+    def _close_after_disk_full(self) -> None:
+        """Write the drive settings, step marks and closed status (a few bytes, into the
+        reserve kept free), then release the file; the pending samples are not written."""
+        for buffer in self._buffers.values():  # so that samples_written tells what the file has
+            pending = buffer.raw if buffer.spec.kind == "samples" else buffer.edges
+            buffer.stored -= sum(len(part) for part in pending)
+            buffer.clear()
+        try:
+            _append(self._file["drive"], self._drive, DRIVE_DTYPE)
+            _append(self._file["sweep_steps"], self._steps, STEP_DTYPE)
+            self._write_status(closed=True, reason=str(self._failed))
+            self._file.flush()
+            self._file.close()
+        except (OSError, ValueError, RuntimeError):
+            self._abandon()
         self._closed = True
 
     def _abandon(self) -> None:

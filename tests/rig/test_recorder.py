@@ -348,3 +348,23 @@ def test_a_file_that_cannot_be_set_up_is_not_left_behind(tmp_path):
         Recorder(path, SPECS, META, compression="zip")
     assert not path.exists()  # a retry with a valid setting is not refused as existing
     Recorder(path, SPECS, META).close()
+
+
+def test_a_disk_that_fills_between_the_last_flush_and_close_still_gets_a_closed_file(
+    tiny_filesystem,
+):
+    from drivers.interfaces import SampleBlock
+
+    path = tiny_filesystem / "late.h5"
+    recorder = Recorder(path, SPECS, META)
+    index = np.arange(1_000_000)  # 8 MB pending: more than the 6 MiB filesystem holds
+    recorder.add(SampleBlock("angle", 0, 0.0, 10_000.0, index, index * 1e-3), 0.5)
+    recorder.add(DriveSetting(0.6, 1_000_000, 0.0, 0.0, False), 0.6)
+    with pytest.raises(DiskFullError):
+        recorder.close()
+    with open_recording(path) as rec:
+        status = rec.status()
+        assert status.closed and status.stop_reason.startswith(f"{path}: disk almost full")
+        assert status.samples_written == len(rec.channel("angle")) == 0  # none was stored
+        assert rec.drive_log()["enabled"].tolist() == [0]
+    assert recorder.samples_written == 0
