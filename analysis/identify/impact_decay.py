@@ -110,7 +110,8 @@ def impact_events(
         )
     if omega_hint:  # a held length is exact; the curvature estimate is not
         omega = omega_hint
-        offset = float(np.median(depth_a + np.sin(curvature_a / omega**2)))
+        # theta'' = -omega^2 sin(depth - offset) at a turning point, solved for the offset
+        offset = float(np.median(depth_a + np.arcsin(np.clip(curvature_a / omega**2, -1, 1))))
     # Free flights between contacts, each a sinusoid about the sensor zero.
     pieces = [(cstops[k], cstarts[k + 1]) for k in range(cstarts.size - 1)]
     arcs = []

@@ -65,3 +65,18 @@ def test_record_without_impacts_is_refused():
     noisy = sim.theta + np.random.default_rng(0).normal(0.0, 2e-4, sim.t.size)
     with pytest.raises(IdentificationError, match="no impacts"):
         fit_impact_decay(Record(sim.t, noisy, "impact_decay", rig=RIG_KEYS))
+
+
+def test_first_estimate_of_the_sensor_zero_holds_at_large_swings():
+    # With L held, the zero comes from theta'' = -omega^2 sin(theta - offset) at the lower
+    # turning points; at -1.2 rad a small-angle (or mis-inverted) relation is off by mrad.
+    from analysis.identify.impact_decay import impact_events
+    from analysis.identify.preprocess import prepare
+
+    rig = RigParameters()
+    sim = simulate(Model(rig=rig, barrier=True), -1.2, 0.0, duration_s=4.0, fs_hz=5000.0,
+                   poincare_phase=None)
+    angle = sim.theta + 0.05 + np.random.default_rng(2).normal(0.0, 2e-4, sim.t.size)
+    signal = prepare(sim.t, angle)
+    events = impact_events(signal, rig, omega_hint=rig.omega_rad_s)
+    assert events["offset_rad"] == pytest.approx(0.05, abs=2e-3)
