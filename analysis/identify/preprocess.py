@@ -12,7 +12,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.interpolate import make_smoothing_spline
 from scipy.ndimage import median_filter
 from scipy.signal import find_peaks
 
@@ -293,11 +292,3 @@ def _rest_index(filled: np.ndarray, start: int, noise: float, quantum: float) ->
         return filled.size
     return start + (last + 1) * period
 
-
-def spline_velocity(
-    time_s: np.ndarray, angle_rad: np.ndarray, lam: float | None = None
-) -> tuple[np.ndarray, np.ndarray]:
-    """Smoothed angle and angular velocity from a smoothing spline (GCV-chosen smoothing)."""
-    good = np.isfinite(angle_rad)
-    spline = make_smoothing_spline(time_s[good], angle_rad[good], lam=lam)
-    return spline(time_s), spline.derivative()(time_s)
