@@ -1,19 +1,18 @@
 """Running many simulations for sweeps and basin maps: Poincare orbits out, spread over the cores.
 
 Bifurcation diagrams and basins of attraction need hundreds to tens of thousands of
-runs.  Independent runs go to :func:`analysis.simulate.simulate_ensemble` (a numba
-``prange`` over members) in a few chunks, so that progress can be reported;
+runs.  Independent runs go to :func:`analysis.simulate.simulate_ensemble` (a pool of
+threads over the GIL-free integrator) in a few chunks, so that progress can be reported;
 continuation sweeps advance several sweeps in lockstep, one ensemble call per step.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Iterator
-from contextlib import contextmanager
+import os
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 
-import numba
 import numpy as np
 
 from analysis.model import Model, P
@@ -43,8 +42,8 @@ def model_at_beta(model: Model, beta: float) -> Model:
 
 
 def default_workers() -> int:
-    """Threads numba may use for ensembles (NUMBA_NUM_THREADS, by default the cores)."""
-    return int(numba.config.NUMBA_NUM_THREADS)
+    """Threads an ensemble uses unless capped: one per core."""
+    return os.cpu_count() or 1
 
 
 def run_poincare(
@@ -69,21 +68,21 @@ def run_poincare(
     n = packed.shape[0]
     chunk = max(1, math.ceil(n / 20), 16 * default_workers())
     parts = []
-    with _threads(workers):
-        for start in range(0, n, chunk):
-            stop = min(n, start + chunk)
-            parts.append(
-                _ensemble(
-                    packed[start:stop],
-                    initial[start:stop],
-                    transient_periods,
-                    record_periods,
-                    rtol,
-                    atol,
-                )
+    for start in range(0, n, chunk):
+        stop = min(n, start + chunk)
+        parts.append(
+            _ensemble(
+                packed[start:stop],
+                initial[start:stop],
+                transient_periods,
+                record_periods,
+                rtol,
+                atol,
+                workers,
             )
-            if progress is not None:
-                progress(stop, n)
+        )
+        if progress is not None:
+            progress(stop, n)
     return PoincareRuns(
         np.concatenate([part.theta for part in parts]),
         np.concatenate([part.theta_dot for part in parts]),
@@ -123,15 +122,16 @@ def continue_along(
     final = np.full((sweeps, steps, 2), np.nan)
     status = np.empty((sweeps, steps), dtype=object)
     state = start.copy()
-    with _threads(workers):
-        for k in range(steps):
-            run = _ensemble(packed[:, k], state, transient_periods, record_periods, rtol, atol)
-            theta[:, k], theta_dot[:, k], final[:, k] = run.theta, run.theta_dot, run.final_state
-            status[:, k] = run.status
-            ok = np.array(run.status) == "ok"
-            state = np.where(ok[:, None], run.final_state, start)
-            if progress is not None:
-                progress((k + 1) * sweeps, steps * sweeps)
+    for k in range(steps):
+        run = _ensemble(
+            packed[:, k], state, transient_periods, record_periods, rtol, atol, workers
+        )
+        theta[:, k], theta_dot[:, k], final[:, k] = run.theta, run.theta_dot, run.final_state
+        status[:, k] = run.status
+        ok = np.array(run.status) == "ok"
+        state = np.where(ok[:, None], run.final_state, start)
+        if progress is not None:
+            progress((k + 1) * sweeps, steps * sweeps)
     return tuple(
         PoincareRuns(theta[m], theta_dot[m], final[m], tuple(status[m])) for m in range(sweeps)
     )
@@ -149,7 +149,9 @@ def _check_runs(packed, initial, transient_periods, record_periods):
     return packed, initial
 
 
-def _ensemble(packed, initial, transient_periods, record_periods, rtol, atol) -> PoincareRuns:
+def _ensemble(
+    packed, initial, transient_periods, record_periods, rtol, atol, workers
+) -> PoincareRuns:
     """One ensemble call; the Poincare sample at the record's end is the final state."""
     omega = packed[:, P.OMEGA_DRIVE]
     if not np.all(omega > 0) or not np.allclose(omega, omega[0]):
@@ -163,6 +165,7 @@ def _ensemble(packed, initial, transient_periods, record_periods, rtol, atol) ->
         poincare_phase=0.0,
         rtol=rtol,
         atol=atol,
+        workers=workers,
     )
     samples = result.poincare[:, : record_periods + 1]
     theta = np.full((packed.shape[0], record_periods), np.nan)
@@ -181,16 +184,3 @@ def _ensemble(packed, initial, transient_periods, record_periods, rtol, atol) ->
     )
     return PoincareRuns(theta, theta_dot, final, status)
 
-
-@contextmanager
-def _threads(workers: int | None) -> Iterator[None]:
-    """Cap numba's threads at ``workers`` for the block (None: leave as is)."""
-    if workers is None:
-        yield
-        return
-    previous = numba.get_num_threads()
-    numba.set_num_threads(max(1, min(int(workers), default_workers())))
-    try:
-        yield
-    finally:
-        numba.set_num_threads(previous)
