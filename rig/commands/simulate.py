@@ -125,7 +125,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     parser.add_argument("--seed", type=int, help="seed of the measurement noise")
     parser.add_argument(
-        "--rtol", type=float, default=1e-9, help="integrator relative tolerance (1e-9)"
+        "--rtol", type=float, default=1e-9,
+        help="integrator relative tolerance (1e-9); the absolute one is rtol / 100",
     )
     parser.set_defaults(func=run)
 
