@@ -63,7 +63,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--free-decay",
         type=Path,
         dest="free_decay",
-        help="impact decay / forced: take L and zeta from this free-decay record (CSV)",
+        help="impact decay / forced: take L and zeta from this free-decay record (CSV or HDF5)",
     )
     parser.set_defaults(func=run)
 
