@@ -27,6 +27,7 @@ from rig.recorder import Recorder, RecorderThread, RecordingMetadata
 
 Progress = Callable[[str], None]
 FIRST_DATA_TIMEOUT_S = 15.0  # generous: a loaded lab PC can be slow to start streaming
+TRIGGER_SLACK_S = 2.0  # how late the release may be noticed without shortening the pre-trigger
 
 
 class ProcedureError(RuntimeError):
@@ -50,12 +51,17 @@ class PretriggerGate:
     """Holds the recorder's deliveries until ``open(index)``, keeping ``pretrigger`` samples.
 
     Sample blocks that end more than ``pretrigger_samples`` before the trigger index
-    are dropped (they precede the recording); everything else passes unchanged.
+    are dropped (they precede the recording); everything else passes unchanged.  While
+    closed it holds ``slack_samples`` more than the pre-trigger: the trigger is found
+    some time after the release, and the pre-trigger counts from the release.
     """
 
-    def __init__(self, source: Subscription, pretrigger_samples: int) -> None:
+    def __init__(
+        self, source: Subscription, pretrigger_samples: int, slack_samples: int = 0
+    ) -> None:
         self.source = source
         self.pretrigger_samples = pretrigger_samples
+        self.slack_samples = slack_samples
         self._held: deque[Delivery] = deque()
         self._newest_index = 0
         self._open = False
@@ -93,7 +99,7 @@ class PretriggerGate:
                 if end is not None:
                     self._newest_index = max(self._newest_index, end)
             if len(self._held) > 64:
-                self._trim(self._newest_index - self.pretrigger_samples)
+                self._trim(self._newest_index - self.pretrigger_samples - self.slack_samples)
             return []
 
 
@@ -155,7 +161,9 @@ class ProcedureSession:
         self.gate = None
         source = subscription
         if pretrigger_s is not None:
-            self.gate = PretriggerGate(subscription, round(pretrigger_s * self.fs))
+            self.gate = PretriggerGate(
+                subscription, round(pretrigger_s * self.fs), round(TRIGGER_SLACK_S * self.fs)
+            )
             source = self.gate
         self.writer = RecorderThread(self.recorder, source, on_error=self.engine.fail)
         self.watch = AngleWatch(self.engine.subscribe("procedure", max_items=4000), self.fs)
@@ -371,7 +379,7 @@ def record_decay(
                 f"the pendulum did not move within {plan.release_timeout_s:g} s "
                 f"(more than {plan.trigger_rad} rad from {held:.4f} rad)"
             )
-        trigger_index = session.watch.end_index
+        trigger_index = _release_index(session.watch, held, plan.trigger_rad)
         session.gate.open(trigger_index)
         progress(
             f"released at sample {trigger_index}; recording until the swing is below "
@@ -390,6 +398,14 @@ def record_decay(
         else:
             session.stop_reason = "completed (amplitude below threshold)"
     return session.result(plan.experiment)
+
+
+def _release_index(watch: AngleWatch, held: float, trigger_rad: float) -> int:
+    """Sample index where the current excursion from the held angle began: the pre-trigger
+    counts from the release itself, not from when a poll happened to notice it."""
+    still = np.flatnonzero(np.abs(watch.values - held) <= trigger_rad)
+    first_away = int(still[-1]) + 1 if still.size else 0
+    return watch.end_index - watch.values.size + first_away
 
 
 # -- forced sweep -----------------------------------------------------------------------------
