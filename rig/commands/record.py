@@ -115,6 +115,9 @@ def run(args: argparse.Namespace) -> int:
     experiment = args.experiment or ("forced" if args.drive_hz is not None else "free_decay")
     if args.duration is None or not args.duration > 0:
         raise CommandError(f"--duration is {args.duration}; expected a positive number of seconds")
+    for option, seconds in (("--settle", args.settle), ("--pretrigger", args.pretrigger)):
+        if not (math.isfinite(seconds) and seconds >= 0):
+            raise CommandError(f"{option} is {seconds}; expected a number of seconds >= 0")
     config = load_rig_config(args)
     if experiment == "forced":
         if args.drive_hz is None or (args.beta is None and args.amplitude_mm is None):

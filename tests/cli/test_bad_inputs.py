@@ -38,3 +38,12 @@ def test_a_drive_setting_for_a_decay_is_refused_not_ignored(tmp_path, capsys, op
     error = capsys.readouterr().err
     assert f"{option[0]} makes no sense for a free_decay" in error
     assert "opening the devices" not in error and not out.exists()
+
+
+@pytest.mark.parametrize("option", ["--settle", "--pretrigger"])
+def test_a_negative_time_is_refused_before_the_rig_opens(tmp_path, capsys, option):
+    out = tmp_path / "run.h5"
+    assert main(["record", "--sim", option, "-1", "--out", str(out)]) == 2
+    error = capsys.readouterr().err
+    assert f"{option} is -1.0; expected a number of seconds >= 0" in error
+    assert "opening the devices" not in error and not out.exists()
