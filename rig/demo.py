@@ -389,34 +389,29 @@ def _record_on_open_rig(config: RigConfig, folder: Path, settings: DemoSettings,
     devices = open_rig(config, sample_rate_hz=settings.sample_rate_hz, virtual_speed=speed)
     results = {}
     try:
-        say("  free decay (barrier out): hold, release, record until the swing dies down")
-        results["free_decay"] = record_decay(
-            devices,
-            out / "free_decay.h5",
-            DecayPlan(
+        decays = (
+            (
                 "free_decay",
-                release_angle_rad=settings.free_release_rad,
-                stop_below_rad=settings.decay_stop_below_rad,
-                max_duration_s=settings.decay_max_s * wall,
+                settings.free_release_rad,
+                "free decay (barrier out): hold, release, record until the swing dies down",
             ),
-            notes="impact-rig demo: free decay",
-            overwrite=True,
-            progress=indented(say),
+            ("impact_decay", settings.impact_release_rad, "impact decay (barrier in)"),
         )
-        say("  impact decay (barrier in)")
-        results["impact_decay"] = record_decay(
-            devices,
-            out / "impact_decay.h5",
-            DecayPlan(
-                "impact_decay",
-                release_angle_rad=settings.impact_release_rad,
-                stop_below_rad=settings.decay_stop_below_rad,
-                max_duration_s=settings.decay_max_s * wall,
-            ),
-            notes="impact-rig demo: impact decay",
-            overwrite=True,
-            progress=indented(say),
-        )
+        for experiment, release_rad, what in decays:
+            say(f"  {what}")
+            results[experiment] = record_decay(
+                devices,
+                out / f"{experiment}.h5",
+                DecayPlan(
+                    experiment,
+                    release_angle_rad=release_rad,
+                    stop_below_rad=settings.decay_stop_below_rad,
+                    max_duration_s=settings.decay_max_s * wall,
+                ),
+                notes=f"impact-rig demo: {experiment.replace('_', ' ')}",
+                overwrite=True,
+                progress=indented(say),
+            )
         devices.set_barrier(True)
         f = settings.sweep_frequency_hz
         say(
