@@ -16,10 +16,10 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from analysis.discrepancy import analyze_record  # noqa: E402
-from analysis.records import load_record  # noqa: E402
-from analysis.report import write_report  # noqa: E402
-from analysis.report.discrepancy import report_json  # noqa: E402
+from analysis.discrepancy import analyze_record
+from analysis.records import load_record
+from analysis.report import write_report
+from analysis.report.discrepancy import report_json
 
 DEFAULT_DATA = Path("/work/shared/data/real/exchange")
 
