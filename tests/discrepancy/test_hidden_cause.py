@@ -29,6 +29,13 @@ def _check(case, tmp_path):
         assert report["gain"]["information_criterion_delta"] > 10
     else:
         assert report["extended"]["rms_residual"] == report["baseline"]["rms_residual"]
+    if case.experiment == "impact_decay":
+        # Records made with finite-time Hunt-Crossley contact: instantaneous impacts with a
+        # constant restitution cannot match them as well (speed-dependent e, contact time).
+        comparison = report["restitution_comparison"]
+        assert 0.0 < comparison["parameters"]["e"]["value"] < 1.0
+        assert comparison["hunt_crossley_rms_residual"] < comparison["rms_residual"]
+        assert comparison["hunt_crossley_heldout_rms"] < comparison["heldout_rms"]
 
 
 @pytest.mark.parametrize("seed", FREE_DECAY_SEEDS)
