@@ -115,14 +115,22 @@ class RigDevices:
             self.ask_operator(f"Make sure the barrier is {state}, then press Enter ... ")
 
     def close(self) -> None:
-        """Drive to zero and release every device (safe after a failure, and twice)."""
-        with contextlib.suppress(DeviceError):
-            self.shaker.close()
-        with contextlib.suppress(DeviceError):
-            self.board.close()
-        if self.sim is not None:
-            self.sim.stop()
-            self.sim = None
+        """Drive to zero and release every device (safe after a failure, and twice).
+
+        Whatever one device raises, the others are still released (the virtual rig's
+        threads, pty and port included); the first unexpected error then propagates.
+        """
+        try:
+            with contextlib.suppress(DeviceError):
+                self.shaker.close()
+        finally:
+            try:
+                with contextlib.suppress(DeviceError):
+                    self.board.close()
+            finally:
+                sim, self.sim = self.sim, None
+                if sim is not None:
+                    sim.stop()
 
     def __enter__(self) -> RigDevices:
         return self
