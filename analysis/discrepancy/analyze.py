@@ -43,6 +43,7 @@ from analysis.model import Drive
 from analysis.records import Record
 
 TRAIN_FRACTION = 0.6
+UNEXPLAINED_RATIO = 5.0  # final rms this many times the noise: say the story is incomplete
 CHAOTIC_FIT_PERIODS = 6  # a chaotic record is fitted only over its first drive periods
 CHAOS_K = 0.8  # 0-1 test K above this: chaotic
 MAX_FIT_SAMPLES = 4000
@@ -92,6 +93,21 @@ class Analysis:
             if c.cause == self.chosen:
                 return c
         return None
+
+    def warnings(self) -> list[str]:
+        """Caveats on the finding: what the chosen model still leaves unexplained."""
+        out = []
+        best = self.chosen_outcome
+        final = best.full if best is not None else self.baseline
+        ratio = final.rms / max(self.data.noise_rad, 1e-300)
+        if ratio > UNEXPLAINED_RATIO:
+            what = f"the baseline extended by {best.cause}" if best is not None else "the baseline"
+            out.append(
+                f"{what} still leaves {final.rms:.3g} rad rms, {ratio:.3g} x the noise: "
+                "structure outside the named causes (or a fit caught in a local minimum) "
+                "remains; treat the named cause as the best of the candidates, not the whole story"
+            )
+        return out
 
     def ranked(self) -> list[CandidateOutcome]:
         """Candidates by score (information-criterion gain), best first."""
@@ -144,6 +160,7 @@ class Analysis:
                 ),
             },
             "localization": self.localization.text,
+            "warnings": self.warnings(),
             "localization_details": self.localization.features,
             "excluded": self.excluded,
             "noise_rad": self.data.noise_rad,

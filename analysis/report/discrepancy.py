@@ -145,6 +145,7 @@ def write_report(analysis: Analysis, directory: str | Path, name: str = "report"
         f"- baseline rms residual {js['baseline']['rms_residual']:.3g} rad; extended "
         f"{js['extended']['rms_residual']:.3g} rad (noise {js['noise_rad']:.3g} rad)",
     ]
+    lines += [f"- **caution:** {w}" for w in js.get("warnings", [])]
     gain = js["gain"]
     if gain["heldout_rms_baseline"] is not None:
         lines.append(

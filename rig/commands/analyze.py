@@ -105,4 +105,6 @@ def run(args: argparse.Namespace) -> int:
     else:
         print(f"cause: {js['cause']}")
         print(f"where the baseline fails: {js['localization']}")
+        for warning in js["warnings"]:
+            print(f"caution: {warning}")
     return 0
