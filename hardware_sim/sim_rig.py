@@ -102,7 +102,8 @@ class SimRig:
         self.firmware.trip(fault)
 
     def _daq_streaming(self) -> bool:
-        return self.daq is not None and self.daq.firmware.streaming
+        # an unplugged board (emulator closed) no longer moves time, whatever it last said
+        return self.daq is not None and self.daq.serving and self.daq.firmware.streaming
 
     def _world_clock(self) -> None:
         last = time.monotonic()
