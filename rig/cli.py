@@ -9,7 +9,9 @@ which keeps the layering (only ``gui`` may import Qt) and a fast ``--help``.
 from __future__ import annotations
 
 import argparse
+import signal
 import sys
+import threading
 from importlib.metadata import entry_points
 
 COMMAND_GROUP = "impact_rig.commands"
@@ -55,6 +57,7 @@ def main(argv: list[str] | None = None) -> int:
     """Parse the arguments, run the chosen command and return its exit status."""
     parser = build_parser()
     args = parser.parse_args(argv)
+    _stop_on_sigterm()
     if not getattr(args, "func", None):
         parser.print_help()
         return 1
@@ -66,6 +69,20 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print(f"impact-rig {args.command}: interrupted", file=sys.stderr)
         return 130
+
+
+def _stop_on_sigterm() -> None:
+    """Let SIGTERM (kill, systemd, a lab script) stop a command the way Ctrl-C does.
+
+    Every command already turns KeyboardInterrupt into a safe stop: the drive ramped to
+    zero and the recording closed with its reason; a bare SIGTERM would skip all that.
+    """
+
+    def interrupt(signum: int, frame: object) -> None:
+        raise KeyboardInterrupt(f"signal {signal.Signals(signum).name}")
+
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGTERM, interrupt)
 
 
 if __name__ == "__main__":
