@@ -68,7 +68,9 @@ S_REJECTS = S_H + 10
 S_STICK_T = S_H + 11  # start of the current stuck interval
 S_ACC_B = S_H + 12  # theta'' at TB (last stage of the step), valid when S_ACC_OK = 1
 S_ACC_OK = S_H + 13
-S_SIZE = S_H + 14
+S_FREE_H = S_H + 14  # step size free flight proposed when the current contact began
+S_EXIT_H = S_H + 15  # current contact: shortest step of the approach to its exit (0: unknown)
+S_SIZE = S_H + 16
 
 # rows of the event buffer
 EV_KIND = 0  # 0 contact, 1 stuck interval
@@ -96,6 +98,7 @@ E3 = np.ascontiguousarray(_dop853.E3, dtype=np.float64)
 E5 = np.ascontiguousarray(_dop853.E5, dtype=np.float64)
 D853 = np.ascontiguousarray(_dop853.D, dtype=np.float64)
 N_EXTENDED = _dop853.N_STAGES_EXTENDED  # 16 with the three extra dense-output stages
+assert not D853[:, 1:5].any()  # _dense_coefficients skips these stages
 
 
 def _power_basis() -> np.ndarray:
@@ -121,6 +124,10 @@ SAFETY = 0.9
 MIN_FACTOR = 0.2
 MAX_FACTOR = 10.0
 ENTRY_STEP_FRACTION = 0.005
+# Leaving contact, a step is kept to this fraction of the estimated time to the surface (but
+# not below the entry step): the force's delta^1.5 end makes longer trial steps fail, several
+# times per contact, as the controller shrinks them only by err^(-1/8).
+EXIT_STEP_FRACTION = 0.7
 STUCK_SCAN_PER_PERIOD = 128  # release search resolution while stuck under forcing
 
 
@@ -265,24 +272,39 @@ def _dense_coefficients(t, th, om, th1, om1, h, pr, slide, tc, kth, kom, S):
         v = om + h * dom
         kth[s] = v
         kom[s] = _acc(t + C853[s] * h, th + h * dth, v, pr, slide, tc)
-    F = np.empty(DEGREE)
     for comp in range(2):
         k = kth if comp == 0 else kom
         delta = (th1 - th) if comp == 0 else (om1 - om)
-        F[0] = delta
-        F[1] = h * k[0] - delta
-        F[2] = 2.0 * delta - h * (k[N_STAGES] + k[0])
-        for i in range(4):
-            acc = 0.0
-            for j in range(N_EXTENDED):
-                acc += D853[i, j] * k[j]
-            F[3 + i] = h * acc
+        # the interpolant's terms as scalars (no scratch array: this runs for nearly every
+        # step); stages 1-4 have zero weight in D853 and are skipped
+        f0 = delta
+        f1 = h * k[0] - delta
+        f2 = 2.0 * delta - h * (k[N_STAGES] + k[0])
+        d0 = D853[0, 0] * k[0]
+        d1 = D853[1, 0] * k[0]
+        d2 = D853[2, 0] * k[0]
+        d3 = D853[3, 0] * k[0]
+        for j in range(5, N_EXTENDED):
+            kj = k[j]
+            d0 += D853[0, j] * kj
+            d1 += D853[1, j] * kj
+            d2 += D853[2, j] * kj
+            d3 += D853[3, j] * kj
+        f3 = h * d0
+        f4 = h * d1
+        f5 = h * d2
+        f6 = h * d3
         base = S_POLY + DEGREE * comp
         for j in range(DEGREE):
-            c = 0.0
-            for i in range(DEGREE):
-                c += M_POWER[j, i] * F[i]
-            S[base + j] = c
+            S[base + j] = (
+                M_POWER[j, 0] * f0
+                + M_POWER[j, 1] * f1
+                + M_POWER[j, 2] * f2
+                + M_POWER[j, 3] * f3
+                + M_POWER[j, 4] * f4
+                + M_POWER[j, 5] * f5
+                + M_POWER[j, 6] * f6
+            )
 
 
 @numba.njit(cache=True)
@@ -462,6 +484,17 @@ def _stick_test(t, th, pr, tc):
 
 
 @numba.njit(cache=True)
+def _contact_entry_step(k_contact, om):
+    """A fraction of the Hertz contact time at entry speed ``om`` (0 when it has none): the
+    force's delta^1.5 onset makes larger first steps fail repeatedly."""
+    speed = k_contact[K_SHAFT] * abs(om)
+    rate = k_contact[K_SHAFT] * k_contact[K_GAIN] * k_contact[K_STIFFNESS]
+    if speed > 0.0 and rate > 0.0:
+        return ENTRY_STEP_FRACTION * 3.2181 * (1.0 / (rate * rate * speed)) ** 0.2
+    return 0.0
+
+
+@numba.njit(cache=True)
 def initialise_regions(S, p):
     """Set the contact and sliding flags of S from the state at TB (after a start or restart)."""
     th = S[S_THB]
@@ -476,6 +509,7 @@ def initialise_regions(S, p):
         S[S_ENTRY_OM] = om
         S[S_ENTRY_GRAZE] = 0.0
         S[S_THMAX] = th
+        S[S_EXIT_H] = _contact_entry_step(coefficients(p, True), om)
     tc = p[P.COULOMB_ACC]
     if tc > 0.0:
         if om > 0.0:
@@ -711,6 +745,14 @@ def integrate(
         if h <= 0.0:
             h = _initial_step(t, th, om, a1, pr, slide, tc, rtol, atol)
         h = min(h, max_step)
+        if contact and om < 0.0 and S[S_EXIT_H] > 0.0:
+            # leaving contact: time to the surface at the current deceleration (an
+            # underestimate, as the force fades on the way out)
+            depth = th - thb
+            disc = om * om - 2.0 * a1 * depth
+            if depth > 0.0 and disc > 0.0:
+                tau = 2.0 * depth / (math.sqrt(disc) - om)
+                h = min(h, max(EXIT_STEP_FRACTION * tau, S[S_EXIT_H]))
         rejected = False
         while True:
             h_min = 1e-14 * max(1.0, abs(t))
@@ -848,6 +890,9 @@ def integrate(
                 events = _push_event(events, n_events, row)
                 n_events += 1
                 S[S_CONTACT] = 0.0
+                # free flight resumes from the step size it had before the contact, not from
+                # the short contact steps (saves regrowing them, with rejections on the way)
+                S[S_H] = max(S[S_H], S[S_FREE_H])
             else:
                 S[S_CONTACT] = 1.0
                 S[S_ENTRY_T] = t_ev
@@ -855,13 +900,11 @@ def integrate(
                 S[S_ENTRY_OM] = om_ev
                 S[S_ENTRY_GRAZE] = 1.0 if grazing else 0.0
                 S[S_THMAX] = th_ev
-                # first contact step: a fraction of the Hertz contact time at this entry speed
-                # (the force's delta^1.5 onset makes larger trial steps fail repeatedly)
-                speed = k_contact[K_SHAFT] * abs(om_ev)
-                rate = k_contact[K_SHAFT] * k_contact[K_GAIN] * k_contact[K_STIFFNESS]
-                if speed > 0.0 and rate > 0.0:
-                    t_hertz = 3.2181 * (1.0 / (rate * rate * speed)) ** 0.2
-                    S[S_H] = min(S[S_H], ENTRY_STEP_FRACTION * t_hertz)
+                S[S_FREE_H] = S[S_H]
+                h_entry = _contact_entry_step(k_contact, om_ev)
+                S[S_EXIT_H] = h_entry
+                if h_entry > 0.0:
+                    S[S_H] = min(S[S_H], h_entry)
         else:
             new_slide = _stick_test(t_ev, th_ev, pr, tc)
             S[S_SLIDE] = new_slide
