@@ -44,7 +44,8 @@ from analysis.records import Record
 
 TRAIN_FRACTION = 0.6
 UNEXPLAINED_RATIO = 5.0  # final rms this many times the noise: say the story is incomplete
-CHAOTIC_FIT_PERIODS = 6  # a chaotic record is fitted only over its first drive periods
+CHAOTIC_FIT_PERIODS = 3  # a chaotic record is fitted only over its first drive periods
+MODEL_INVARIANT_SPAN = 4  # a model's invariants come from a run this many records long
 CHAOS_K = 0.8  # 0-1 test K above this: chaotic
 MAX_FIT_SAMPLES = 4000
 MAX_FIT_SAMPLES_WITH_CONTACT = 8000  # contacts last milliseconds: keep more samples
@@ -83,6 +84,8 @@ class Analysis:
     chosen: str
     localization: Localization
     restitution: dict[str, Any] | None = None
+    zero_one_k: float | None = None  # forced records: 0-1 test K on the Poincare section
+    chaotic: bool = False  # judged on invariant statistics instead of point by point
     timings: dict[str, float] = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
 
@@ -131,6 +134,7 @@ class Analysis:
                 "score": c.verdict.information_criterion_delta,
                 "parameters": cause_parameters(c.full),
                 "heldout_ratio": c.verdict.heldout_ratio,
+                "invariant_ratio": c.verdict.invariant_ratio,
                 "rms_residual": c.full.rms,
                 "earns_keep": c.verdict.earns_keep,
                 "verdict": c.verdict.why,
@@ -160,6 +164,8 @@ class Analysis:
                 ),
             },
             "localization": self.localization.text,
+            "comparison": "invariant statistics" if self.chaotic else "point by point",
+            "chaos_01_K": self.zero_one_k,
             "warnings": self.warnings(),
             "localization_details": self.localization.features,
             "excluded": self.excluded,
@@ -217,9 +223,13 @@ def report_parameters(result: FitResult, rig) -> dict[str, Any]:
 # --------------------------------------------------------------------------- preparation
 
 
-def prepare_data(record: Record) -> tuple[FitData, list[str]]:
+def prepare_data(record: Record, duration_s: float | None = None) -> tuple[FitData, list[str]]:
     """The fit's view of a record: release and rest trimmed (decays), bad samples out,
-    decimated to at most MAX_FIT_SAMPLES samples, noise level from the full-rate data."""
+    decimated to at most MAX_FIT_SAMPLES samples, noise level from the full-rate data.
+
+    ``duration_s`` (forced records) keeps only the record's first seconds, cut before the
+    decimation so that a short stretch keeps the full rate its contacts need.
+    """
     notes: list[str] = []
     experiment = record.experiment
     if experiment == "forced":
@@ -227,6 +237,9 @@ def prepare_data(record: Record) -> tuple[FitData, list[str]]:
         t = record.time_s - record.time_s[0]
         y = np.where(valid, record.angle_rad, np.nan)
         noise, _ = noise_and_quantum(y)
+        if duration_s is not None:
+            keep = max(16, int(np.searchsorted(t, duration_s, side="right")))
+            t, y, valid = t[:keep], y[:keep], valid[:keep]
     else:
         signal = prepare(record.time_s, record.angle_rad, detect_release=True)
         t, y, valid, noise = signal.time_s, signal.angle_rad, signal.valid, signal.noise_rad
@@ -307,13 +320,15 @@ def baseline_start(
             "mu0_s_per_m": max(result["mu0_s_per_m"].value, 1e-3),
         }, hints, notes
     start = _forced_start(data, priors or {})
+    # positions the decays identified (barrier, sensor zero) start the causes that free them
+    hints = {k: float(v) for k, v in (priors or {}).items() if k in ("theta_b_rad", "offset_rad")}
     if not priors:
         notes.append(
             "forced record without decay records: the fit starts from L = l and the model's "
             "default contact values; pass the rig's decays (--free-decay/--impact-decay) for a "
             "start the data support"
         )
-    return start, {}, notes
+    return start, hints, notes
 
 
 def _impact_events_start(
@@ -369,6 +384,8 @@ def priors_from_decays(
         )
         priors["K_N_per_m1.5"] = result["K_N_per_m1.5"].value
         priors["mu0_s_per_m"] = result["mu0_s_per_m"].value
+        priors["theta_b_rad"] = result["theta_b_rad"].value
+        priors["offset_rad"] = result["offset_rad"].value
         if "omega_rad_s" in result.parameters:
             priors.setdefault("omega_rad_s", result["omega_rad_s"].value)
         priors.setdefault("zeta", result["zeta"].value)
@@ -411,11 +428,16 @@ def assess_candidate(
     head = data.head(n_train / data.t.size)
     own = {s.name for s in cause(cause_name).parameters}
     hinted = {k: v for k, v in (hints or {}).items() if k in own}
+    chaotic = reference is not None
     train = fit(head, cause_name, baseline_train.values, scale)
-    if hinted and identified is not None:
+    if identified is not None and (hinted or chaotic):
         # The identification fitted this parameter together with the baseline's: its
         # whole solution is a second start, often in another basin than the baseline's.
-        second = fit(head, cause_name, {**identified, **hinted}, scale)
+        # A chaotic record's baseline fit may be a compromise far from the truth when a
+        # cause acts: the rig's identified values are a second start there, over growing spans.
+        first = {**identified, **hinted}
+        second = fit_growing(head, cause_name, first, scale) if chaotic \
+            else fit(head, cause_name, first, scale)
         if second.rms < train.rms:
             train = second
     prediction, _ = predict(data, cause_name, train.values)
@@ -449,13 +471,32 @@ def assess_candidate(
     return CandidateOutcome(cause_name, train, full, verdict, prediction, rival)
 
 
+def fit_growing(
+    data: FitData, cause_name: str, start: Mapping[str, float], scale: RecordScale
+) -> FitResult:
+    """Chaotic records: fit half a drive period, then spans doubling up to the whole of
+    ``data``, each from the last solution.  Over many periods a chaotic trajectory's misfit
+    has many local minima; over a short span it is smooth and pins the initial state."""
+    values = dict(start)
+    span = 0.5 * data.drive.period_s
+    end = float(data.t[-1])
+    while span < end:
+        values = fit(data.head(span / end), cause_name, values, scale).values
+        span *= 2.0
+    return fit(data, cause_name, values, scale)
+
+
 def model_invariant_distance(
     whole: FitData, measured: Invariants, cause_name: str, values: Mapping[str, float]
 ) -> float:
-    """Distance between the record's invariants and those of the model run over the record."""
-    theta, _ = predict(whole, cause_name, values)
+    """Distance between the record's invariants and those of the model run over
+    MODEL_INVARIANT_SPAN times the record's length: a longer run pins the model's own
+    statistics, so that only the record's sampling scatter stays in the distance."""
+    n = MODEL_INVARIANT_SPAN * whole.t.size
+    theta, _ = predict(whole, cause_name, values, n=n)
     return invariant_distance(
-        measured, invariants(whole.t, theta, whole.drive.frequency_hz, whole.phase0_rad)
+        measured, invariants(np.arange(n) * whole.dt, theta, whole.drive.frequency_hz,
+                             whole.phase0_rad)
     )
 
 
@@ -527,8 +568,12 @@ def analyze_record(
     if chaotic:
         whole = data
         measured = invariants(data.t, data.y, data.drive.frequency_hz, data.phase0_rad)
-        span = CHAOTIC_FIT_PERIODS * data.drive.period_s / max(float(data.t[-1]), 1e-12)
-        data = data.head(min(1.0, span))
+        # the fitted stretch is short: take it at the full rate (contacts last milliseconds)
+        data, _ = prepare_data(record, CHAOTIC_FIT_PERIODS * data.drive.period_s)
+        start, hints, _ = baseline_start(record, data, priors)  # initial state at full rate
+        notes = [n for n in notes if not n.startswith("fitted on every")]
+        say(f"chaotic (K = {k01:.2f}): fitting {data.n_valid} samples of the first "
+            f"{CHAOTIC_FIT_PERIODS} drive periods, judging on invariant statistics")
         notes.append(
             f"chaotic response: models fitted over the first {CHAOTIC_FIT_PERIODS} drive periods "
             "and judged on invariant statistics (Poincare section, turning points, spectral "
@@ -543,7 +588,9 @@ def analyze_record(
         mu0_s_per_m=start.get("mu0_s_per_m", data.rig.mu0_s_per_m), penetration_m=0.0,
     )
     say("fitting the baseline model")
-    baseline_train = fit(data.head(n_train / data.t.size), NONE, start, neutral)
+    head = data.head(n_train / data.t.size)
+    baseline_train = (fit_growing(head, NONE, start, neutral) if chaotic
+                      else fit(head, NONE, start, neutral))
     baseline = fit(data, NONE, baseline_train.values, neutral)
     baseline_prediction, base_sim = predict(data, NONE, baseline_train.values)
     baseline_heldout = heldout_rms(baseline_prediction, data.y, data.valid, n_train)
@@ -599,7 +646,7 @@ def analyze_record(
         record=record, data=data, n_train=n_train, baseline_train=baseline_train,
         baseline=baseline, baseline_prediction=baseline_prediction, candidates=outcomes,
         excluded=excluded_for(data.experiment), chosen=chosen, localization=localization,
-        timings=timings, notes=notes,
+        timings=timings, notes=notes, zero_one_k=k01, chaotic=chaotic,
     )
     if data.experiment == "impact_decay":
         say("constant coefficient of restitution against Hunt-Crossley")

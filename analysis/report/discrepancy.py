@@ -145,6 +145,12 @@ def write_report(analysis: Analysis, directory: str | Path, name: str = "report"
         f"- baseline rms residual {js['baseline']['rms_residual']:.3g} rad; extended "
         f"{js['extended']['rms_residual']:.3g} rad (noise {js['noise_rad']:.3g} rad)",
     ]
+    if js.get("comparison") == "invariant statistics":
+        lines.append(
+            f"- chaotic response (0-1 test K = {js['chaos_01_K']:.2f}): candidates judged on "
+            "invariant statistics (Poincare section, turning points, spectral lines), not "
+            "point by point; ranking's verdicts give each one's invariant-distance ratio"
+        )
     lines += [f"- **caution:** {w}" for w in js.get("warnings", [])]
     gain = js["gain"]
     if gain["heldout_rms_baseline"] is not None:
