@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from analysis.exchange import ExchangeMeta, ExchangeRecord, write_exchange
-from analysis.model import Drive, Model, RigParameters
+from analysis.model import Drive, Model, RigParameters, paper_case
 from hardware_sim.virtual_rig import VirtualRig, VirtualRigSettings
 
 SHOWS_IN = {
@@ -139,6 +139,32 @@ def draw_case(
                       extra)
 
 
+CHAOTIC_SHOWS = ("none", "excitation_amplitude", "barrier_offset")
+
+
+def draw_chaotic_case(seed: int, cause_name: str | None = None) -> HiddenCase:
+    """A forced run of paper case i (beta = 0.120 at 10 Hz: chaotic in this model) recorded
+    after the transient has died, with a random cause from CHAOTIC_SHOWS (or the one given)
+    of a size that moves the invariant statistics clearly, and random noise, rate, length."""
+    rng = np.random.default_rng(seed)
+    cause_name = cause_name or str(rng.choice(CHAOTIC_SHOWS))
+    rig, drive = paper_case("i").dimensional()
+    values: dict[str, float] = {}
+    if cause_name == "excitation_amplitude":
+        values["eps"] = float(rng.uniform(0.15, 0.2))
+    elif cause_name == "barrier_offset":
+        values["theta_b_rad"] = float(rng.uniform(0.015, 0.03))
+    elif cause_name != "none":
+        raise ValueError(f"{cause_name}: not one of {CHAOTIC_SHOWS}")
+    extra = {"frequency_hz": drive.frequency_hz, "amplitude_m": drive.amplitude_m,
+             "settle_s": float(rng.uniform(3.0, 6.0))}
+    return HiddenCase(
+        seed, "forced", cause_name, values, rig, -float(rng.uniform(0.02, 0.06)),
+        float(rng.uniform(1e-4, 3e-4)), float(rng.choice([1000.0, 2000.0])),
+        float(rng.uniform(50.0, 60.0)), extra,
+    )
+
+
 def _typical_penetration(rig: RigParameters, amplitude: float, omega: float) -> float:
     """Largest penetration of a Hertz impact at the entry speed of the swing (MODEL.md 4)."""
     m_eff = rig.m_kg * rig.L_m**2 / rig.l_m**2
@@ -164,6 +190,8 @@ def simulate_case(
     )
     rig = VirtualRig(settings)
     if case.experiment == "forced":
+        # a lab starts recording once the transient has died: the rig runs unrecorded first
+        rig.generate(int(case.extra.get("settle_s", 0.0) * case.sample_rate_hz))
         block = rig.generate(int(case.duration_s * case.sample_rate_hz))
         counts = block["angle"].astype(float)
         table_zero, m_per_count = settings.table_counts_to_m()
