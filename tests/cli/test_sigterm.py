@@ -3,52 +3,16 @@
 from __future__ import annotations
 
 import signal
-import subprocess
-import sys
-import time
-from pathlib import Path
 
 from rig.recording_reader import open_recording
-
-REPO = Path(__file__).resolve().parents[2]
+from tests.rig.cli_recording import start_forced_recording, wait_for_samples
 
 
 def test_sigterm_closes_the_recording_and_stops_the_drive(tmp_path):
     path = tmp_path / "terminated.h5"
-    command = [
-        sys.executable,
-        "-m",
-        "rig.cli",
-        "record",
-        "--sim",
-        "--experiment",
-        "forced",
-        "--drive-hz",
-        "5",
-        "--beta",
-        "0.02",
-        "--settle",
-        "0.2",
-        "--duration",
-        "120",
-        "--fs",
-        "2000",
-        "--out",
-        str(path),
-        "--quiet",
-    ]
-    process = subprocess.Popen(command, cwd=REPO, stderr=subprocess.PIPE, text=True)
+    process = start_forced_recording(path)
     try:
-        deadline = time.monotonic() + 120
-        while time.monotonic() < deadline:
-            assert process.poll() is None, process.stderr.read()
-            try:
-                with open_recording(path) as live:
-                    if len(live.channel("angle")) >= 2_000:
-                        break
-            except (OSError, ValueError, KeyError):
-                pass
-            time.sleep(0.2)
+        wait_for_samples(process, path, 2_000)
         process.send_signal(signal.SIGTERM)
         _, stderr = process.communicate(timeout=60)
     finally:

@@ -26,6 +26,7 @@ from rig.recorder import (
     attach_recorder,
 )
 from rig.recording_reader import open_recording
+from tests.rig.cli_recording import start_forced_recording, wait_for_samples
 from tests.rig.streams import CounterStream, TachStream
 
 REPO = Path(__file__).resolve().parents[2]
@@ -265,48 +266,9 @@ def test_recorder_refuses_blocks_of_an_undeclared_channel(tmp_path):
 def test_impact_rig_record_killed_with_sigkill_leaves_a_readable_prefix(tmp_path):
     """The product path: the CLI recording the virtual rig (pty + Modbus) is killed -9."""
     path = tmp_path / "cli_killed.h5"
-    process = subprocess.Popen(
-        [
-            sys.executable,
-            "-m",
-            "rig.cli",
-            "record",
-            "--sim",
-            "--experiment",
-            "forced",
-            "--drive-hz",
-            "5",
-            "--beta",
-            "0.02",
-            "--settle",
-            "0.2",
-            "--duration",
-            "120",
-            "--fs",
-            "2000",
-            "--out",
-            str(path),
-            "--quiet",
-        ],
-        cwd=REPO,
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.PIPE,
-        text=True,
-    )
+    process = start_forced_recording(path)
     try:
-
-        def reader_sees_data():
-            if process.poll() is not None:
-                raise AssertionError(f"the recording ended early: {process.stderr.read()}")
-            if not path.exists():
-                return False
-            try:
-                with open_recording(path) as live:
-                    return len(live.channel("angle")) >= 4_000
-            except (OSError, ValueError):
-                return False
-
-        assert _wait_until(reader_sees_data, 120)
+        wait_for_samples(process, path, 4_000)
     finally:
         os.kill(process.pid, signal.SIGKILL)
         process.wait(10)
