@@ -20,7 +20,6 @@ from __future__ import annotations
 import argparse
 import os
 import select
-import subprocess
 import sys
 import time
 from dataclasses import dataclass
@@ -29,6 +28,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from benchmarks.emulator_process import EmulatorProcess  # noqa: E402
 from drivers.daq import DaqBoard  # noqa: E402
 from drivers.sensors import (  # noqa: E402
     AnalogVoltageInput,
@@ -47,33 +47,6 @@ HEADROOM_HZ = (400_000, 600_000, 800_000)
 CPU_FIGURE_RATE_HZ = 40_000
 GOAL_RATE_HZ = 200_000
 GOAL_CPU_FRACTION = 0.25
-
-
-class Emulator:
-    """The board emulator in its own process (``python -m hardware_sim.daq_emulator``)."""
-
-    def __init__(self, max_rate_hz: float) -> None:
-        command = [sys.executable, "-m", "hardware_sim.daq_emulator", "--speed", "1"]
-        self.process = subprocess.Popen(
-            [*command, "--max-rate-hz", f"{max_rate_hz:g}"],
-            cwd=ROOT,
-            stdin=subprocess.PIPE,
-            stdout=subprocess.PIPE,
-            text=True,
-        )
-        assert self.process.stdout is not None
-        self.port = self.process.stdout.readline().strip()
-        if not self.port.startswith("/dev/"):
-            raise RuntimeError(f"the emulator did not print its port (got {self.port!r})")
-
-    def close(self) -> None:
-        assert self.process.stdin is not None
-        self.process.stdin.close()  # the emulator exits when its stdin closes
-        try:
-            self.process.wait(timeout=5)
-        except subprocess.TimeoutExpired:
-            self.process.kill()
-            self.process.wait()
 
 
 @dataclass
@@ -95,7 +68,7 @@ class Result:
 
 
 def stream(rate_hz: float, seconds: float) -> Result:
-    emulator = Emulator(max(BOARD_MAX_RATE_HZ, rate_hz))
+    emulator = EmulatorProcess("--max-rate-hz", f"{max(BOARD_MAX_RATE_HZ, rate_hz):g}")
     try:
         board = DaqBoard(
             SerialDaqBackend(emulator.port), sample_rate_hz=rate_hz, analog_channels=CHANNELS
@@ -131,7 +104,7 @@ def stream(rate_hz: float, seconds: float) -> Result:
 
 def bare_read_cpu(rate_hz: float, seconds: float) -> tuple[float, int]:
     """Baseline: CPU to pull the same stream off the pty without looking at it."""
-    emulator = Emulator(BOARD_MAX_RATE_HZ)
+    emulator = EmulatorProcess("--max-rate-hz", f"{BOARD_MAX_RATE_HZ:g}")
     try:
         backend = SerialDaqBackend(emulator.port)
         backend.connect()

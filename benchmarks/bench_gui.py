@@ -24,7 +24,6 @@ from __future__ import annotations
 import argparse
 import os
 import statistics
-import subprocess
 import sys
 import tempfile
 import time
@@ -37,6 +36,7 @@ os.environ.setdefault(
     "IMPACT_RIG_GUI_SETTINGS", str(Path(tempfile.mkdtemp(prefix="bench-gui-")) / "gui.ini")
 )
 
+from benchmarks.emulator_process import EmulatorProcess  # noqa: E402
 from drivers.daq import DaqBoard  # noqa: E402
 from drivers.sensors import (  # noqa: E402
     AnalogVoltageInput,
@@ -59,32 +59,6 @@ RATE_HZ = 40_000.0
 CHANNELS = (0, 1, 2, 3)
 GOAL_FPS = 30.0
 VIEW_PERIOD_S = 5.0  # how long each view stays in front
-
-
-class Emulator:
-    """The board emulator in its own process; it prints its pty and exits when stdin closes."""
-
-    def __init__(self) -> None:
-        self.process = subprocess.Popen(
-            [sys.executable, "-m", "hardware_sim.daq_emulator", "--speed", "1"],
-            cwd=ROOT,
-            stdin=subprocess.PIPE,
-            stdout=subprocess.PIPE,
-            text=True,
-        )
-        assert self.process.stdout is not None
-        self.port = self.process.stdout.readline().strip()
-        if not self.port.startswith("/dev/"):
-            raise RuntimeError(f"the emulator did not print its port (got {self.port!r})")
-
-    def close(self) -> None:
-        assert self.process.stdin is not None
-        self.process.stdin.close()
-        try:
-            self.process.wait(timeout=5)
-        except subprocess.TimeoutExpired:
-            self.process.kill()
-            self.process.wait()
 
 
 class Rig:
@@ -138,7 +112,7 @@ def percentile(values: list[float], q: float) -> float:
 
 def run_without_gui(seconds: float, folder: Path) -> tuple[float, tuple[int, int, int]]:
     """Baseline: stream and record with no window; returns (cpu seconds, losses)."""
-    emulator = Emulator()
+    emulator = EmulatorProcess()
     try:
         rig = Rig(emulator.port, folder / "baseline.h5")
         cpu0 = time.process_time()
@@ -163,7 +137,7 @@ def run_with_gui(seconds: float, folder: Path, view: str) -> dict:
     window = MainWindow()
     window.resize(1280, 800)
     window.show()
-    emulator = Emulator()
+    emulator = EmulatorProcess()
     rig = Rig(emulator.port, folder / "with_gui.h5")
     session = Session()
     session.engine = rig.engine

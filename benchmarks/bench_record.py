@@ -30,6 +30,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from benchmarks.emulator_process import EmulatorProcess  # noqa: E402
 from drivers.daq import DaqBoard  # noqa: E402
 from drivers.sensors import (  # noqa: E402
     AnalogVoltageInput,
@@ -52,38 +53,6 @@ RATE_HZ = 200_000.0
 CHANNELS = (0, 1, 2, 3)
 GOAL_DELAY_S = 1.5
 POLL_S = 0.05
-
-
-class Emulator:
-    """The board emulator in its own process; it exits when its stdin closes."""
-
-    def __init__(self) -> None:
-        self.process = subprocess.Popen(
-            [
-                sys.executable,
-                "-m",
-                "hardware_sim.daq_emulator",
-                "--speed",
-                "1",
-                "--samples-per-frame",
-                "1024",
-            ],
-            cwd=ROOT,
-            stdin=subprocess.PIPE,
-            stdout=subprocess.PIPE,
-            text=True,
-        )
-        self.port = self.process.stdout.readline().strip()
-        if not self.port.startswith("/dev/"):
-            raise RuntimeError(f"the emulator did not print its port (got {self.port!r})")
-
-    def close(self) -> None:
-        self.process.stdin.close()
-        try:
-            self.process.wait(timeout=5)
-        except subprocess.TimeoutExpired:
-            self.process.kill()
-            self.process.wait()
 
 
 def open_board(port: str):
@@ -111,7 +80,7 @@ def specs(fs: float) -> list[ChannelSpec]:
 
 def run(seconds: float, path: Path | None, compression: str | None = "auto") -> dict:
     """Acquire for ``seconds``; record into ``path`` (or drop everything when None)."""
-    emulator = Emulator()
+    emulator = EmulatorProcess("--samples-per-frame", "1024")
     reader = None
     try:
         board, roles = open_board(emulator.port)
