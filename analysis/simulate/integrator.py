@@ -8,9 +8,9 @@ right-hand side, and by landing exactly on the surfaces between them:
 * free flight / contact: the contact surface theta = theta_b.  A step that crosses
   it (sign change of theta - theta_b at its end) or grazes it (an extremum of the
   step's dense-output polynomial beyond the surface, the case a sign test misses)
-  is cut at the first crossing found on the dense output; a landing step of that
-  length is taken and one Henon step (theta as the independent variable) puts the
-  state exactly on the surface.
+  is cut at the first crossing found on the dense output; the state there, from the
+  dense output, is put exactly on the surface by one Henon step (theta as the
+  independent variable).
 * Coulomb friction: sliding in a fixed direction until theta' = 0 (located the same
   way, landed with theta' as the independent variable), then stuck while the other
   torques stay within the friction torque; the release time is located on the
@@ -46,7 +46,7 @@ STATUS_NAMES = {
 
 # ----------------------------------------------------------------------------- state layout
 
-S_TA = 0  # start time of the current segment (step, landing step or stuck interval)
+S_TA = 0  # start time of the current segment (step, step cut at an event, or stuck interval)
 S_TB = 1  # its end time: the integrator's own "now"
 S_THA = 2  # theta at TA
 S_OMA = 3  # theta' at TA
@@ -63,7 +63,7 @@ S_ENTRY_TH = S_H + 5
 S_ENTRY_OM = S_H + 6
 S_ENTRY_GRAZE = S_H + 7
 S_THMAX = S_H + 8
-S_STEPS = S_H + 9  # accepted steps (landing steps included)
+S_STEPS = S_H + 9  # accepted steps
 S_REJECTS = S_H + 10
 S_STICK_T = S_H + 11  # start of the current stuck interval
 S_ACC_B = S_H + 12  # theta'' at TB (last stage of the step), valid when S_ACC_OK = 1
@@ -98,7 +98,8 @@ E3 = np.ascontiguousarray(_dop853.E3, dtype=np.float64)
 E5 = np.ascontiguousarray(_dop853.E5, dtype=np.float64)
 D853 = np.ascontiguousarray(_dop853.D, dtype=np.float64)
 N_EXTENDED = _dop853.N_STAGES_EXTENDED  # 16 with the three extra dense-output stages
-assert not D853[:, 1:5].any()  # _dense_coefficients skips these stages
+# the step and its dense output skip the stages 1-4 where the later rows are zero
+assert not D853[:, 1:5].any() and not A853[N_STAGES:, 1:5].any()
 
 
 def _power_basis() -> np.ndarray:
@@ -124,10 +125,12 @@ SAFETY = 0.9
 MIN_FACTOR = 0.2
 MAX_FACTOR = 10.0
 ENTRY_STEP_FRACTION = 0.005
-# Leaving contact, a step is kept to this fraction of the estimated time to the surface (but
-# not below the entry step): the force's delta^1.5 end makes longer trial steps fail, several
-# times per contact, as the controller shrinks them only by err^(-1/8).
+# Leaving contact, a step is kept to this fraction of the estimated time to the surface: the
+# force's delta^1.5 end makes longer trial steps fail, several times per contact, as the
+# controller shrinks them only by err^(-1/8).  Once that fraction is below the entry step,
+# the step is sized to cross just beyond the estimated exit instead.
 EXIT_STEP_FRACTION = 0.7
+EXIT_CROSSING_FACTOR = 1.05
 STUCK_SCAN_PER_PERIOD = 128  # release search resolution while stuck under forcing
 
 
@@ -212,47 +215,184 @@ def _acc(t, th, om, pr, slide, tc):
 
 
 @numba.njit(cache=True)
-def _rk_step(t, th, om, a1, h, pr, slide, tc, kth, kom, rtol, atol):
+def _rk_step(t, th, om, a0, h, pr, slide, tc, kth, kom, rtol, atol):
     """One DOP853 step: fills the stage slopes; returns theta, theta', theta'' at the end and
-    the scaled error norm (Hairer's blend of the 5th- and 3rd-order estimates)."""
-    kth[0] = om
-    kom[0] = a1
-    for s in range(1, N_STAGES):
-        dth = 0.0
-        dom = 0.0
-        for j in range(s):
-            a = A853[s, j]
-            dth += a * kth[j]
-            dom += a * kom[j]
-        v = om + h * dom
-        kth[s] = v
-        kom[s] = _acc(t + C853[s] * h, th + h * dth, v, pr, slide, tc)
-    dth = 0.0
-    dom = 0.0
-    for j in range(N_STAGES):
-        dth += B853[j] * kth[j]
-        dom += B853[j] * kom[j]
-    th1 = th + h * dth
-    om1 = om + h * dom
-    a_new = _acc(t + h, th1, om1, pr, slide, tc)
-    kth[N_STAGES] = om1
-    kom[N_STAGES] = a_new
-    e5th = 0.0
-    e5om = 0.0
-    e3th = 0.0
-    e3om = 0.0
-    for j in range(N_STAGES + 1):
-        e5th += E5[j] * kth[j]
-        e5om += E5[j] * kom[j]
-        e3th += E3[j] * kth[j]
-        e3om += E3[j] * kom[j]
+    the scaled error norm (Hairer's blend of the 5th- and 3rd-order estimates).
+
+    The stages are written out term by term, zeros of the tableau left out (as in Hairer's
+    own code): a loop over the tableau costs ~10 % more per step.  Stage s is at
+    (t + c_s h, theta + h sum_j a_sj v_j, v_s = theta' + h sum_j a_sj theta''_j).
+    """
+    A = A853
+    v0 = om
+    v1 = om + h * (A[1, 0] * a0)
+    a1 = _acc(t + C853[1] * h, th + h * (A[1, 0] * v0), v1, pr, slide, tc)
+    v2 = om + h * (A[2, 0] * a0 + A[2, 1] * a1)
+    a2 = _acc(t + C853[2] * h, th + h * (A[2, 0] * v0 + A[2, 1] * v1), v2, pr, slide, tc)
+    v3 = om + h * (A[3, 0] * a0 + A[3, 2] * a2)
+    a3 = _acc(t + C853[3] * h, th + h * (A[3, 0] * v0 + A[3, 2] * v2), v3, pr, slide, tc)
+    v4 = om + h * (A[4, 0] * a0 + A[4, 2] * a2 + A[4, 3] * a3)
+    a4 = _acc(
+        t + C853[4] * h, th + h * (A[4, 0] * v0 + A[4, 2] * v2 + A[4, 3] * v3), v4, pr, slide, tc
+    )
+    v5 = om + h * (A[5, 0] * a0 + A[5, 3] * a3 + A[5, 4] * a4)
+    a5 = _acc(
+        t + C853[5] * h, th + h * (A[5, 0] * v0 + A[5, 3] * v3 + A[5, 4] * v4), v5, pr, slide, tc
+    )
+    v6 = om + h * (A[6, 0] * a0 + A[6, 3] * a3 + A[6, 4] * a4 + A[6, 5] * a5)
+    d6 = A[6, 0] * v0 + A[6, 3] * v3 + A[6, 4] * v4 + A[6, 5] * v5
+    a6 = _acc(t + C853[6] * h, th + h * d6, v6, pr, slide, tc)
+    v7 = om + h * (A[7, 0] * a0 + A[7, 3] * a3 + A[7, 4] * a4 + A[7, 5] * a5 + A[7, 6] * a6)
+    d7 = A[7, 0] * v0 + A[7, 3] * v3 + A[7, 4] * v4 + A[7, 5] * v5 + A[7, 6] * v6
+    a7 = _acc(t + C853[7] * h, th + h * d7, v7, pr, slide, tc)
+    v8 = om + h * (
+        A[8, 0] * a0 + A[8, 3] * a3 + A[8, 4] * a4 + A[8, 5] * a5 + A[8, 6] * a6 + A[8, 7] * a7
+    )
+    d8 = A[8, 0] * v0 + A[8, 3] * v3 + A[8, 4] * v4 + A[8, 5] * v5 + A[8, 6] * v6 + A[8, 7] * v7
+    a8 = _acc(t + C853[8] * h, th + h * d8, v8, pr, slide, tc)
+    v9 = om + h * (
+        A[9, 0] * a0
+        + A[9, 3] * a3
+        + A[9, 4] * a4
+        + A[9, 5] * a5
+        + A[9, 6] * a6
+        + A[9, 7] * a7
+        + A[9, 8] * a8
+    )
+    d9 = (
+        A[9, 0] * v0
+        + A[9, 3] * v3
+        + A[9, 4] * v4
+        + A[9, 5] * v5
+        + A[9, 6] * v6
+        + A[9, 7] * v7
+        + A[9, 8] * v8
+    )
+    a9 = _acc(t + C853[9] * h, th + h * d9, v9, pr, slide, tc)
+    v10 = om + h * (
+        A[10, 0] * a0
+        + A[10, 3] * a3
+        + A[10, 4] * a4
+        + A[10, 5] * a5
+        + A[10, 6] * a6
+        + A[10, 7] * a7
+        + A[10, 8] * a8
+        + A[10, 9] * a9
+    )
+    d10 = (
+        A[10, 0] * v0
+        + A[10, 3] * v3
+        + A[10, 4] * v4
+        + A[10, 5] * v5
+        + A[10, 6] * v6
+        + A[10, 7] * v7
+        + A[10, 8] * v8
+        + A[10, 9] * v9
+    )
+    a10 = _acc(t + C853[10] * h, th + h * d10, v10, pr, slide, tc)
+    v11 = om + h * (
+        A[11, 0] * a0
+        + A[11, 3] * a3
+        + A[11, 4] * a4
+        + A[11, 5] * a5
+        + A[11, 6] * a6
+        + A[11, 7] * a7
+        + A[11, 8] * a8
+        + A[11, 9] * a9
+        + A[11, 10] * a10
+    )
+    d11 = (
+        A[11, 0] * v0
+        + A[11, 3] * v3
+        + A[11, 4] * v4
+        + A[11, 5] * v5
+        + A[11, 6] * v6
+        + A[11, 7] * v7
+        + A[11, 8] * v8
+        + A[11, 9] * v9
+        + A[11, 10] * v10
+    )
+    a11 = _acc(t + C853[11] * h, th + h * d11, v11, pr, slide, tc)
+    # the 8th-order solution and the two error estimates share stages 0 and 5-11
+    B = B853
+    th1 = th + h * (
+        B[0] * v0
+        + B[5] * v5
+        + B[6] * v6
+        + B[7] * v7
+        + B[8] * v8
+        + B[9] * v9
+        + B[10] * v10
+        + B[11] * v11
+    )
+    om1 = om + h * (
+        B[0] * a0
+        + B[5] * a5
+        + B[6] * a6
+        + B[7] * a7
+        + B[8] * a8
+        + B[9] * a9
+        + B[10] * a10
+        + B[11] * a11
+    )
+    a12 = _acc(t + h, th1, om1, pr, slide, tc)
+    e5th = (
+        E5[0] * v0
+        + E5[5] * v5
+        + E5[6] * v6
+        + E5[7] * v7
+        + E5[8] * v8
+        + E5[9] * v9
+        + E5[10] * v10
+        + E5[11] * v11
+    )
+    e5om = (
+        E5[0] * a0
+        + E5[5] * a5
+        + E5[6] * a6
+        + E5[7] * a7
+        + E5[8] * a8
+        + E5[9] * a9
+        + E5[10] * a10
+        + E5[11] * a11
+    )
+    e3th = (
+        E3[0] * v0
+        + E3[5] * v5
+        + E3[6] * v6
+        + E3[7] * v7
+        + E3[8] * v8
+        + E3[9] * v9
+        + E3[10] * v10
+        + E3[11] * v11
+    )
+    e3om = (
+        E3[0] * a0
+        + E3[5] * a5
+        + E3[6] * a6
+        + E3[7] * a7
+        + E3[8] * a8
+        + E3[9] * a9
+        + E3[10] * a10
+        + E3[11] * a11
+    )
+    # the stages the dense output needs
+    kth[0], kom[0] = v0, a0
+    kth[5], kom[5] = v5, a5
+    kth[6], kom[6] = v6, a6
+    kth[7], kom[7] = v7, a7
+    kth[8], kom[8] = v8, a8
+    kth[9], kom[9] = v9, a9
+    kth[10], kom[10] = v10, a10
+    kth[11], kom[11] = v11, a11
+    kth[12], kom[12] = om1, a12
     sth = atol + rtol * max(abs(th), abs(th1))
     som = atol + rtol * max(abs(om), abs(om1))
     e5 = (e5th / sth) ** 2 + (e5om / som) ** 2
     e3 = (e3th / sth) ** 2 + (e3om / som) ** 2
     if e5 == 0.0 and e3 == 0.0:
-        return th1, om1, a_new, 0.0
-    return th1, om1, a_new, abs(h) * e5 / math.sqrt(2.0 * (e5 + 0.01 * e3))
+        return th1, om1, a12, 0.0
+    return th1, om1, a12, abs(h) * e5 / math.sqrt(2.0 * (e5 + 0.01 * e3))
 
 
 @numba.njit(cache=True)
@@ -263,9 +403,9 @@ def _dense_coefficients(t, th, om, th1, om1, h, pr, slide, tc, kth, kom, S):
     interpolant (only for steps that are sampled or searched for events).
     """
     for s in range(N_STAGES + 1, N_EXTENDED):
-        dth = 0.0
-        dom = 0.0
-        for j in range(s):
+        dth = A853[s, 0] * kth[0]
+        dom = A853[s, 0] * kom[0]
+        for j in range(5, s):  # _rk_step keeps stages 0 and 5-12 only
             a = A853[s, j]
             dth += a * kth[j]
             dom += a * kom[j]
@@ -313,6 +453,16 @@ def _poly(y0, S, base, s):
     for j in range(DEGREE - 2, -1, -1):
         acc = S[base + j] + s * acc
     return y0 + s * acc
+
+
+@numba.njit(cache=True)
+def _rescale_poly(S, r):
+    """Both polynomials of S re-expressed on the first fraction ``r`` of their interval."""
+    scale = 1.0
+    for j in range(DEGREE):
+        scale *= r
+        S[S_POLY + j] *= scale
+        S[S_POLY + DEGREE + j] *= scale
 
 
 @numba.njit(cache=True)
@@ -394,7 +544,7 @@ def _first_exit(y0, S, base, level, sign):
 def _land_theta(t, th, om, target, pr, slide, tc):
     """Henon step: integrate (t, theta') over theta from ``th`` to ``target`` exactly (RK4).
 
-    Used after the landing step, where |target - th| is at the level of the
+    Used from the dense output at the event, where |target - th| is at the level of the
     integration tolerance, so one step is far more accurate than needed.
     """
     dth = target - th
@@ -752,7 +902,13 @@ def integrate(
             disc = om * om - 2.0 * a1 * depth
             if depth > 0.0 and disc > 0.0:
                 tau = 2.0 * depth / (math.sqrt(disc) - om)
-                h = min(h, max(EXIT_STEP_FRACTION * tau, S[S_EXIT_H]))
+                if EXIT_STEP_FRACTION * tau > S[S_EXIT_H]:
+                    h = min(h, EXIT_STEP_FRACTION * tau)
+                else:
+                    # close enough: cross the surface just beyond the estimated exit, so
+                    # that little of the step lies past it (a step reaching far past the
+                    # exit has a large error estimate and is rejected, several times)
+                    h = min(h, EXIT_CROSSING_FACTOR * tau)
         rejected = False
         while True:
             h_min = 1e-14 * max(1.0, abs(t))
@@ -837,23 +993,17 @@ def integrate(
                 n_dense += 1
             continue
 
-        # ---- landing step onto the event, then exactly onto the surface
-        h_land = s_event * h
+        # ---- the state at the event from the step's dense output (as solve_ivp takes its
+        # events), then one Henon step exactly onto the surface
         S[S_TA] = t
         S[S_THA] = th
         S[S_OMA] = om
-        if h_land > 0.0:
-            thl, oml, _, _ = _rk_step(t, th, om, a1, h_land, pr, slide, tc, kth, kom, rtol, atol)
-            S[S_STEPS] += 1
-            steps_this_call += 1
-            last_th1, last_om1, last_h = thl, oml, h_land
-            poly_ok = False
-            t_land = t + h_land
+        if s_event > 0.0:
+            thl = _poly(th, S, S_POLY, s_event)
+            oml = _poly(om, S, S_POLY + DEGREE, s_event)
+            t_land = t + s_event * h
         else:
             thl, oml, t_land = th, om, t
-            for i in range(2 * DEGREE):
-                S[S_POLY + i] = 0.0
-            poly_ok = True
         if kind == 1:
             t_ev, om_ev = _land_theta(t_land, thl, oml, thb, pr, slide, tc)
             th_ev = thb
@@ -862,15 +1012,14 @@ def integrate(
             om_ev = 0.0
         if not (t_ev >= t):  # the Henon correction must not go back past the step start
             t_ev = t_land
+        # the step's polynomials, restricted to the segment [t, t_ev]
+        _rescale_poly(S, (t_ev - t) / h)
         S[S_TB] = t_ev
         S[S_THB] = th_ev
         S[S_OMB] = om_ev
         S[S_ACC_OK] = 0.0
         S[S_H] = max(h_next, 1e-3 * h)
-        if contact and h_land > 0.0:
-            if not poly_ok:
-                _dense_coefficients(t, th, om, thl, oml, h_land, pr, slide, tc, kth, kom, S)
-                poly_ok = True
+        if contact and s_event > 0.0:
             S[S_THMAX] = max(S[S_THMAX], thl, _poly_max(th, S, S_POLY))
         if want_dense:
             dense = _push_dense(dense, n_dense, t_ev, th_ev, om_ev)
