@@ -214,9 +214,10 @@ def _acc(t, th, om, pr, slide, tc):
 
 
 @numba.njit(cache=True, inline="always")  # one call site; a call would pass ~40 arguments
-def _rk_step(t, th, om, a0, h, pr, slide, tc, kth, kom, rtol, atol):
+def _rk_step(t, th, om, a0, h, pr, slide, tc, kth, kom, rtol, atol, om_floor):
     """One DOP853 step: fills the stage slopes; returns theta, theta', theta'' at the end and
-    the scaled error norm (Hairer's blend of the 5th- and 3rd-order estimates).
+    the scaled error norm (Hairer's blend of the 5th- and 3rd-order estimates), with theta'
+    measured relative to max(|theta'|, om_floor).
 
     The stages are written out term by term, zeros of the tableau left out (as in Hairer's
     own code): a loop over the tableau costs ~10 % more per step.  Stage s is at
@@ -386,7 +387,7 @@ def _rk_step(t, th, om, a0, h, pr, slide, tc, kth, kom, rtol, atol):
     kth[11], kom[11] = v11, a11
     kth[12], kom[12] = om1, a12
     sth = atol + rtol * max(abs(th), abs(th1))
-    som = atol + rtol * max(abs(om), abs(om1))
+    som = atol + rtol * max(abs(om), abs(om1), om_floor)
     e5 = (e5th / sth) ** 2 + (e5om / som) ** 2
     e3 = (e3th / sth) ** 2 + (e3om / som) ** 2
     if e5 == 0.0 and e3 == 0.0:
@@ -915,13 +916,18 @@ def integrate(
                     # that little of the step lies past it (a step reaching far past the
                     # exit has a large error estimate and is rejected, several times)
                     h = min(h, EXIT_CROSSING_FACTOR * tau)
+        # in contact theta' passes through zero at the deepest point, where a test relative
+        # to |theta'| alone would ask for atol; its scale there is the entry speed
+        om_floor = abs(S[S_ENTRY_OM]) if contact else 0.0
         rejected = False
         while True:
             h_min = 1e-14 * max(1.0, abs(t))
             if h < h_min:
                 S[S_STATUS] = STATUS_STEP_UNDERFLOW
                 break
-            th1, om1, a7, err = _rk_step(t, th, om, a1, h, pr, slide, tc, kth, kom, rtol, atol)
+            th1, om1, a7, err = _rk_step(
+                t, th, om, a1, h, pr, slide, tc, kth, kom, rtol, atol, om_floor
+            )
             steps_this_call += 1
             if err <= 1.0:
                 break
