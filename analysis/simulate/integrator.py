@@ -914,8 +914,10 @@ def integrate(
                 else:
                     # close enough: cross the surface just beyond the estimated exit, so
                     # that little of the step lies past it (a step reaching far past the
-                    # exit has a large error estimate and is rejected, several times)
-                    h = min(h, EXIT_CROSSING_FACTOR * tau)
+                    # exit has a large error estimate and is rejected, several times); not
+                    # below a hundredth of the entry step, where the force is too weak to
+                    # matter and tau can fall under the smallest step the clock resolves
+                    h = min(h, max(EXIT_CROSSING_FACTOR * tau, 0.01 * S[S_EXIT_H]))
         # in contact theta' passes through zero at the deepest point, where a test relative
         # to |theta'| alone would ask for atol; its scale there is the entry speed
         om_floor = abs(S[S_ENTRY_OM]) if contact else 0.0

@@ -76,3 +76,18 @@ def test_over_the_top_is_reported_not_turned_into_contact():
     assert result.contacts.count == 0
     assert result.t.size < 2000
     assert np.all(np.abs(result.theta) <= math.pi + 0.1)
+
+
+@pytest.mark.parametrize("depth", [1e-15, 1e-12, 1e-9])
+def test_a_start_just_inside_the_barrier_leaving_it_exits_cleanly(depth):
+    # Leaving contact, the step is sized from the estimated time to the surface; at a
+    # femto-radian depth that estimate is below the smallest step the clock resolves.
+    model = Model()
+    theta_b = model.rig.theta_b_rad
+    result = simulate(model, theta_b + depth, -1.0, duration_s=0.5, fs_hz=1000)
+    assert result.ok, result.status
+    first = result.contacts
+    assert first.count >= 1
+    assert first.t_out[0] < 1e-6  # the contact it started in ends at once
+    assert abs(first.theta_out[0] - theta_b) < 1e-12
+    assert abs(first.theta_dot_out[0] + 1.0) < 1e-6
