@@ -130,6 +130,7 @@ ENTRY_STEP_FRACTION = 0.005
 # the step is sized to cross just beyond the estimated exit instead.
 EXIT_STEP_FRACTION = 0.7
 EXIT_CROSSING_FACTOR = 1.05
+H_MIN_RELATIVE = 1e-14  # smallest step, relative to max(1 s, |t|): below it t + h == t nearly
 STUCK_SCAN_PER_PERIOD = 128  # release search resolution while stuck under forcing
 
 
@@ -917,13 +918,14 @@ def integrate(
                     # exit has a large error estimate and is rejected, several times); not
                     # below a hundredth of the entry step, where the force is too weak to
                     # matter and tau can fall under the smallest step the clock resolves
-                    h = min(h, max(EXIT_CROSSING_FACTOR * tau, 0.01 * S[S_EXIT_H]))
+                    floor = max(0.01 * S[S_EXIT_H], 10.0 * H_MIN_RELATIVE * max(1.0, abs(t)))
+                    h = min(h, max(EXIT_CROSSING_FACTOR * tau, floor))
         # in contact theta' passes through zero at the deepest point, where a test relative
         # to |theta'| alone would ask for atol; its scale there is the entry speed
         om_floor = abs(S[S_ENTRY_OM]) if contact else 0.0
         rejected = False
         while True:
-            h_min = 1e-14 * max(1.0, abs(t))
+            h_min = H_MIN_RELATIVE * max(1.0, abs(t))
             if h < h_min:
                 S[S_STATUS] = STATUS_STEP_UNDERFLOW
                 break
@@ -1007,17 +1009,29 @@ def integrate(
                 n_dense += 1
             continue
 
-        # ---- the state at the event from the step's dense output (as solve_ivp takes its
-        # events), then one Henon step exactly onto the surface
+        # ---- the state at the event, then one Henon step exactly onto the surface
         S[S_TA] = t
         S[S_THA] = th
         S[S_OMA] = om
-        if s_event > 0.0:
+        t_land = t + s_event * h
+        if s_event > 0.0 and kind == 1 and not contact:
+            # a contact entry: its state sets the whole contact, and a step of its own is
+            # ~100x more accurate there than the dense output (which matters for slow,
+            # near-grazing entries)
+            h_land = s_event * h
+            thl, oml, _, _ = _rk_step(
+                t, th, om, a1, h_land, pr, slide, tc, kth, kom, rtol, atol, om_floor
+            )
+            S[S_STEPS] += 1
+            steps_this_call += 1
+            last_th1, last_om1, last_h = thl, oml, h_land
+            poly_ok = False
+        elif s_event > 0.0:
+            # leaving contact or coming to rest: the step's dense output, as solve_ivp does
             thl = _poly(th, S, S_POLY, s_event)
             oml = _poly(om, S, S_POLY + DEGREE, s_event)
-            t_land = t + s_event * h
         else:
-            thl, oml, t_land = th, om, t
+            thl, oml = th, om
         if kind == 1:
             t_ev, om_ev = _land_theta(t_land, thl, oml, thb, pr, slide, tc)
             th_ev = thb
@@ -1026,8 +1040,8 @@ def integrate(
             om_ev = 0.0
         if not (t_ev >= t):  # the Henon correction must not go back past the step start
             t_ev = t_land
-        # the step's polynomials, restricted to the segment [t, t_ev]
-        _rescale_poly(S, (t_ev - t) / h)
+        if poly_ok:  # the step's polynomials, restricted to the segment [t, t_ev]
+            _rescale_poly(S, (t_ev - t) / h)
         S[S_TB] = t_ev
         S[S_THB] = th_ev
         S[S_OMB] = om_ev

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from analysis.model import Model, RigParameters, paper_case
-from analysis.simulate import simulate
+from analysis.simulate import Stepper, simulate
 
 
 def _case_h(theta_b: float) -> Model:
@@ -78,16 +78,38 @@ def test_over_the_top_is_reported_not_turned_into_contact():
     assert np.all(np.abs(result.theta) <= math.pi + 0.1)
 
 
-@pytest.mark.parametrize("depth", [1e-15, 1e-12, 1e-9])
-def test_a_start_just_inside_the_barrier_leaving_it_exits_cleanly(depth):
+@pytest.mark.parametrize("t0", [0.0, 1e7])
+@pytest.mark.parametrize("depth", [1e-15, 1e-9])
+def test_a_start_just_inside_the_barrier_leaving_it_exits_cleanly(depth, t0):
     # Leaving contact, the step is sized from the estimated time to the surface; at a
-    # femto-radian depth that estimate is below the smallest step the clock resolves.
-    model = Model()
+    # femto-radian depth that estimate is below the smallest step the clock resolves (all
+    # the more at t = 1e7 s, where that step is 1e-7 s).  A stiff barrier shortens it further.
+    model = Model(RigParameters(E_Pa=2e8))
     theta_b = model.rig.theta_b_rad
-    result = simulate(model, theta_b + depth, -1.0, duration_s=0.5, fs_hz=1000)
-    assert result.ok, result.status
-    first = result.contacts
+    stepper = Stepper(model, theta_b + depth, -1.0, t0=t0)
+    stepper.advance(t0 + np.arange(1, 501) * 1e-3)  # raises if the run stops
+    first = stepper.pop_contacts()
     assert first.count >= 1
-    assert first.t_out[0] < 1e-6  # the contact it started in ends at once
+    assert first.t_out[0] - t0 < 1e-6  # the contact it started in ends at once
     assert abs(first.theta_out[0] - theta_b) < 1e-12
     assert abs(first.theta_dot_out[0] + 1.0) < 1e-6
+
+
+def test_a_slow_near_grazing_entry_is_as_accurate_as_a_tight_run():
+    # Undamped, so the speed that just reaches the barrier from theta = 0 is known from the
+    # energy; 1e-7 above it the pendulum enters at ~5e-4 of that speed, and the contact it
+    # then makes depends on the entry state to a fraction of that.
+    theta_b = 0.1
+    rig = RigParameters(zeta=0.0, theta_b_rad=theta_b)
+    critical = math.sqrt(2.0 * rig.g_m_s2 / rig.L_m * (1.0 - math.cos(theta_b)))
+    model = Model(rig)
+    runs = [
+        simulate(model, 0.0, critical * (1 + 1e-7), duration_s=0.3, fs_hz=1000, **tolerances)
+        for tolerances in ({}, {"rtol": 1e-13, "atol": 1e-15})
+    ]
+    default, tight = (run.contacts for run in runs)
+    assert default.count == tight.count == 1
+    assert default.theta_dot_in[0] < 1e-3 * critical
+    assert abs(default.theta_dot_in[0] / tight.theta_dot_in[0] - 1) < 1e-4
+    assert abs(default.delta_max_m[0] / tight.delta_max_m[0] - 1) < 1e-3
+    assert abs(default.duration_s[0] / tight.duration_s[0] - 1) < 1e-3
