@@ -137,10 +137,17 @@ class Verdict:
 
 
 def choose(verdicts: list[Verdict]) -> Verdict | None:
-    """The best-scoring candidate that both judges accept, or None (``none``)."""
+    """The best-scoring candidate that both judges accept, or None (``none``).
+
+    On a chaotic record the second judge is one realization's invariant statistics: noisy
+    enough to veto the best-fitting candidate, not to promote a worse fit over it, so
+    there a veto of the best fit means ``none``.
+    """
     for verdict in sorted(verdicts, key=lambda v: -v.information_criterion_delta):
         if verdict.earns_keep:
             return verdict
+        if verdict.invariant_ratio is not None and verdict.information_criterion_delta > BIC_MARGIN:
+            return None
     return None
 
 

@@ -9,7 +9,7 @@ import pytest
 
 from analysis.discrepancy.candidates import VISIBILITY, candidates_for, excluded_for
 from analysis.discrepancy.restitution import restitution_samples
-from analysis.discrepancy.selection import correlation_time
+from analysis.discrepancy.selection import Verdict, choose, correlation_time
 from analysis.extensions import CAUSES
 
 
@@ -76,3 +76,31 @@ def test_invariants_poincare_section_of_a_sine_is_its_value_at_phase_zero():
     d_sub = invariant_distance(inv, invariants(t, sub, f, phase0))
     d_noise = invariant_distance(inv, invariants(t, noisy, f, phase0))
     assert d_sub > 5 * d_noise
+
+
+def _verdict(cause: str, bic: float, heldout: float, invariant: float | None = None) -> Verdict:
+    """A verdict with a BIC gain, a held-out error ratio and (chaotic) an invariant ratio."""
+    return Verdict(
+        cause=cause,
+        information_criterion_delta=bic,
+        heldout_rms_baseline=1.0,
+        heldout_rms_extended=heldout,
+        rms_baseline=1.0,
+        rms_extended=0.5,
+        invariant_distance_baseline=None if invariant is None else 1.0,
+        invariant_distance_extended=invariant,
+    )
+
+
+def test_a_worse_fit_stands_in_for_a_rejected_best_fit_only_on_point_by_point_records():
+    # point by point: the best fit does not predict the unseen part, the next one does
+    periodic = [_verdict("a", 50.0, 1.0), _verdict("b", 30.0, 0.5)]
+    assert choose(periodic).cause == "b"
+    # chaotic: one realization's invariants veto the best fit; they do not promote "b"
+    chaotic = [_verdict("a", 50.0, 1.0, invariant=0.8), _verdict("b", 30.0, 1.0, invariant=0.6)]
+    assert choose(chaotic) is None
+    accepted = [_verdict("a", 50.0, 1.0, invariant=0.5), _verdict("b", 30.0, 1.0, invariant=0.3)]
+    assert choose(accepted).cause == "a"
+    # a candidate below the BIC margin is no best fit: it neither wins nor vetoes
+    weak = [_verdict("a", 5.0, 1.0, invariant=0.9), _verdict("b", 30.0, 1.0, invariant=0.5)]
+    assert choose(weak).cause == "b"
