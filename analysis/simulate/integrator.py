@@ -8,9 +8,9 @@ right-hand side, and by landing exactly on the surfaces between them:
 * free flight / contact: the contact surface theta = theta_b.  A step that crosses
   it (sign change of theta - theta_b at its end) or grazes it (an extremum of the
   step's dense-output polynomial beyond the surface, the case a sign test misses)
-  is cut at the first crossing found on the dense output; the state there, from the
-  dense output, is put exactly on the surface by one Henon step (theta as the
-  independent variable).
+  is cut at the first crossing found on the dense output; the state there (from a
+  step of that length at an entry, from the dense output at an exit) is put exactly
+  on the surface by one Henon step (theta as the independent variable).
 * Coulomb friction: sliding in a fixed direction until theta' = 0 (located the same
   way, landed with theta' as the independent variable), then stuck while the other
   torques stay within the friction torque; the release time is located on the
