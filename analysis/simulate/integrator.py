@@ -130,6 +130,7 @@ ENTRY_STEP_FRACTION = 0.005
 # the step is sized to cross just beyond the estimated exit instead.
 EXIT_STEP_FRACTION = 0.7
 EXIT_CROSSING_FACTOR = 1.05
+SLOW_ENTRY = 0.1  # entry speed below this fraction of the step's: land with a step of its own
 H_MIN_RELATIVE = 1e-14  # smallest step, relative to max(1 s, |t|): below it t + h == t nearly
 STUCK_SCAN_PER_PERIOD = 128  # release search resolution while stuck under forcing
 
@@ -1014,10 +1015,14 @@ def integrate(
         S[S_THA] = th
         S[S_OMA] = om
         t_land = t + s_event * h
+        slow_entry = False
         if s_event > 0.0 and kind == 1 and not contact:
-            # a contact entry: its state sets the whole contact, and a step of its own is
-            # ~100x more accurate there than the dense output (which matters for slow,
-            # near-grazing entries)
+            # a contact entry sets the whole contact; the dense output's error is about
+            # rtol |theta'| of the step, large against a slow, near-grazing entry speed,
+            # where a step of its own (~100x more accurate) is taken instead
+            oml = _poly(om, S, S_POLY + DEGREE, s_event)
+            slow_entry = abs(oml) < SLOW_ENTRY * max(abs(om), abs(om1))
+        if slow_entry:
             h_land = s_event * h
             thl, oml, _, _ = _rk_step(
                 t, th, om, a1, h_land, pr, slide, tc, kth, kom, rtol, atol, om_floor
@@ -1027,7 +1032,7 @@ def integrate(
             last_th1, last_om1, last_h = thl, oml, h_land
             poly_ok = False
         elif s_event > 0.0:
-            # leaving contact or coming to rest: the step's dense output, as solve_ivp does
+            # the step's dense output, as solve_ivp takes its events
             thl = _poly(th, S, S_POLY, s_event)
             oml = _poly(om, S, S_POLY + DEGREE, s_event)
         else:
