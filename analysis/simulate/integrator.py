@@ -1015,14 +1015,14 @@ def integrate(
         S[S_THA] = th
         S[S_OMA] = om
         t_land = t + s_event * h
-        slow_entry = False
-        if s_event > 0.0 and kind == 1 and not contact:
-            # a contact entry sets the whole contact; the dense output's error is about
-            # rtol |theta'| of the step, large against a slow, near-grazing entry speed,
-            # where a step of its own (~100x more accurate) is taken instead
-            oml = _poly(om, S, S_POLY + DEGREE, s_event)
-            slow_entry = abs(oml) < SLOW_ENTRY * max(abs(om), abs(om1))
-        if slow_entry:
+        # the step's dense output, as solve_ivp takes its events
+        thl = _poly(th, S, S_POLY, s_event)
+        oml = _poly(om, S, S_POLY + DEGREE, s_event)
+        entry = kind == 1 and not contact
+        if entry and s_event > 0.0 and abs(oml) < SLOW_ENTRY * max(abs(om), abs(om1)):
+            # a contact entry sets the whole contact; the dense output's error, about
+            # rtol |theta'| of the step, is large against a slow, near-grazing entry speed:
+            # there a step of its own (~100x more accurate) is taken instead
             h_land = s_event * h
             thl, oml, _, _ = _rk_step(
                 t, th, om, a1, h_land, pr, slide, tc, kth, kom, rtol, atol, om_floor
@@ -1031,12 +1031,6 @@ def integrate(
             steps_this_call += 1
             last_th1, last_om1, last_h = thl, oml, h_land
             poly_ok = False
-        elif s_event > 0.0:
-            # the step's dense output, as solve_ivp takes its events
-            thl = _poly(th, S, S_POLY, s_event)
-            oml = _poly(om, S, S_POLY + DEGREE, s_event)
-        else:
-            thl, oml = th, om
         if kind == 1:
             t_ev, om_ev = _land_theta(t_land, thl, oml, thb, pr, slide, tc)
             th_ev = thb
