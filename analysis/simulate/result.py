@@ -9,6 +9,12 @@ import numpy as np
 from analysis.simulate import integrator as ig
 
 
+def _columns(rows: np.ndarray, kind: int) -> np.ndarray:
+    """The rows of one event kind, transposed into a fresh array: one contiguous column
+    per field (one copy for all fields, none shared with the integrator's buffer)."""
+    return np.ascontiguousarray(rows[rows[:, ig.EV_KIND] == kind].T)
+
+
 @dataclass(frozen=True)
 class ContactEvents:
     """Completed barrier contacts, one entry per contact (arrays of equal length).
@@ -41,16 +47,16 @@ class ContactEvents:
     @classmethod
     def from_rows(cls, rows: np.ndarray) -> ContactEvents:
         """Select the contact rows of an integrator event buffer."""
-        rows = rows[rows[:, ig.EV_KIND] == ig.KIND_CONTACT]
+        columns = _columns(rows, ig.KIND_CONTACT)
         return cls(
-            t_in=rows[:, ig.EV_T_IN].copy(),
-            t_out=rows[:, ig.EV_T_OUT].copy(),
-            theta_in=rows[:, ig.EV_TH_IN].copy(),
-            theta_out=rows[:, ig.EV_TH_OUT].copy(),
-            theta_dot_in=rows[:, ig.EV_OM_IN].copy(),
-            theta_dot_out=rows[:, ig.EV_OM_OUT].copy(),
-            delta_max_m=rows[:, ig.EV_DELTA_MAX].copy(),
-            grazing=rows[:, ig.EV_GRAZING] != 0.0,
+            t_in=columns[ig.EV_T_IN],
+            t_out=columns[ig.EV_T_OUT],
+            theta_in=columns[ig.EV_TH_IN],
+            theta_out=columns[ig.EV_TH_OUT],
+            theta_dot_in=columns[ig.EV_OM_IN],
+            theta_dot_out=columns[ig.EV_OM_OUT],
+            delta_max_m=columns[ig.EV_DELTA_MAX],
+            grazing=columns[ig.EV_GRAZING] != 0.0,
         )
 
 
@@ -70,11 +76,11 @@ class StickEvents:
     @classmethod
     def from_rows(cls, rows: np.ndarray) -> StickEvents:
         """Select the stick rows of an integrator event buffer."""
-        rows = rows[rows[:, ig.EV_KIND] == ig.KIND_STICK]
+        columns = _columns(rows, ig.KIND_STICK)
         return cls(
-            t_start=rows[:, ig.EV_T_IN].copy(),
-            t_end=rows[:, ig.EV_T_OUT].copy(),
-            theta=rows[:, ig.EV_TH_IN].copy(),
+            t_start=columns[ig.EV_T_IN],
+            t_end=columns[ig.EV_T_OUT],
+            theta=columns[ig.EV_TH_IN],
         )
 
 

@@ -116,7 +116,9 @@ def simulate_packed(
         raise ValueError(f"initial state ({theta0!r}, {theta_dot0!r}) must be finite")
     t_rec = record_start_s(p, skip_s)
     n_samples = math.floor(duration_s * fs_hz + 1e-9)
-    out_t = t_rec + np.arange(n_samples) / fs_hz
+    out_t = np.arange(n_samples, dtype=float)  # t_rec + k / fs, built in place
+    out_t /= fs_hz
+    out_t += t_rec
     t_final = t_rec + duration_s
     pc_t0, pc_dt, n_pc = poincare_times(p, t_rec, t_final, poincare_phase)
     out_th = np.empty(n_samples)
