@@ -6,16 +6,37 @@ import math
 
 import numpy as np
 
-from analysis.model import Model, P, contact_force, paper_case, smooth_acceleration
+from analysis.model import Model, P, contact_force, paper_case, penetration, smooth_acceleration
 from analysis.simulate.integrator import coefficients, region_acceleration
+
+# a typical size of every slot of the packed vector, by name (the random draw scales it)
+_TYPICAL = {
+    P.OMEGA2: 200.0,
+    P.TWO_ZETA_OMEGA: 0.2,
+    P.INV_L: 20.0,
+    P.CONTACT_GAIN: 700.0,
+    P.SHAFT_L: 0.05,
+    P.K: 3e5,
+    P.EXPONENT: 1.5,
+    P.MU0: 1.0,
+    P.C_VISCOUS: 0.8,
+    P.THETA_B: 0.2,
+    P.SIN_THETA_B: 0.2,
+    P.BARRIER: 1.0,
+    P.COULOMB_ACC: 1.0,
+    P.C2: 1e-2,
+    P.OMEGA_DRIVE: 60.0,
+    P.A1: 5e-3,
+    P.A2: 1e-3,
+    P.PHI2: 3.0,
+    P.PHASE0: 6.0,
+}
 
 
 def _random_packed(rng: np.random.Generator) -> np.ndarray:
     """Every slot of the packed vector random (a new slot left out here fails the check)."""
-    p = rng.uniform(0.1, 2.0, int(P.SIZE)) * np.array(
-        [200, 0.2, 0.5, 20, 700, 0.05, 3e5, 1, 0.8, 5, 0.2, 1, 1, 1e-4, 60, 5e-3, 1e-3, 3, 6]
-        + [1] * (int(P.SIZE) - 19)
-    )
+    typical = np.array([_TYPICAL[slot] for slot in P if slot is not P.SIZE])
+    p = rng.uniform(0.1, 2.0, typical.size) * typical
     p[P.EXPONENT] = rng.choice([1.5, rng.uniform(0.8, 2.5)])
     p[P.THETA_B] = rng.uniform(-0.3, 0.3)
     p[P.SIN_THETA_B] = np.sin(p[P.THETA_B])
@@ -27,20 +48,27 @@ def _random_packed(rng: np.random.Generator) -> np.ndarray:
 
 
 def _rounding_scale(t: float, theta: float, theta_dot: float, p: np.ndarray) -> float:
-    """Sum of the equation's term sizes, the drive's phase error included (the phase
-    Omega t + phase0 is rounded at its own size): the two forms round their terms in a
-    different order (the kernel fuses multiply-adds), so they may differ by a few
-    roundings of the terms, which cancel in the sum."""
+    """Sum of the sizes of the equation's terms, each sum counted by its parts, and of the
+    drive's phase error (Omega t + phase0 is rounded at its own size).
+
+    The two forms round their terms in a different order (the kernel fuses multiply-adds),
+    so they may differ by a few roundings of each part, however much the parts cancel.
+    """
     phase = p[P.OMEGA_DRIVE] * t + p[P.PHASE0]
     drive = p[P.OMEGA_DRIVE] ** 2 * p[P.INV_L] * abs(math.cos(theta))
     drive *= abs(p[P.A1]) + 8.0 * abs(p[P.A2])  # bounds the drive and its phase derivative
-    return (
+    scale = (
         abs(p[P.TWO_ZETA_OMEGA] * theta_dot)
         + abs(p[P.C2]) * theta_dot**2
         + abs(p[P.OMEGA2] * math.sin(theta))
         + drive * (1.0 + abs(phase))
-        + abs(p[P.CONTACT_GAIN] * contact_force(theta, theta_dot, p))
     )
+    if contact_force(theta, theta_dot, p) > 0.0:
+        elastic = p[P.K] * penetration(theta, p) ** p[P.EXPONENT]
+        rate = abs(p[P.SHAFT_L] * math.cos(theta) * theta_dot)
+        parts = elastic * (1.0 + abs(p[P.MU0]) * rate) + abs(p[P.C_VISCOUS]) * rate
+        scale += abs(p[P.CONTACT_GAIN]) * parts
+    return scale
 
 
 def test_region_acceleration_equals_the_model_equation():
