@@ -96,7 +96,7 @@ def scenario(
     grid = np.arange(math.floor(duration_s * GRID_HZ)) / GRID_HZ
     reference, _ = solve_ivp_with_events(p, theta0, 0.0, duration_s, grid, 1e-13)
     baseline_time, (baseline, baseline_steps) = _best_time(
-        lambda: solve_ivp_with_events(p, theta0, 0.0, duration_s, grid, baseline_rtol), 5
+        lambda: solve_ivp_with_events(p, theta0, 0.0, duration_s, grid, baseline_rtol), 3
     )
     baseline_error = np.abs(baseline - reference).max()
 
@@ -123,7 +123,7 @@ def scenario(
     if chosen is None:
         raise RuntimeError(f"{name}: no tolerance of {OUR_RTOLS} reaches {baseline_error:.2e}")
     rtol, error = chosen
-    our_time, result = _best_time(lambda: ours(rtol), 100)
+    our_time, result = _best_time(lambda: ours(rtol), 20)
     ratio = baseline_time / our_time
     print(f"# {name}: max error vs reference on a {GRID_HZ:g} Hz grid, CPU times")
     print(

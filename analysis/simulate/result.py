@@ -10,8 +10,8 @@ from analysis.simulate import integrator as ig
 
 
 def _columns(rows: np.ndarray, kind: int) -> np.ndarray:
-    """The rows of one event kind, transposed into a fresh array: one contiguous column
-    per field (one copy for all fields, none shared with the integrator's buffer)."""
+    """The rows of one event kind, transposed into a new array: one contiguous column per
+    field, none sharing memory with the integrator's event buffer."""
     return np.ascontiguousarray(rows[rows[:, ig.EV_KIND] == kind].T)
 
 
