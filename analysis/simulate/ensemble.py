@@ -19,7 +19,12 @@ import numpy as np
 
 from analysis.model import P
 from analysis.simulate import integrator as ig
-from analysis.simulate.simulation import DEFAULT_MAX_STEPS, poincare_times, record_start_s
+from analysis.simulate.simulation import (
+    DEFAULT_MAX_STEPS,
+    check_step_settings,
+    poincare_times,
+    record_start_s,
+)
 
 
 @dataclass(frozen=True)
@@ -84,6 +89,7 @@ def simulate_ensemble(
         raise ValueError(f"duration_s = {duration_s!r}: must be a positive finite number")
     if fs_hz is not None and not (math.isfinite(fs_hz) and fs_hz > 0):
         raise ValueError(f"fs_hz = {fs_hz!r}: must be a positive finite number")
+    check_step_settings(rtol, atol, max_step_s)
 
     t_record = np.array([record_start_s(p, skip_s) for p in packed])
     timing = [

@@ -44,19 +44,25 @@ def poincare_times(
     return first, period, math.floor((t_end - first) / period + 1e-9) + 1
 
 
-def _check_settings(duration_s: float, fs_hz: float, skip_s: float, rtol: float, atol: float):
-    for name, value in (
-        ("duration_s", duration_s),
-        ("fs_hz", fs_hz),
-        ("rtol", rtol),
-        ("atol", atol),
-    ):
+def check_step_settings(rtol: float, atol: float, max_step_s: float = math.inf) -> None:
+    """Refuse tolerances and a step cap the integrator cannot honour, naming the setting:
+    rtol and atol positive and finite, rtol >= 1e-14 (below it the error test meets
+    rounding), max_step_s positive (inf: no cap)."""
+    for name, value in (("rtol", rtol), ("atol", atol)):
+        if not (math.isfinite(value) and value > 0):
+            raise ValueError(f"{name} = {value!r}: must be a positive finite number")
+    if rtol < 1e-14:
+        raise ValueError(f"rtol = {rtol!r}: below 1e-14 the error test meets rounding")
+    if not max_step_s > 0:
+        raise ValueError(f"max_step_s = {max_step_s!r}: must be > 0 (inf for no cap)")
+
+
+def _check_settings(duration_s: float, fs_hz: float, skip_s: float) -> None:
+    for name, value in (("duration_s", duration_s), ("fs_hz", fs_hz)):
         if not (math.isfinite(value) and value > 0):
             raise ValueError(f"{name} = {value!r}: must be a positive finite number")
     if not (math.isfinite(skip_s) and skip_s >= 0):
         raise ValueError(f"skip_s = {skip_s!r}: must be >= 0")
-    if rtol < 1e-14:
-        raise ValueError(f"rtol = {rtol!r}: below 1e-14 the error test meets rounding")
 
 
 def simulate(
@@ -111,7 +117,8 @@ def simulate_packed(
     p = np.ascontiguousarray(p, dtype=float)
     if p.shape != (P.SIZE,):
         raise ValueError(f"packed vector has shape {p.shape}; expected ({int(P.SIZE)},)")
-    _check_settings(duration_s, fs_hz, skip_s, rtol, atol)
+    _check_settings(duration_s, fs_hz, skip_s)
+    check_step_settings(rtol, atol, max_step_s)
     if not (math.isfinite(theta0) and math.isfinite(theta_dot0)):
         raise ValueError(f"initial state ({theta0!r}, {theta_dot0!r}) must be finite")
     t_rec = record_start_s(p, skip_s)

@@ -16,7 +16,7 @@ import numpy as np
 from analysis.model import Model, P
 from analysis.simulate import integrator as ig
 from analysis.simulate.result import ContactEvents, StickEvents
-from analysis.simulate.simulation import DEFAULT_MAX_STEPS
+from analysis.simulate.simulation import DEFAULT_MAX_STEPS, check_step_settings
 
 _NO_POINCARE = np.empty(0)
 
@@ -43,6 +43,7 @@ class Stepper:
                 f"initial state t0={t0!r}, theta0={theta0!r}, "
                 f"theta_dot0={theta_dot0!r} must be finite"
             )
+        check_step_settings(rtol, atol, max_step_s)
         self._p = np.ascontiguousarray(model.pack(), dtype=float)
         self._state = ig.new_state(float(t0), float(theta0), float(theta_dot0), self._p)
         self._t = float(t0)

@@ -9,7 +9,13 @@ import numpy as np
 import pytest
 
 from analysis.model import Drive, Model, P, RigParameters, paper_case
-from analysis.simulate import SimulationStoppedError, Stepper, simulate, simulate_packed
+from analysis.simulate import (
+    SimulationStoppedError,
+    Stepper,
+    simulate,
+    simulate_ensemble,
+    simulate_packed,
+)
 
 
 def _case_h() -> Model:
@@ -84,3 +90,26 @@ def test_going_over_the_top_stops_with_a_clear_error_and_bad_times_are_refused()
     assert stepper.status == "ok"
     theta, _ = stepper.advance(stepper.t + np.array([0.01, 0.02]))
     assert np.all(np.isfinite(theta))
+
+
+@pytest.mark.parametrize(
+    ("settings", "named"),
+    [
+        ({"rtol": 0.0}, "rtol"),
+        ({"rtol": math.nan}, "rtol"),
+        ({"rtol": 1e-16}, "rtol"),
+        ({"atol": -1e-11}, "atol"),
+        ({"max_step_s": 0.0}, "max_step_s"),
+        ({"max_step_s": math.nan}, "max_step_s"),
+    ],
+)
+def test_every_entry_point_refuses_step_settings_it_cannot_honour(settings, named):
+    model = Model()
+    runs = (
+        lambda: Stepper(model, -0.2, **settings),
+        lambda: simulate(model, -0.2, duration_s=0.1, **settings),
+        lambda: simulate_ensemble(model.pack(), np.array([-0.2, 0.0]), 0.1, **settings),
+    )
+    for run in runs:
+        with pytest.raises(ValueError, match=named):
+            run()
