@@ -119,6 +119,8 @@ def bifurcation_from_recording(
     ``last`` keeps only the final samples of each step (the settled part after the
     step change).
     """
+    if last is not None and last < 1:
+        raise ValueError(f"last = {last!r}: keep at least 1 sample per step (None keeps all)")
     values = np.asarray(parameter_values, dtype=float).ravel()
     if values.size != len(sections):
         raise ValueError(

@@ -72,6 +72,8 @@ def test_recorded_sweep_keeps_the_settled_samples_of_each_step():
     assert np.array_equal(y, [2.0, 3.0, 4.0, 7.0, 8.0])
     with pytest.raises(ValueError, match="one section per sweep step"):
         bifurcation_from_recording([0.02], sections)
+    with pytest.raises(ValueError, match="last = 0"):  # theta[-0:] would keep every sample
+        bifurcation_from_recording([0.02, 0.03], sections, last=0)
 
 
 def test_plot_draws_every_diagram_and_writes_a_png(tmp_path):
