@@ -50,7 +50,8 @@ def _channel(path: Path, f: h5py.File, name: str) -> tuple[np.ndarray, np.ndarra
             f"{path}: no channel {name!r}; the recording has {list(f['channels'].keys())}"
         ) from None
     blocks = group["blocks"][()]
-    stored = min(group["raw"].shape[0], group["values"].shape[0])
+    # the consistent prefix of docs/recording_layout.md (format 1 files have no flags)
+    stored = min(group[part].shape[0] for part in ("raw", "values", "flags") if part in group)
     blocks = blocks[blocks["stored_start"] + blocks["n_samples"] <= stored]
     n = int(blocks["stored_start"][-1] + blocks["n_samples"][-1]) if blocks.size else 0
     fs = float(group.attrs["sample_rate_hz"])

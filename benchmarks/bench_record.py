@@ -266,7 +266,7 @@ def main(argv: list[str] | None = None) -> int:
     print(
         f"rig-like content (swinging signals + ADC noise of a few counts): "
         f"{realistic_bytes_per_sample(compression):.2f} bytes per sample "
-        "(raw int16 + float32 = 6 bytes uncompressed)"
+        "(raw int16 + float32 + uint8 flags = 7 bytes uncompressed)"
     )
     swmr = rec.get("swmr") or {}
     if swmr.get("max_s") is not None:

@@ -28,7 +28,7 @@ from drivers.interfaces import PulseBlock, SampleBlock
 from rig.events import DriveSetting, Event, Gap, StepMark
 
 FORMAT_NAME = "impact-rig recording"
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2  # 2: per-sample status flags of every sampled channel
 DEFAULT_FLUSH_INTERVAL_S = 0.5
 MAX_FLUSH_INTERVAL_S = 1.0
 STOP_REASON_BYTES = 256
@@ -185,6 +185,7 @@ class _ChannelBuffer:
         self.spec = spec
         self.raw: list[np.ndarray] = []
         self.values: list[np.ndarray] = []
+        self.flags: list[np.ndarray] = []
         self.edges: list[np.ndarray] = []
         self.edge_times: list[np.ndarray] = []
         self.blocks: list[tuple] = []
@@ -193,7 +194,15 @@ class _ChannelBuffer:
         self.lost = 0
 
     def clear(self) -> None:
-        for pending in (self.raw, self.values, self.edges, self.edge_times, self.blocks, self.gaps):
+        for pending in (
+            self.raw,
+            self.values,
+            self.flags,
+            self.edges,
+            self.edge_times,
+            self.blocks,
+            self.gaps,
+        ):
             pending.clear()
 
 
@@ -230,7 +239,7 @@ class Recorder:
         self._failed: RecordingError | None = None
         self._closed = False
         self._chunk_bytes = sum(
-            _chunk_length(spec.sample_rate_hz) * (4 + np.dtype(spec.raw_dtype).itemsize)
+            _chunk_length(spec.sample_rate_hz) * (5 + np.dtype(spec.raw_dtype).itemsize)
             for spec in channels
         )
         if overwrite and self.path.exists():
@@ -287,6 +296,9 @@ class Recorder:
                 group.create_dataset(
                     "values", (0,), maxshape=(None,), dtype="<f4", chunks=(chunk,), **packed
                 )
+                group.create_dataset(
+                    "flags", (0,), maxshape=(None,), dtype="u1", chunks=(chunk,), **packed
+                )
                 _table(group, "blocks", SAMPLE_BLOCK_DTYPE)
             else:
                 for name, dtype in (("edge_indices", "<i8"), ("edge_times_s", "<f8")):
@@ -331,8 +343,12 @@ class Recorder:
         if isinstance(event, SampleBlock):
             buffer = self._channel(event.channel, "samples")
             n = len(event)
+            flags = np.zeros(n, "u1") if event.flags is None else np.asarray(event.flags, "u1")
+            if flags.shape != (n,):
+                raise ValueError(f"channel {event.channel!r}: {flags.size} flags for {n} samples")
             buffer.raw.append(np.asarray(event.raw))
             buffer.values.append(np.asarray(event.values, dtype="<f4"))
+            buffer.flags.append(flags)
             buffer.blocks.append(
                 (
                     event.first_index,
@@ -458,6 +474,7 @@ class Recorder:
         if buffer.spec.kind == "samples":
             _append(group["raw"], buffer.raw, None)
             _append(group["values"], buffer.values, None)
+            _append(group["flags"], buffer.flags, None)
             _append(group["blocks"], buffer.blocks, SAMPLE_BLOCK_DTYPE)
         else:
             _append(group["edge_indices"], buffer.edges, None)

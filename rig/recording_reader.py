@@ -64,6 +64,7 @@ class ChannelData:
     times_s: np.ndarray  # device time of every stored sample
     raw: np.ndarray
     values: np.ndarray
+    flags: np.ndarray  # uint8 status bits per sample (drivers.sensors.FLAG_*); 0: good
     gaps: np.ndarray  # structured: start_index, length
 
     def __len__(self) -> int:
@@ -193,7 +194,7 @@ class Recording:
         """Rows of a sampled channel's block table whose samples are fully stored."""
         group = self._group("channels", name)
         blocks = group["blocks"][()]
-        stored = min(group["raw"].shape[0], group["values"].shape[0])
+        stored = min(group[part].shape[0] for part in _SAMPLE_DATASETS if part in group)
         return blocks[blocks["stored_start"] + blocks["n_samples"] <= stored]
 
     def channel(self, name: str) -> ChannelData:
@@ -217,6 +218,7 @@ class Recording:
             times_s=times,
             raw=group["raw"][:n],
             values=group["values"][:n],
+            flags=_flags(group, 0, n),
             gaps=gaps,
         )
 
@@ -272,12 +274,14 @@ class Recording:
         group = self._group("channels", name)
         fs = float(group.attrs["sample_rate_hz"])
         slab_start, raw, values = 0, group["raw"][:0], group["values"][:0]
+        flags = _flags(group, 0, 0)
         for row in self.complete_blocks(name):
             start, n = int(row["stored_start"]), int(row["n_samples"])
             if start + n > slab_start + raw.size:
                 slab_start = start
                 stop = start + max(n, slab_samples)
                 raw, values = group["raw"][start:stop], group["values"][start:stop]
+                flags = _flags(group, start, stop)
             base = start - slab_start
             for offset in range(0, n, max_samples):
                 count = min(max_samples, n - offset)
@@ -290,6 +294,7 @@ class Recording:
                     raw=raw[part],
                     values=values[part].astype(float),
                     lost_before=int(row["lost_before"]) if offset == 0 else 0,
+                    flags=flags[part],
                 )
 
     def iter_pulse_blocks(self, name: str) -> Iterator[PulseBlock]:
@@ -322,3 +327,15 @@ class Recording:
 def open_recording(path: str | Path) -> Recording:
     """Open a recording read-only (SWMR), validating that it is one."""
     return Recording(path)
+
+
+# the per-sample datasets of a sampled channel; files of format 1 have no flags
+_SAMPLE_DATASETS = ("raw", "values", "flags")
+
+
+def _flags(group: h5py.Group, start: int, stop: int) -> np.ndarray:
+    """Status flags of stored samples [start, stop); zeros (good) in a format-1 file."""
+    if "flags" in group:
+        return group["flags"][start:stop]
+    stop = min(stop, group["raw"].shape[0])
+    return np.zeros(max(stop - start, 0), dtype=np.uint8)

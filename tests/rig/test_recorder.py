@@ -14,6 +14,7 @@ import h5py
 import numpy as np
 import pytest
 
+from drivers.interfaces import SampleBlock
 from rig.engine import AcquisitionEngine
 from rig.events import DriveSetting, StepMark
 from rig.recorder import (
@@ -115,6 +116,31 @@ def test_recording_round_trip_keeps_samples_gaps_pulses_drive_marks_and_metadata
         assert status.closed and status.stop_reason == "completed"
         assert status.samples_written == 2 * 30_000 - 1_234 - 99
         assert status.samples_lost == 1_234 + 99
+
+
+def test_a_format_1_file_without_flags_reads_every_sample_as_good(tmp_path):
+    path = tmp_path / "v1.h5"
+    angle = CounterStream("angle", total=5_000, block=300)
+    _record(path, [angle], lambda e: angle.next_index >= 5_000)[1].close()
+    with h5py.File(path, "r+") as f:  # what format 1 wrote: no flags dataset
+        del f["channels/angle/flags"]
+        f.attrs["format_version"] = 1
+    with open_recording(path) as rec:
+        data = rec.channel("angle")
+        np.testing.assert_array_equal(data.raw, np.arange(5_000))
+        assert data.flags.dtype == np.uint8 and data.flags.shape == (5_000,)
+        assert not data.flags.any()
+        blocks = list(rec.iter_sample_blocks("angle", max_samples=700))
+        assert all(block.flags.shape == (len(block),) for block in blocks)
+        assert sum(len(block) for block in blocks) == 5_000
+
+
+def test_a_block_whose_flags_do_not_match_its_samples_is_refused(tmp_path):
+    recorder = Recorder(tmp_path / "bad.h5", SPECS, META)
+    block = SampleBlock("angle", 0, 0.0, 10_000.0, np.arange(4), np.zeros(4), flags=np.zeros(3))
+    with pytest.raises(ValueError, match="3 flags for 4 samples"):
+        recorder.add(block, 0.0)
+    recorder.close()
 
 
 def test_a_reader_sees_the_data_while_it_is_written(tmp_path):

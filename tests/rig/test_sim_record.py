@@ -8,8 +8,9 @@ import numpy as np
 import pytest
 
 from analysis.exchange import read_exchange
+from drivers.sensors import FLAG_OUT_OF_RANGE
 from rig.cli import main
-from rig.config import load_config
+from rig.config import default_config_path, load_config
 from rig.recording_reader import open_recording
 
 L_M = load_config().constants.L_m
@@ -229,3 +230,31 @@ def test_sweep_marks_every_step_and_per_step_export_has_the_step_drive(tmp_path)
         assert record.meta.drive["frequency_hz"] == frequency
         spacing = np.diff(record.tach_indices)
         np.testing.assert_allclose(spacing, 2000 / frequency, atol=1.0)
+
+
+def test_laser_readings_beyond_its_range_are_recorded_flagged_and_replayed(tmp_path):
+    # a rig file whose laser measures only +-0.5 mm: the 0.9 mm table motion leaves it
+    limit_m = 5e-4
+    text = default_config_path().read_text(encoding="utf-8")
+    narrow = text.replace(
+        "measuring_range_m = [-0.05, 0.05]", f"measuring_range_m = [{-limit_m}, {limit_m}]"
+    )
+    assert narrow != text
+    config = tmp_path / "narrow_laser.toml"
+    config.write_text(narrow, encoding="utf-8")
+    path = tmp_path / "flags.h5"
+    arguments = ["record", "--sim", "--config", str(config), "--experiment", "forced"]
+    arguments += ["--drive-hz", "6", "--beta", "0.02", "--settle", "0.5", "--duration", "1"]
+    arguments += ["--fs", "2000", "--out", str(path), "--quiet"]
+    assert main(arguments) == 0
+    with open_recording(path) as rec:
+        table, angle = rec.channel("table"), rec.channel("angle")
+        out_of_range = (table.flags & FLAG_OUT_OF_RANGE) != 0
+        # values are stored as read (float32), the flag beside them
+        beyond = np.abs(table.values) > limit_m * (1 + 1e-6)
+        within = np.abs(table.values) < limit_m * (1 - 1e-6)
+        assert beyond.sum() > 0.1 * len(table) and within.sum() > 0.1 * len(table)
+        assert out_of_range[beyond].all() and not out_of_range[within].any()
+        assert not angle.flags.any()
+        replayed = np.concatenate([block.flags for block in rec.iter_sample_blocks("table")])
+        np.testing.assert_array_equal(replayed, table.flags)
