@@ -21,6 +21,7 @@ from analysis.model import P
 from analysis.simulate import integrator as ig
 from analysis.simulate.simulation import (
     DEFAULT_MAX_STEPS,
+    check_record_settings,
     check_step_settings,
     poincare_times,
     record_start_s,
@@ -85,10 +86,7 @@ def simulate_ensemble(
     initial = np.array(np.broadcast_to(initial, (n, 2)), dtype=float, order="C")
     if not np.all(np.isfinite(initial)):
         raise ValueError("initial states must be finite")
-    if not (math.isfinite(duration_s) and duration_s > 0):
-        raise ValueError(f"duration_s = {duration_s!r}: must be a positive finite number")
-    if fs_hz is not None and not (math.isfinite(fs_hz) and fs_hz > 0):
-        raise ValueError(f"fs_hz = {fs_hz!r}: must be a positive finite number")
+    check_record_settings(duration_s, fs_hz, skip_s)
     check_step_settings(rtol, atol, max_step_s)
 
     t_record = np.array([record_start_s(p, skip_s) for p in packed])

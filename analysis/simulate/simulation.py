@@ -57,9 +57,11 @@ def check_step_settings(rtol: float, atol: float, max_step_s: float = math.inf) 
         raise ValueError(f"max_step_s = {max_step_s!r}: must be > 0 (inf for no cap)")
 
 
-def _check_settings(duration_s: float, fs_hz: float, skip_s: float) -> None:
+def check_record_settings(duration_s: float, fs_hz: float | None, skip_s: float) -> None:
+    """Refuse a record length, sample rate (None: no samples) or transient that makes no
+    sense, naming the setting."""
     for name, value in (("duration_s", duration_s), ("fs_hz", fs_hz)):
-        if not (math.isfinite(value) and value > 0):
+        if value is not None and not (math.isfinite(value) and value > 0):
             raise ValueError(f"{name} = {value!r}: must be a positive finite number")
     if not (math.isfinite(skip_s) and skip_s >= 0):
         raise ValueError(f"skip_s = {skip_s!r}: must be >= 0")
@@ -117,7 +119,7 @@ def simulate_packed(
     p = np.ascontiguousarray(p, dtype=float)
     if p.shape != (P.SIZE,):
         raise ValueError(f"packed vector has shape {p.shape}; expected ({int(P.SIZE)},)")
-    _check_settings(duration_s, fs_hz, skip_s)
+    check_record_settings(duration_s, fs_hz, skip_s)
     check_step_settings(rtol, atol, max_step_s)
     if not (math.isfinite(theta0) and math.isfinite(theta_dot0)):
         raise ValueError(f"initial state ({theta0!r}, {theta_dot0!r}) must be finite")

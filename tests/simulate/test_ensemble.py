@@ -50,6 +50,9 @@ def test_mismatched_shapes_are_refused():
         simulate_ensemble(np.tile(p, (3, 1)), np.zeros((2, 2)), duration_s=1.0)
     with pytest.raises(ValueError, match="expected"):
         simulate_ensemble(p[:5], np.zeros(2), duration_s=1.0)
+    for settings, named in (({"skip_s": -1.0}, "skip_s"), ({"fs_hz": 0.0}, "fs_hz")):
+        with pytest.raises(ValueError, match=named):
+            simulate_ensemble(p, np.zeros(2), duration_s=1.0, **settings)
 
 
 def test_member_that_leaves_the_regime_is_nan_padded_and_named():
