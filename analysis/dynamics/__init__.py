@@ -1,5 +1,5 @@
-"""Nonlinear-dynamics tools: spectra, Poincare sections, embedding, Lyapunov exponents, 0-1 test,
-regime classification, bifurcation diagrams and basins of attraction."""
+"""Nonlinear-dynamics tools: spectra, Poincare sections, strobe sampling, embedding, Lyapunov
+exponents, 0-1 test, regime classification, bifurcation diagrams and basins of attraction."""
 
 from analysis.dynamics.basins import (
     NO_ATTRACTOR,
@@ -42,6 +42,14 @@ from analysis.dynamics.poincare import (
 )
 from analysis.dynamics.regime import Regime, classify_motion, classify_regime, recurrence_distances
 from analysis.dynamics.spectrum import SpectralPeak, Spectrum, amplitude_spectrum, harmonic_label
+from analysis.dynamics.strobe import (
+    StrobeClock,
+    StrobeSamples,
+    clock_from_drive,
+    clock_from_tach,
+    strobe_record,
+    strobe_samples,
+)
 from analysis.dynamics.sweeps import PoincareRuns, continue_along, model_at_beta, run_poincare
 
 __all__ = [
@@ -57,12 +65,16 @@ __all__ = [
     "Regime",
     "SpectralPeak",
     "Spectrum",
+    "StrobeClock",
+    "StrobeSamples",
     "ZeroOneResult",
     "amplitude_spectrum",
     "basins_of_attraction",
     "bifurcation_from_recording",
     "classify_motion",
     "classify_regime",
+    "clock_from_drive",
+    "clock_from_tach",
     "continue_along",
     "delay_embed",
     "delayed_map",
@@ -87,5 +99,7 @@ __all__ = [
     "run_poincare",
     "simulate_bifurcation",
     "smoothed_derivative",
+    "strobe_record",
+    "strobe_samples",
     "zero_one_test",
 ]
