@@ -1,5 +1,5 @@
 """Nonlinear-dynamics tools: spectra, Poincare sections, strobe sampling, embedding, Lyapunov
-exponents, 0-1 test, regime classification, bifurcation diagrams and basins of attraction."""
+exponents, 0-1 test, regime judgement, bifurcation diagrams and basins of attraction."""
 
 from analysis.dynamics.basins import (
     NO_ATTRACTOR,
@@ -40,7 +40,14 @@ from analysis.dynamics.poincare import (
     poincare_from_pulses,
     smoothed_derivative,
 )
-from analysis.dynamics.regime import Regime, classify_motion, classify_regime, recurrence_distances
+from analysis.dynamics.regime import (
+    Regime,
+    classify_motion,
+    classify_regime,
+    judge_record_regime,
+    judge_regime,
+    recurrence_distances,
+)
 from analysis.dynamics.spectrum import SpectralPeak, Spectrum, amplitude_spectrum, harmonic_label
 from analysis.dynamics.strobe import (
     StrobeClock,
@@ -84,6 +91,8 @@ __all__ = [
     "harmonic_label",
     "identify_attractors",
     "iterate_map",
+    "judge_record_regime",
+    "judge_regime",
     "map_lyapunov",
     "model_at_beta",
     "model_lyapunov",
