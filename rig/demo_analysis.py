@@ -8,7 +8,6 @@ which record and how the results are combined.
 
 from __future__ import annotations
 
-import contextlib
 import math
 from collections.abc import Mapping
 from pathlib import Path
@@ -78,8 +77,9 @@ def combined_parameters(identified: Mapping[str, Any]) -> dict[str, dict[str, An
 
 
 def classify_steps(steps: list[Any], say: Progress) -> tuple[list[dict[str, Any]], list[Any]]:
-    """Regime of each step from its tachometer Poincare section (one point per drive period)."""
-    from analysis.dynamics import poincare_from_pulses
+    """Regime of each step, judged from its strobe points locked to the tachometer (the same
+    judgement as every measured record's), and each step's settled Poincare section."""
+    from analysis.dynamics import judge_record_regime
 
     regimes, sections = [], []
     previous_beta = -math.inf
@@ -97,41 +97,27 @@ def classify_steps(steps: list[Any], say: Progress) -> tuple[list[dict[str, Any]
             "duration_s": float(record.time_s[-1] - record.time_s[0]),
             "poincare_points": int(record.tach_indices.size),
         }
-        section = None
+        section = np.zeros(0)
         try:
-            section = poincare_from_pulses(record.angle_rad, record.sample_rate_hz,
-                                           record.tach_indices)
-            regime = _regime(record, section)
+            noise, _ = _noise(record.angle_rad)
+            regime, strobe = judge_record_regime(
+                record.angle_rad, record.sample_rate_hz, noise,
+                tach_indices=record.tach_indices, frequency_hz=drive["frequency_hz"],
+            )
             entry.update(kind=regime.kind, period=regime.period, label=regime.label)
             entry["short"] = regime.short_name
+            entry["measured_frequency_hz"] = strobe.clock.frequency_hz
+            transient = regime.evidence.get("transient_periods")
+            entry["transient_s"] = regime.evidence.get("transient_s")
+            # the settled part of a periodic step; every period of one that is not
+            section = strobe.section[transient or 0 :]
         except ValueError as error:
             entry.update(kind="unclassified", period=None, label=f"unclassified: {error}")
             entry["short"] = "unclassified"
-        sections.append(section.theta[-SETTLED_POINTS:] if section is not None else np.zeros(0))
+        sections.append(section)
         say(f"  step {number} ({direction}) beta {beta:.3g}: {entry['label']}")
         regimes.append(entry)
     return regimes, sections
-
-
-# A measured Poincare point never returns exactly: sensor noise, the noise of the smoothed
-# rate and what is left of the transient keep it within a few percent of the attractor.
-MEASURED_RECURRENCE_TOLERANCE = 0.03
-SETTLED_POINTS = 30  # the last points of a step: the settled response
-
-
-def _regime(record, section):
-    """Periodic when the settled points (the last ones) recur; otherwise the 0-1 test on all."""
-    from analysis.dynamics import classify_motion
-
-    fs, f = record.sample_rate_hz, record.drive["frequency_hz"]
-    noise, _ = _noise(record.angle_rad)
-    tolerance = max(MEASURED_RECURRENCE_TOLERANCE, 10.0 * noise / (np.ptp(record.angle_rad) or 1.0))
-    tail = section.tail(min(len(section), max(SETTLED_POINTS, len(section) // 2)))
-    with contextlib.suppress(ValueError):  # too few settled points to call it non-periodic
-        settled = classify_motion(record.angle_rad, fs, f, tail, tolerance=tolerance)
-        if settled.kind == "periodic":
-            return settled
-    return classify_motion(record.angle_rad, fs, f, section, tolerance=tolerance)
 
 
 def _noise(angle: np.ndarray) -> tuple[float, float]:

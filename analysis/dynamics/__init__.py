@@ -42,7 +42,6 @@ from analysis.dynamics.poincare import (
 )
 from analysis.dynamics.regime import (
     Regime,
-    classify_motion,
     classify_regime,
     judge_record_regime,
     judge_regime,
@@ -78,7 +77,6 @@ __all__ = [
     "amplitude_spectrum",
     "basins_of_attraction",
     "bifurcation_from_recording",
-    "classify_motion",
     "classify_regime",
     "clock_from_drive",
     "clock_from_tach",

@@ -158,31 +158,6 @@ def _period(recurrence: np.ndarray, tolerance: float, noise_tolerance: float) ->
     return None
 
 
-def classify_motion(
-    theta: np.ndarray,
-    fs_hz: float,
-    drive_frequency_hz: float,
-    poincare: PoincareSection | np.ndarray,
-    **options: Any,
-) -> Regime:
-    """Classify from a post-transient angle record and its Poincare samples (spectrum made here)."""
-    spectrum = amplitude_spectrum(theta, fs_hz, drive_frequency_hz=drive_frequency_hz)
-    if "scale" not in options:
-        options["scale"] = _trajectory_scale(theta, fs_hz, poincare)
-    return classify_regime(poincare, spectrum=spectrum, **options)
-
-
-def _trajectory_scale(theta: np.ndarray, fs_hz: float, poincare: PoincareSection | np.ndarray):
-    """Attractor size from the full trajectory: the angle's range, and the rate's when needed."""
-    theta = np.asarray(theta, dtype=float)
-    points = _as_points(poincare.points if isinstance(poincare, PoincareSection) else poincare)
-    angle_range = float(np.ptp(theta))
-    if points.shape[1] == 1:
-        return angle_range
-    rate_range = float(np.ptp(np.gradient(theta) * fs_hz))
-    return np.array([angle_range, rate_range] + [1.0] * (points.shape[1] - 2))
-
-
 def _harmonic_content(spectrum: Spectrum | None) -> dict[str, Any]:
     """Peak labels sorted into sub-, super- and incommensurate lines, by ascending frequency."""
     if spectrum is None or spectrum.drive_frequency_hz is None:

@@ -1,8 +1,9 @@
-"""The paper's forced cases (MODEL.md section 4) classified from simulations of our model.
+"""The paper's forced cases (MODEL.md section 4) judged from simulations of our model.
 
-Each run: 200 drive periods of transient, then 300 periods recorded.  The expected
-kinds are what the paper's own simulations report; the Lyapunov exponent of the
-tangent dynamics is an independent check of the periodic/chaotic verdict.
+Each run: 200 drive periods of transient, then 300 periods recorded with sensor noise
+added, judged as a measured record is.  The expected kinds are what the paper's own
+simulations report; the Lyapunov exponent of the tangent dynamics is an independent
+check of the periodic/chaotic verdict.
 """
 
 from __future__ import annotations
@@ -12,8 +13,8 @@ import pytest
 
 from analysis.dynamics import (
     Regime,
-    classify_motion,
     fnn_dimension,
+    judge_record_regime,
     model_lyapunov,
     mutual_information_delay,
     rosenstein_lyapunov,
@@ -23,6 +24,7 @@ from analysis.simulate import simulate
 
 TRANSIENT_PERIODS = 200
 RECORD_PERIODS = 300
+NOISE_RAD = 5e-4
 
 
 def _run(name: str, theta0: float = 0.0, theta_dot0: float = 0.0):
@@ -45,8 +47,17 @@ def _run(name: str, theta0: float = 0.0, theta_dot0: float = 0.0):
 
 def _classify(name: str, theta0: float = 0.0, theta_dot0: float = 0.0) -> Regime:
     model, result = _run(name, theta0, theta_dot0)
-    points = np.column_stack([result.poincare.theta, result.poincare.theta_dot])
-    return classify_motion(result.theta, result.fs_hz, model.drive.frequency_hz, points)
+    return _judge(model, result)
+
+
+def _judge(model, result) -> Regime:
+    """The regime of the run read as a record: noisy angle, strobed at the stated drive
+    (the run starts at drive phase 0: a whole number of periods was skipped)."""
+    noisy = result.theta + NOISE_RAD * np.random.default_rng(0).normal(size=result.theta.size)
+    regime, _ = judge_record_regime(
+        noisy, result.fs_hz, NOISE_RAD, frequency_hz=model.drive.frequency_hz
+    )
+    return regime
 
 
 @pytest.mark.parametrize("name", ["a", "c"])
@@ -90,8 +101,7 @@ def test_case_h_is_chaotic_as_in_the_paper():
 @pytest.mark.parametrize("name", ["d", "g", "h", "i"])
 def test_verdict_agrees_with_the_sign_of_the_lyapunov_exponent(name):
     model, result = _run(name)
-    points = np.column_stack([result.poincare.theta, result.poincare.theta_dot])
-    regime = classify_motion(result.theta, result.fs_hz, model.drive.frequency_hz, points)
+    regime = _judge(model, result)
     period = model.drive.period_s
     exponent = model_lyapunov(
         model.pack(),
