@@ -33,6 +33,7 @@ from analysis.dynamics.lyapunov import (
     model_lyapunov,
     rosenstein_lyapunov,
 )
+from analysis.dynamics.measured_regime import judge_record_regime, judge_regime
 from analysis.dynamics.poincare import (
     PoincareSection,
     delayed_map,
@@ -40,13 +41,7 @@ from analysis.dynamics.poincare import (
     poincare_from_pulses,
     smoothed_derivative,
 )
-from analysis.dynamics.regime import (
-    Regime,
-    classify_regime,
-    judge_record_regime,
-    judge_regime,
-    recurrence_distances,
-)
+from analysis.dynamics.regime import Regime, classify_regime, recurrence_distances
 from analysis.dynamics.spectrum import SpectralPeak, Spectrum, amplitude_spectrum, harmonic_label
 from analysis.dynamics.strobe import (
     StrobeClock,

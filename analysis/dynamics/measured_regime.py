@@ -1,0 +1,469 @@
+"""The regime of a measured forced record, judged from its strobe points aware of its noise.
+
+Period k when points k drive periods apart agree within the noise, or approach such an
+orbit as a decaying transient does; chaotic only when no period is found and both the
+0-1 test and the largest Lyapunov exponent from the data say so; quasi-periodic when
+both say regular; undetermined when they disagree.  The strobe points come from
+:mod:`analysis.dynamics.strobe`, locked to the tach.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from types import MappingProxyType
+from typing import Any
+
+import numpy as np
+
+from analysis.dynamics.chaos01 import zero_one_test
+from analysis.dynamics.lyapunov import rosenstein_lyapunov
+from analysis.dynamics.regime import Regime, harmonic_content, harmonic_text
+from analysis.dynamics.spectrum import amplitude_spectrum
+from analysis.dynamics.strobe import StrobeSamples, strobe_record
+
+# Two strobe points agree when their differences, in units of the noise of a difference,
+# have an RMS over the phases of at most AGREEMENT_RMS.  Under noise alone a pair exceeds
+# it with probability ~1e-12 for 8 phases, and still only ~2 % of pairs do when the sample
+# noise is twice the one stated; a wrong period leaves differences of the orbit's size.
+AGREEMENT_RMS = 3.0
+# A period holds when at most this fraction of the settled pairs disagree (a glitch, a
+# pulse the clock could not place), so one bad sample does not hide it ...
+MAX_DISAGREEING_FRACTION = 0.05
+# ... and the median pair differs by at most this (noise alone: ~0.96 for 8 phases): a
+# difference of the size of the noise in every pair is a slow orbit, not noise.
+MAX_MEDIAN_RMS = 1.5
+MIN_PAIRS = 8  # and at least 2 k pairs: each point of a period-k orbit met twice
+MAX_TRANSIENT_FRACTION = 0.5  # the settled part is at least the record's second half
+# Points k periods apart of a settling orbit must draw together at least this much (RMS,
+# noise removed) from the first to the second half of the settled part.
+SETTLING_SHRINK = 2.0
+# Each orbit point in at least this many equations of the settling model: with fewer, its
+# own constant leaves so much freedom that a nonlinear transient passes for a linear one.
+SETTLING_EQUATIONS_PER_POINT = 5
+TRANSIENT_STEPS = 20  # transient lengths tried: the record's first half in this many steps
+CHAOS_K = 0.5  # 0-1 test K above this: chaotic by the 0-1 test
+LYAPUNOV_MIN_PER_PERIOD = 0.01  # Rosenstein exponent above this: chaotic by divergence
+# Neighbours must separate at least this much before the attractor's size bounds them
+# (chaotic records of 50 periods: 8 to 15-fold; longer ones more).
+MIN_DIVERGENCE_RISE = math.log(3.0)
+LYAPUNOV_HORIZON_PERIODS = 20  # neighbours followed this long (or half the record)
+MIN_ZERO_ONE_SAMPLES = 50  # the 0-1 test's least
+
+
+def judge_regime(
+    strobe: StrobeSamples,
+    noise_rad: float,
+    *,
+    theta: np.ndarray | None = None,
+    max_period: int = 32,
+    seed: int = 0,
+) -> Regime:
+    """Judge the regime of a forced record from its strobe points and its sample noise.
+
+    The tolerance follows from ``noise_rad``, the standard deviation of the record's
+    white sample noise (quantisation included): a strobe point's noise is that times
+    its local fit's noise gain, combined with the strobe clock's timing uncertainty
+    times the angle's slope; a difference of two points has the root sum of squares of
+    theirs, and two points agree when their differences, in units of that noise, have
+    an RMS over the phases of at most AGREEMENT_RMS (``tolerance_rad`` in the evidence
+    is that bound for typical points).  Period k is the smallest k <=
+    ``max_period`` for which, from some period n0 in the first half of the record on
+    (n0 periods of transient),
+
+    * points k periods apart agree (at most 5 % of at least max(2k, 8) pairs disagree,
+      the median pair within MAX_MEDIAN_RMS) and every point agrees with the mean of
+      its orbit point's visits;
+    * or, failing that, the points approach a period-k orbit as a decaying transient
+      does: p[n+2k] = a p[n+k] + b p[n] + c (c per orbit point: the linearised k-period
+      map of the pendulum's two-dimensional state) holds within the same tolerance,
+      the roots of z^2 = a z + b lie inside the unit circle, and points k periods apart
+      draw together at least SETTLING_SHRINK-fold from the first half to the second,
+      in the data and in the fitted roots.  The orbit approached may repeat after a
+      divisor of k, which is then the period.
+
+    Without a period: chaotic only when the 0-1 test on the phase-0 points gives
+    K > CHAOS_K and Rosenstein's largest exponent of the strobe points exceeds
+    LYAPUNOV_MIN_PER_PERIOD, its neighbours separating at least threefold;
+    quasi-periodic (or a period beyond the ones tested) when both say regular;
+    undetermined when they disagree or the record is too short for them.  ``theta``
+    (the record the strobe came from) adds the sub- and superharmonics of its settled
+    part.  The evidence holds the clock, the tolerance, 'recurrence' (median RMS
+    difference of points k = 1, 2, ... periods apart over the second half, in noise
+    units), 'transient_periods', 'transient_s', 'settling', 'K', 'lyapunov_per_period'.
+    """
+    if not (math.isfinite(noise_rad) and noise_rad > 0):
+        raise ValueError(f"noise_rad = {noise_rad!r}: the sample noise must be > 0")
+    if max_period < 1:
+        raise ValueError(f"max_period = {max_period}: must be at least 1")
+    points = strobe.points
+    if len(strobe) < MIN_PAIRS + 1:
+        raise ValueError(
+            f"{len(strobe)} drive periods in the record: need at least {MIN_PAIRS + 1} "
+            "to judge its regime"
+        )
+    sigma = np.hypot(noise_rad * strobe.noise_gain, strobe.timing_noise_rad)
+    evidence: dict[str, Any] = {
+        "clock": strobe.clock.summary(),
+        "periods_in_record": len(strobe),
+        "phases_per_period": strobe.phases_per_period,
+        "noise_rad": float(noise_rad),
+        "tolerance_rad": float(AGREEMENT_RMS * np.sqrt(2.0) * np.nanmedian(sigma)),
+    }
+    recurrence = []
+    for k in range(1, max_period + 1):
+        if len(strobe) - k < _min_pairs(k):
+            break
+        recurs = _recurrence(points, sigma, k)
+        recurrence.append(recurs.median_rms)
+        evidence["recurrence"] = np.array(recurrence)
+        if recurs.start is not None:
+            return _periodic(strobe, recurs.period, recurs.start, None, evidence, theta)
+        settling = _settling(points, sigma, k)
+        if settling is not None:
+            return _periodic(strobe, settling.period, settling.start, settling, evidence, theta)
+    evidence["max_period_tested"] = len(recurrence)
+    return _not_periodic(strobe, evidence, theta, seed)
+
+
+def judge_record_regime(
+    theta: np.ndarray,
+    fs_hz: float,
+    noise_rad: float,
+    *,
+    tach_indices: np.ndarray | None = None,
+    frequency_hz: float | None = None,
+    phase_rad: float = 0.0,
+    max_period: int = 32,
+) -> tuple[Regime, StrobeSamples]:
+    """Strobe a forced record (on its tach, else on the stated drive) and judge its regime.
+
+    Returns the regime and the strobe points (the settled section is
+    ``strobe.section[regime.evidence['transient_periods']:]`` for a periodic record).
+    """
+    strobe = strobe_record(
+        theta, fs_hz, tach_indices=tach_indices, frequency_hz=frequency_hz, phase_rad=phase_rad
+    )
+    return judge_regime(strobe, noise_rad, theta=theta, max_period=max_period), strobe
+
+
+@dataclass(frozen=True)
+class _Recurrence:
+    start: int | None  # first settled period, None when points k apart do not agree
+    period: int  # k, or the divisor of k after which the settled orbit repeats
+    median_rms: float  # median RMS difference over the second half, in noise units
+
+
+@dataclass(frozen=True)
+class _Settling:
+    start: int
+    period: int  # of the orbit approached: k, or a divisor of k it repeats after
+    decay_per_period: float
+    # RMS difference of points k periods apart (noise removed), in the first and the second
+    # half of the settled part
+    difference_first_half_rad: float
+    difference_second_half_rad: float
+
+
+def _min_pairs(k: int) -> int:
+    return max(2 * k, MIN_PAIRS)
+
+
+def _min_settling_equations(k: int) -> int:
+    return max(SETTLING_EQUATIONS_PER_POINT * k, MIN_PAIRS)
+
+
+def _recurrence(points: np.ndarray, sigma: np.ndarray, k: int) -> _Recurrence:
+    """Smallest start (within the first half) from which points k periods apart agree, and
+    every point stays within the noise of the mean of its orbit point (its visits k, 2k,
+    ... periods away: a slow drift, as of a torus near a k-period resonance, is no orbit)."""
+    n = points.shape[0]
+    rms = _rms_difference(points[k:], points[:-k], sigma[k:], sigma[:-k])
+    valid = np.isfinite(rms)
+    bad = valid & (rms > AGREEMENT_RMS)
+    # pairs from each start on, counted from the end
+    valid_after = np.cumsum(valid[::-1])[::-1]
+    bad_after = np.cumsum(bad[::-1])[::-1]
+    last_start = min(int(MAX_TRANSIENT_FRACTION * n), rms.size - 1)
+    enough = valid_after[: last_start + 1] >= _min_pairs(k)
+    agree = bad_after[: last_start + 1] <= MAX_DISAGREEING_FRACTION * valid_after[: last_start + 1]
+    # the settled part begins settled: the glitches it may hold are not the transient's tail
+    window = _min_pairs(k)
+    bad_ahead = bad_after - np.concatenate([bad_after[window:], np.zeros(window, dtype=int)])
+    agree &= bad_ahead[: last_start + 1] <= 1
+    tail = rms[rms.size // 2 :]
+    tail = tail[np.isfinite(tail)]
+    median_rms = float(np.median(tail)) if tail.size else math.inf
+    spacing = max(1, n // (2 * TRANSIENT_STEPS))
+    tried = -spacing
+    for start in np.flatnonzero(enough & agree):
+        if start < tried + spacing:
+            continue
+        tried = start
+        if np.median(rms[start:][valid[start:]]) > MAX_MEDIAN_RMS:
+            continue
+        orbit = _orbit_points(points[start:], sigma[start:], k)
+        if orbit is not None:
+            period = _orbit_period(orbit, float(np.nanmedian(sigma)), k)
+            return _Recurrence(int(start), period, median_rms)
+    return _Recurrence(None, k, median_rms)
+
+
+def _orbit_points(points: np.ndarray, sigma: np.ndarray, k: int) -> np.ndarray | None:
+    """The k orbit points (means of their visits) when every point lies within the noise of
+    its mean, with the tolerance of pairs; else None."""
+    finite = np.all(np.isfinite(points), axis=1)
+    orbit_point = np.arange(points.shape[0])[finite] % k
+    counts = np.bincount(orbit_point, minlength=k)
+    if counts.min() < 2:
+        return None
+    membership = (orbit_point[:, None] == np.arange(k)[None, :]).astype(float)
+    mean = (membership.T @ points[finite]) / counts[:, None]
+    # a point's distance from a mean it is part of has variance sigma^2 (1 - 1/count)
+    scale = sigma[finite] * np.sqrt(1.0 - 1.0 / counts[orbit_point])[:, None]
+    rms = np.sqrt(np.mean(((points[finite] - mean[orbit_point]) / scale) ** 2, axis=1))
+    holds = (
+        np.count_nonzero(rms > AGREEMENT_RMS) <= MAX_DISAGREEING_FRACTION * rms.size
+        and np.median(rms) <= MAX_MEDIAN_RMS
+    )
+    return mean if holds else None
+
+
+def _rms_difference(p: np.ndarray, q: np.ndarray, sigma_p: np.ndarray, sigma_q: np.ndarray):
+    """RMS over the phases of (p - q) in units of the noise of the difference, per point."""
+    return np.sqrt(np.mean((p - q) ** 2 / (sigma_p**2 + sigma_q**2), axis=1))
+
+
+def _settling(points: np.ndarray, sigma: np.ndarray, k: int) -> _Settling | None:
+    """The first start from which the points approach a period-k orbit as a decaying
+    transient does (see :func:`judge_regime`), or None."""
+    n = points.shape[0]
+    step = max(1, n // (2 * TRANSIENT_STEPS))
+    for start in range(0, int(MAX_TRANSIENT_FRACTION * n) + 1, step):
+        if n - start - 2 * k < _min_settling_equations(k):
+            return None
+        fit = _settling_from(points[start:], sigma[start:], k)
+        if fit is not None:
+            return _Settling(start, *fit)
+    return None
+
+
+def _settling_from(points: np.ndarray, sigma: np.ndarray, k: int):
+    """(orbit period, decay per period, deviation RMS first half, second half) when the
+    linear settling model of period k fits ``points`` within the noise, else None."""
+    n, d = points.shape
+    rows = np.arange(n - 2 * k)
+    target, middle, early = points[rows + 2 * k], points[rows + k], points[rows]
+    finite = np.all(np.isfinite(target) & np.isfinite(middle) & np.isfinite(early), axis=1)
+    rows = rows[finite]
+    if rows.size < _min_settling_equations(k):
+        return None
+    target, middle, early = target[finite], middle[finite], early[finite]
+    orbit_point = rows % k
+    membership = (orbit_point[:, None] == np.arange(k)[None, :]).astype(float)
+    counts = membership.sum(axis=0)
+    if counts.min() < 2:
+        return None
+
+    def centred(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        mean = (membership.T @ x) / counts[:, None]
+        return x - mean[orbit_point], mean
+
+    y, y_mean = centred(target)
+    x1, x1_mean = centred(middle)
+    x2, x2_mean = centred(early)
+    # Least squares for (a, b), its normal matrix freed of the noise the regressors carry
+    # (known: sigma, less what the class means take), which would pull a, b toward 0 and
+    # make a persistent oscillation look like a decaying one.
+    kept = (1.0 - 1.0 / counts[orbit_point])[:, None]
+    normal = np.array([
+        [np.sum(x1 * x1) - np.sum(kept * sigma[rows + k] ** 2), np.sum(x1 * x2)],
+        [np.sum(x1 * x2), np.sum(x2 * x2) - np.sum(kept * sigma[rows] ** 2)],
+    ])
+    if np.linalg.eigvalsh(normal)[0] <= 0.0 or np.linalg.cond(normal) > 1e12:
+        return None  # no transient above the noise to fit
+    a, b = np.linalg.solve(normal, [np.sum(x1 * y), np.sum(x2 * y)])
+    decay = _largest_root(a, b) ** (1.0 / k)
+    if not decay < 1.0 or decay ** (n / 2.0) > 1.0 / SETTLING_SHRINK:
+        return None  # the model's own transient does not shrink over the record
+    s_target = sigma[rows + 2 * k]
+    s_middle, s_early = sigma[rows + k], sigma[rows]
+    scale = np.sqrt(s_target**2 + (a * s_middle) ** 2 + (b * s_early) ** 2)
+    rms = np.sqrt(np.mean(((y - a * x1 - b * x2) / scale) ** 2, axis=1))
+    if (
+        np.count_nonzero(rms > AGREEMENT_RMS) > MAX_DISAGREEING_FRACTION * rms.size
+        or np.median(rms) > MAX_MEDIAN_RMS
+    ):
+        return None
+    # A decaying transient shows in the data, not only in the fitted roots: points k periods
+    # apart (whose difference needs no fitted orbit) must draw together.
+    first, second = _difference_excess(points, sigma, k)
+    if first < 3.0 * math.sqrt(2.0 / (d * (n // 2))) or first < SETTLING_SHRINK**2 * max(
+        second, 0.0
+    ):
+        return None
+    typical = float(np.nanmedian(sigma)) * math.sqrt(2.0)
+    orbit = (y_mean - a * x1_mean - b * x2_mean) / (1.0 - a - b)
+    return (
+        _orbit_period(orbit, float(np.nanmedian(sigma)), k),
+        decay,
+        typical * math.sqrt(first),
+        typical * math.sqrt(max(second, 0.0)),
+    )
+
+
+def _difference_excess(points: np.ndarray, sigma: np.ndarray, k: int) -> tuple[float, float]:
+    """Mean square of the differences of points k periods apart over the noise's, less 1
+    (the transient's share), in the first and the second half of ``points``."""
+    rms = _rms_difference(points[k:], points[:-k], sigma[k:], sigma[:-k])
+    half = rms.size // 2
+    return float(np.nanmean(rms[:half] ** 2)) - 1.0, float(np.nanmean(rms[half:] ** 2)) - 1.0
+
+
+def _largest_root(a: float, b: float) -> float:
+    """Largest modulus of the roots of z^2 = a z + b."""
+    discriminant = a * a + 4.0 * b
+    if discriminant < 0.0:
+        return math.sqrt(-b)  # a complex pair, |z|^2 = -b
+    return (abs(a) + math.sqrt(discriminant)) / 2.0
+
+
+def _orbit_period(orbit: np.ndarray, sigma: float, k: int) -> int:
+    """Smallest divisor p of k after which the orbit repeats as points p periods apart must.
+
+    A transient whose phase turns by nearly a whole number of turns in k periods (k = 2p,
+    or near a period doubling) spoils the comparison of points p periods apart more than
+    of those k apart; the orbit its points scatter about still has period p.
+    """
+    for p in range(1, k):
+        if k % p:
+            continue
+        rms = _rms_difference(orbit, np.roll(orbit, -p, axis=0), sigma, sigma)
+        if np.all(rms <= AGREEMENT_RMS) and np.median(rms) <= MAX_MEDIAN_RMS:
+            return p
+    return k
+
+
+def _periodic(
+    strobe: StrobeSamples,
+    k: int,
+    transient: int,
+    settling: _Settling | None,
+    evidence: dict[str, Any],
+    theta: np.ndarray | None,
+) -> Regime:
+    evidence["transient_periods"] = int(transient)
+    evidence["transient_s"] = float(transient * strobe.clock.period_s)
+    evidence["settled_periods"] = len(strobe) - int(transient)
+    label = f"period-{k}"
+    if settling is not None:
+        evidence["settling"] = {
+            "decay_per_period": settling.decay_per_period,
+            "difference_first_half_rad": settling.difference_first_half_rad,
+            "difference_second_half_rad": settling.difference_second_half_rad,
+        }
+        label += ", settling"
+    harmonics = _record_harmonics(strobe, theta, transient)
+    evidence.update(harmonics)
+    label += harmonic_text(harmonics)
+    return Regime("periodic", k, label, MappingProxyType(evidence))
+
+
+def _not_periodic(
+    strobe: StrobeSamples,
+    evidence: dict[str, Any],
+    theta: np.ndarray | None,
+    seed: int,
+) -> Regime:
+    tested = evidence["max_period_tested"]
+    run = _longest_finite_run(strobe.points)
+    evidence["chaos_tests_on_periods"] = [int(run.start), int(run.stop)]
+    points = strobe.points[run]
+    if points.shape[0] < MIN_ZERO_ONE_SAMPLES:
+        label = (
+            f"undetermined: no period up to {tested}, and {points.shape[0]} periods are too few "
+            f"for the 0-1 test (needs {MIN_ZERO_ONE_SAMPLES})"
+        )
+        return Regime("undetermined", None, label, MappingProxyType(evidence))
+    k01 = zero_one_test(points[:, 0], seed=seed).K
+    evidence["K"] = k01
+    exponent, note = _strobe_lyapunov(points)
+    evidence["lyapunov_per_period"] = exponent
+    evidence["lyapunov_note"] = note
+    evidence.update(_record_harmonics(strobe, theta, 0))
+    k_says = k01 > CHAOS_K
+    lyapunov_says = exponent is not None and exponent > LYAPUNOV_MIN_PER_PERIOD
+    k_text = f"0-1 test K = {k01:.2f}"
+    lyapunov_text = (
+        f"largest Lyapunov exponent {exponent:.3g} per period"
+        if exponent is not None
+        else "no exponential divergence of neighbours"
+    )
+    if k_says and lyapunov_says:
+        label = f"chaotic (K = {k01:.2f}, lambda = {exponent:.3g} per period)"
+        return Regime("chaotic", None, label, MappingProxyType(evidence))
+    if not k_says and not lyapunov_says:
+        label = f"quasi-periodic or period > {tested} ({k_text}; {lyapunov_text})"
+        if evidence.get("incommensurate"):
+            label += f", lines at {', '.join(evidence['incommensurate'])}"
+        return Regime("quasi_periodic", None, label, MappingProxyType(evidence))
+    verdicts = (
+        f"{k_text} ({'chaotic' if k_says else 'regular'}) but {lyapunov_text} "
+        f"({'chaotic' if lyapunov_says else 'regular'})"
+    )
+    label = f"undetermined: no period up to {tested}; {verdicts}"
+    return Regime("undetermined", None, label, MappingProxyType(evidence))
+
+
+def _strobe_lyapunov(points: np.ndarray) -> tuple[float | None, str]:
+    """Largest exponent per drive period by Rosenstein's method on the strobe points.
+
+    The points, read as one series of d samples per period, embedded with d
+    consecutive samples, are states of the flow one phase step apart; neighbours are
+    at least two periods apart in time.  None (with why) when the neighbours do not
+    diverge from the noise to the attractor's size.
+    """
+    n, d = points.shape
+    horizon = min(LYAPUNOV_HORIZON_PERIODS, max(2, n // 2))
+    try:
+        estimate = rosenstein_lyapunov(
+            points.ravel(),
+            float(d),  # d samples per period: the exponent comes out per period
+            dimension=d,
+            delay=1,
+            theiler_window=2 * d,
+            horizon=horizon * d,
+            max_references=1000,
+        )
+    except ValueError as error:
+        return None, str(error)
+    tail = estimate.curve[int(0.8 * estimate.curve.size) :]
+    rise = float(np.median(tail) - estimate.curve[0])
+    if rise < MIN_DIVERGENCE_RISE:
+        return None, f"neighbours separate {math.exp(rise):.2g}-fold only"
+    return estimate.exponent, f"Rosenstein on the strobe points, divergence x{math.exp(rise):.3g}"
+
+
+def _longest_finite_run(points: np.ndarray) -> slice:
+    finite = np.all(np.isfinite(points), axis=1)
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], finite.astype(np.int8), [0]])))
+    starts, stops = edges[0::2], edges[1::2]
+    if starts.size == 0:
+        return slice(0, 0)
+    longest = int(np.argmax(stops - starts))
+    return slice(int(starts[longest]), int(stops[longest]))
+
+
+def _record_harmonics(
+    strobe: StrobeSamples, theta: np.ndarray | None, transient_periods: int
+) -> dict[str, Any]:
+    """Sub- and superharmonics of the record's settled part ({} without a gap-free record)."""
+    if theta is None:
+        return {}
+    settled = np.asarray(theta, dtype=float)[strobe.start_sample(transient_periods) :]
+    if settled.size < 8 or not np.all(np.isfinite(settled)):
+        return {}
+    spectrum = amplitude_spectrum(
+        settled, strobe.clock.fs_hz, drive_frequency_hz=strobe.clock.frequency_hz
+    )
+    return harmonic_content(spectrum)
