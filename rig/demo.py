@@ -6,7 +6,7 @@ Modbus TCP), faster than real time, with one named cause of MODEL.md section 6
 switched on that the baseline model lacks.  The demo records a free decay, an
 impact decay and a forced amplitude sweep at 10 Hz (up and down); identifies L,
 zeta, K and mu0 with intervals; runs the discrepancy analysis on every record
-(without being told the cause); classifies the regime of every sweep step; and
+(without being told the cause); judges the regime of every sweep step; and
 draws the measured bifurcation diagram against the one simulated with the
 identified model.  Only at the end is the hidden cause revealed, next to what
 the analysis named.
@@ -290,7 +290,7 @@ def run_demo(
     baseline = combined_parameters(identified)
     lap("identification")
 
-    say("[4/6] classifying the regime of every sweep step")
+    say("[4/6] judging the regime of every sweep step")
     regimes, sections = classify_steps(records["sweep_steps"], say)
     write_json(folder / "sweep_regimes.json", {"steps": regimes})
     lap("regimes")

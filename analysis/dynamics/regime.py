@@ -30,7 +30,8 @@ class Regime:
     whose tests disagree) 'undetermined'; ``period`` is the number of drive periods of a
     periodic response (None otherwise); ``evidence`` holds 'recurrence' (return distance
     per lag 1..n), 'K', the Lyapunov exponent, 'subharmonics', 'superharmonics',
-    'incommensurate' when known, and what :func:`judge_regime` adds; ``label`` is for people.
+    'incommensurate' when known, and what ``measured_regime.judge_regime`` adds; ``label``
+    is for people.
     """
 
     kind: str

@@ -20,7 +20,8 @@ physical effect switched on that the baseline model lacks:
      (beta = A/L up, then down) to HDF5
   2. identify L, zeta (free decay) and K, mu0 (impact decay) with 95 % intervals
   3. run the discrepancy analysis on the records (it is not told the effect)
-  4. classify the regime of every sweep step, and draw the measured bifurcation
+  4. judge the regime of every sweep step from its points sampled once per drive
+     period on the tachometer (aware of the noise), and draw the measured bifurcation
      diagram against the one simulated with the identified model
   5. write a report folder: report.md with figures, the JSON reports
      (MODEL.md sections 6 and 7) and the recordings; the effect is revealed there
