@@ -249,8 +249,9 @@ def _settling(points: np.ndarray, sigma: np.ndarray, k: int) -> _Settling | None
 
 
 def _settling_from(points: np.ndarray, sigma: np.ndarray, k: int):
-    """(orbit period, decay per period, deviation RMS first half, second half) when the
-    linear settling model of period k fits ``points`` within the noise, else None."""
+    """(orbit period, decay per period, RMS difference of points k periods apart in the first
+    and in the second half) when the linear settling model of period k fits ``points``
+    within the noise and its transient decays, else None."""
     n, d = points.shape
     rows = np.arange(n - 2 * k)
     target, middle, early = points[rows + 2 * k], points[rows + k], points[rows]
@@ -302,13 +303,13 @@ def _settling_from(points: np.ndarray, sigma: np.ndarray, k: int):
         second, 0.0
     ):
         return None
-    typical = float(np.nanmedian(sigma)) * math.sqrt(2.0)
+    point_noise = float(np.nanmedian(sigma))
     orbit = (y_mean - a * x1_mean - b * x2_mean) / (1.0 - a - b)
     return (
-        _orbit_period(orbit, float(np.nanmedian(sigma)), k),
+        _orbit_period(orbit, point_noise, k),
         decay,
-        typical * math.sqrt(first),
-        typical * math.sqrt(max(second, 0.0)),
+        point_noise * math.sqrt(2.0 * first),  # the noise of a difference is sqrt(2) a point's
+        point_noise * math.sqrt(2.0 * max(second, 0.0)),
     )
 
 
@@ -420,8 +421,8 @@ def _strobe_lyapunov(points: np.ndarray) -> tuple[float | None, str]:
 
     The points, read as one series of d samples per period, embedded with d
     consecutive samples, are states of the flow one phase step apart; neighbours are
-    at least two periods apart in time.  None (with why) when the neighbours do not
-    diverge from the noise to the attractor's size.
+    at least two periods apart in time.  None (with why) when Rosenstein's method finds
+    no exponential divergence or the neighbours separate less than MIN_DIVERGENCE_RISE.
     """
     n, d = points.shape
     horizon = min(LYAPUNOV_HORIZON_PERIODS, max(2, n // 2))

@@ -20,6 +20,7 @@ import numpy as np
 PULSE_TOLERANCE_SAMPLES = 3.0
 PULSE_TOLERANCE_FRACTION = 0.05  # ... or this fraction of a period, when that is larger
 MIN_PULSES = 3
+MIN_PERIOD_SAMPLES = 8  # a drive period shorter than this cannot be strobed at several phases
 
 
 @dataclass(frozen=True)
@@ -97,11 +98,13 @@ def clock_from_tach(
 ) -> StrobeClock:
     """Fit t_k = t0 + k T to tach pulses (sample indices; missing, extra or jittered ones allowed).
 
-    The rough period is the stated one when given, else the median pulse spacing.
-    Each pulse is numbered by the whole periods since the previous accepted pulse, so a
+    The rough period is the typical pulse spacing, or the stated one when that places
+    the pulses better (more pulses on the clock, fewer periods without one: many
+    doubled pulses spoil the spacing; a wrong stated frequency places few).  Each
+    pulse is numbered by the whole periods since the previous accepted pulse, so a
     missing pulse skips a number and an extra one (off the clock, or a second one in
     the same period) is left out; a least-squares line through the accepted pulses,
-    refitted once without the pulses it leaves off, is the clock.
+    renumbered and refitted without the pulses it leaves off, is the clock.
     """
     _check_rate(fs_hz)
     pulses = np.unique(np.asarray(pulse_indices, dtype=float).ravel())
@@ -111,16 +114,18 @@ def clock_from_tach(
         raise ValueError(
             f"{pulses.size} tach pulse(s): need at least {MIN_PULSES} to fit the drive clock"
         )
+    candidates = [_typical_spacing(np.diff(pulses))]
     if stated_frequency_hz is not None:
         _check_frequency(stated_frequency_hz)
-        rough = fs_hz / stated_frequency_hz
-    else:
-        rough = _typical_spacing(np.diff(pulses))
-    numbers, used = _number_pulses(pulses, rough)
-    if used.sum() < MIN_PULSES:
+        candidates.append(fs_hz / stated_frequency_hz)
+    rough, numbers, used = max(
+        ((period, *_number_pulses(pulses, period)) for period in candidates),
+        key=lambda candidate: _placement_score(candidate[1], candidate[2]),
+    )
+    if used.sum() < MIN_PULSES or rough < MIN_PERIOD_SAMPLES:
         raise ValueError(
             "the tach pulses do not follow a steady drive clock "
-            f"(fewer than {MIN_PULSES} pulses fit a period of {rough:.4g} samples)"
+            f"(a period of {rough:.4g} samples places {int(used.sum())} of {pulses.size} pulses)"
         )
     for _ in range(2):  # renumber from the fitted line, keep the pulses on it
         t0, period, _, _ = _line(numbers[used], pulses[used])
@@ -368,6 +373,13 @@ def _count_on(elapsed: np.ndarray, period: float, tolerance: float):
             used[i] = True
             last_time, last_number = elapsed[i], numbers[i]
     return numbers, used
+
+
+def _placement_score(numbers: np.ndarray, used: np.ndarray) -> int:
+    """Pulses on the clock less the clock's periods without one."""
+    placed = int(used.sum())
+    span = int(numbers[used].max() - numbers[used].min()) + 1
+    return placed - (span - placed)
 
 
 def _one_per_period(numbers: np.ndarray, distance: np.ndarray, candidate: np.ndarray):
