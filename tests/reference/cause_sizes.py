@@ -72,8 +72,9 @@ def draw_cause_values(
         # a gap or preload of 0.4-1.5 mm at the contact point
         return {"theta_b_rad": float(rng.uniform(0.008, 0.03) * rng.choice([-1.0, 1.0]))}
     if name == "contact_exponent":
-        # a law that gives Hertz's force at the typical penetration but bends away from it
-        low, high = rng.uniform(1.1, 1.3), rng.uniform(1.7, 2.0)
+        # a law that gives Hertz's force at the typical penetration but bends away from it;
+        # at one impact speed it trades off against K, so only a clear bend shows at all
+        low, high = rng.uniform(1.0, 1.25), rng.uniform(1.8, 2.2)
         n = float(low if rng.random() < 0.5 else high)
         delta = typical_penetration_m(scale.impact_speed_m_s, m_kg=m_kg, l_m=l_m, L_m=L_m,
                                       K_N_per_m1_5=K_N_per_m1_5)
@@ -87,8 +88,9 @@ def draw_cause_values(
     if name == "sensor_offset":
         return {"offset_rad": float(rng.uniform(0.005, 0.03) * rng.choice([-1.0, 1.0]))}
     if name == "sensor_nonlinearity":
-        # a cubic linearity error of 3-10 noise sigmas at the swing's largest angle
-        error = rng.uniform(3.0, 10.0) * noise_rad
+        # a cubic linearity error of 5-15 noise sigmas at the swing's largest angle:
+        # 1.5-30 mrad, at most half a percent of a potentiometer's 6 rad track
+        error = rng.uniform(5.0, 15.0) * noise_rad
         k3 = min(error / scale.amplitude_rad**3, 2.0)
         return {"k3": float(k3 * rng.choice([-1.0, 1.0]))}
     if name == "sensor_lag":

@@ -118,7 +118,8 @@ class ForcedCase:
 
     ``causes`` maps each named cause at work (MODEL.md section 6) to its parameters;
     ``attempt`` is the sub-seed that met a requested regime (0: the seed itself).
-    ``regime_truth.settling`` tells how settled a periodic record's start still is.
+    ``regime_truth.settling`` tells how settled a periodic record's start still is;
+    ``motion`` keeps the noiseless run the regime was judged on (not compared).
     """
 
     seed: int
@@ -254,7 +255,15 @@ def draw_forced_case(
     )
 
 
-def _check_request(seed, cause, frequency_hz, regime, duration_s, sample_rate_hz, laser):
+def _check_request(
+    seed: int,
+    cause: str | None,
+    frequency_hz: float | None,
+    regime: str | None,
+    duration_s: float,
+    sample_rate_hz: float,
+    laser: bool | None,
+) -> None:
     if isinstance(seed, bool) or not isinstance(seed, int | np.integer) or seed < 0:
         raise ValueError(f"seed = {seed!r}: expected a non-negative integer")
     if cause is not None and cause not in CHOICES:
