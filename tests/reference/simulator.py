@@ -1,0 +1,460 @@
+"""Reference simulator of the impact pendulum, written from MODEL.md alone on scipy's DOP853.
+
+An oracle for tests and benchmarks: it shares no code with the project's integrator
+(``analysis.simulate``) or its virtual rig, so an error in either cannot cancel against
+it.  Integration is piecewise: wherever the right-hand side stops being smooth (contact
+entry and exit, the no-adhesion clamp of the contact force, Coulomb friction's stick,
+slip and reversal) a terminal event ends one ``solve_ivp`` run and the next starts from
+the event state.  Clarity comes before speed.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.integrate import solve_ivp
+
+# How far one solve_ivp step may reach, as a fraction of the shortest period in play.
+# Events are found by sign changes at step ends, so the cap keeps a swing's events from
+# being stepped over; a graze shallower than a step can see is still integrated (every
+# mode's right-hand side carries the contact force), only not located.
+MAX_STEP_FRACTION = 1.0 / 10.0
+# Pieces that end where they began; more in a row than this means the event logic is stuck.
+MAX_EMPTY_PIECES = 20
+
+
+class OverTheTopError(ValueError):
+    """The pendulum reached the horizontal (cos theta <= 0): it left the experiment's regime."""
+
+
+@dataclass(frozen=True)
+class Pendulum:
+    """The physical truth of MODEL.md section 2 with the dynamics causes of section 6.
+
+    ``K_n`` is the contact stiffness in N/m^n (Hertz: n = 1.5, K = (4/3) E sqrt(R));
+    ``c_N_s_per_m`` adds Kelvin-Voigt contact damping, ``Tc_N_m`` pivot dry friction with
+    stiction, ``c2_per_rad`` aerodynamic drag; ``barrier=False`` removes the barrier.
+    """
+
+    m_kg: float
+    l_m: float
+    L_m: float
+    zeta: float
+    K_n: float
+    mu0_s_per_m: float
+    g_m_s2: float = 9.81
+    n: float = 1.5
+    c_N_s_per_m: float = 0.0
+    theta_b_rad: float = 0.0
+    Tc_N_m: float = 0.0
+    c2_per_rad: float = 0.0
+    barrier: bool = True
+
+    def __post_init__(self) -> None:
+        for name in ("m_kg", "l_m", "L_m", "g_m_s2", "K_n", "n"):
+            _require_finite(name, getattr(self, name), lower=0.0, strict=True)
+        for name in ("zeta", "mu0_s_per_m", "c_N_s_per_m", "Tc_N_m", "c2_per_rad"):
+            _require_finite(name, getattr(self, name), lower=0.0, strict=False)
+        _require_finite("theta_b_rad", self.theta_b_rad, lower=-math.inf, strict=False)
+        if abs(self.theta_b_rad) >= math.pi / 2:
+            raise ValueError(
+                f"theta_b_rad = {self.theta_b_rad!r}: the barrier must sit below the pivot "
+                "(|theta_b_rad| < pi/2)"
+            )
+
+    @property
+    def omega_rad_s(self) -> float:
+        """Small-angle natural frequency sqrt(g / L)."""
+        return math.sqrt(self.g_m_s2 / self.L_m)
+
+
+@dataclass(frozen=True)
+class TableMotion:
+    """x_t(t) = A sin(phase) + A h2 sin(2 phase + phi2), phase = 2 pi f t + phase_rad.
+
+    ``phase_rad`` is the drive phase at t = 0; amplitude 0 leaves the table at rest.
+    """
+
+    amplitude_m: float = 0.0
+    frequency_hz: float = 0.0
+    phase_rad: float = 0.0
+    h2: float = 0.0
+    phi2_rad: float = 0.0
+
+    def __post_init__(self) -> None:
+        for name in ("amplitude_m", "frequency_hz", "h2"):
+            _require_finite(name, getattr(self, name), lower=0.0, strict=False)
+        for name in ("phase_rad", "phi2_rad"):
+            _require_finite(name, getattr(self, name), lower=-math.inf, strict=False)
+        if self.amplitude_m > 0 and self.frequency_hz <= 0:
+            raise ValueError(
+                f"frequency_hz = {self.frequency_hz!r}: a table moving with amplitude "
+                f"{self.amplitude_m} m needs a positive frequency"
+            )
+
+    @property
+    def is_moving(self) -> bool:
+        """True when the table is driven."""
+        return self.amplitude_m > 0
+
+    @property
+    def period_s(self) -> float:
+        """Drive period 1/f (inf for a table at rest)."""
+        return 1.0 / self.frequency_hz if self.is_moving else math.inf
+
+    def phase(self, t: float | np.ndarray) -> float | np.ndarray:
+        """Drive phase 2 pi f t + phase_rad (not wrapped)."""
+        return 2.0 * math.pi * self.frequency_hz * np.asarray(t) + self.phase_rad
+
+    def displacement(self, t: float | np.ndarray) -> float | np.ndarray:
+        """Table displacement x_t(t) [m]."""
+        phase = self.phase(t)
+        return self.amplitude_m * (np.sin(phase) + self.h2 * np.sin(2.0 * phase + self.phi2_rad))
+
+    def acceleration(self, t: float) -> float:
+        """Table acceleration x_t''(t) [m/s^2] at one instant."""
+        if not self.is_moving:
+            return 0.0
+        w = 2.0 * math.pi * self.frequency_hz
+        phase = w * t + self.phase_rad
+        return -w * w * self.amplitude_m * (
+            math.sin(phase) + 4.0 * self.h2 * math.sin(2.0 * phase + self.phi2_rad)
+        )
+
+
+@dataclass(frozen=True)
+class Event:
+    """One terminal event: its time, kind and the state (theta, theta') there.
+
+    Kinds: contact_entry, contact_exit, clamp (the force would turn adhesive), unclamp,
+    stick, slip (stick ends), reversal (theta' = 0 without sticking).
+    """
+
+    t_s: float
+    kind: str
+    theta_rad: float
+    theta_dot_rad_s: float
+
+
+@dataclass(frozen=True)
+class ReferenceRun:
+    """Samples at the requested times, every event, and the final state."""
+
+    t_s: np.ndarray
+    theta_rad: np.ndarray
+    theta_dot_rad_s: np.ndarray
+    lowpass_rad: np.ndarray | None
+    events: tuple[Event, ...]
+    final_t_s: float
+    final_state: np.ndarray = field(repr=False)
+
+    def events_of(self, kind: str) -> list[Event]:
+        """The events of one kind, in time order."""
+        return [event for event in self.events if event.kind == kind]
+
+
+@dataclass
+class _Mode:
+    """Which side of each non-smooth surface the motion is on; sets event directions."""
+
+    in_contact: bool
+    clamped: bool
+    direction: float  # sign of theta' for the friction term (+1 or -1)
+    stuck: bool
+
+
+class _Equations:
+    """The terms of the equation of motion for one pendulum and table."""
+
+    def __init__(self, pendulum: Pendulum, table: TableMotion, lowpass_tau_s: float | None):
+        self.p = pendulum
+        self.table = table
+        self.omega2 = pendulum.g_m_s2 / pendulum.L_m
+        self.two_zeta_omega = 2.0 * pendulum.zeta * pendulum.omega_rad_s
+        self.contact_gain = pendulum.l_m / (pendulum.m_kg * pendulum.L_m**2)
+        self.friction_acc = pendulum.Tc_N_m / (pendulum.m_kg * pendulum.L_m**2)
+        self.sin_b = math.sin(pendulum.theta_b_rad)
+        self.lowpass_tau_s = lowpass_tau_s
+
+    def surface(self, theta: float) -> float:
+        """sin(theta) - sin(theta_b): the penetration over l, > 0 in contact."""
+        return math.sin(theta) - self.sin_b
+
+    def unclamped_force(self, theta: float, theta_dot: float) -> float:
+        """K_n delta^n (1 + mu0 deltadot) + c deltadot in contact, else 0 [N]."""
+        p = self.p
+        delta = p.l_m * self.surface(theta)
+        if not p.barrier or delta <= 0.0 or math.cos(theta) <= 0.0:
+            return 0.0
+        delta_dot = p.l_m * math.cos(theta) * theta_dot
+        return p.K_n * delta**p.n * (1.0 + p.mu0_s_per_m * delta_dot) + p.c_N_s_per_m * delta_dot
+
+    def clamp_indicator(self, theta: float, theta_dot: float) -> float:
+        """A smooth function with the sign of the unclamped force inside the contact.
+
+        Pure Hunt-Crossley's force has the sign of 1 + mu0 deltadot, which stays away from 0
+        at contact entry where the force itself starts at 0.  With viscous damping the
+        force law itself is used, continued past the exit (delta < 0 counts as 0) so that
+        a step reaching beyond the exit cannot read a spurious zero.
+        """
+        p = self.p
+        delta_dot = p.l_m * math.cos(theta) * theta_dot
+        if p.c_N_s_per_m == 0.0:
+            return 1.0 + p.mu0_s_per_m * delta_dot
+        delta = max(p.l_m * self.surface(theta), 0.0)
+        return p.K_n * delta**p.n * (1.0 + p.mu0_s_per_m * delta_dot) + p.c_N_s_per_m * delta_dot
+
+    def acceleration_without_friction(self, t: float, theta: float, theta_dot: float) -> float:
+        """theta'' from every term except Coulomb friction."""
+        p = self.p
+        force = max(self.unclamped_force(theta, theta_dot), 0.0)
+        return (
+            -self.two_zeta_omega * theta_dot
+            - p.c2_per_rad * theta_dot * abs(theta_dot)
+            - self.table.acceleration(t) / p.L_m * math.cos(theta)
+            - self.omega2 * math.sin(theta)
+            - self.contact_gain * force
+        )
+
+    def rhs(self, mode: _Mode) -> Callable[[float, np.ndarray], list[float]]:
+        """d/dt of (theta, theta'[, low-passed theta]) in one mode."""
+        friction = self.friction_acc * mode.direction
+        tau = self.lowpass_tau_s
+
+        def sliding(t: float, y: np.ndarray) -> list[float]:
+            acc = self.acceleration_without_friction(t, y[0], y[1]) - friction
+            if tau is None:
+                return [y[1], acc]
+            return [y[1], acc, (y[0] - y[2]) / tau]
+
+        def stuck(t: float, y: np.ndarray) -> list[float]:
+            if tau is None:
+                return [0.0, 0.0]
+            return [0.0, 0.0, (y[0] - y[2]) / tau]
+
+        return stuck if mode.stuck else sliding
+
+
+def _terminal(function: Callable[[float, np.ndarray], float], direction: float):
+    function.terminal = True
+    function.direction = direction
+    return function
+
+
+def simulate_reference(
+    pendulum: Pendulum,
+    table: TableMotion,
+    theta0_rad: float,
+    theta_dot0_rad_s: float,
+    t_eval_s: np.ndarray,
+    *,
+    t_start_s: float = 0.0,
+    t_end_s: float | None = None,
+    lowpass_tau_s: float | None = None,
+    lowpass0_rad: float | None = None,
+    rtol: float = 1e-10,
+    atol: float = 1e-12,
+) -> ReferenceRun:
+    """Integrate from (theta0, theta'0) at ``t_start_s`` to ``t_end_s`` (default: the last
+    sample time), sampling the dense output at ``t_eval_s`` (increasing, within the span).
+
+    ``lowpass_tau_s`` adds a continuous first-order low pass of theta as a third state
+    (an analog filter on the angle), starting from ``lowpass0_rad`` (default theta0).
+    Raises OverTheTopError when the pendulum reaches the horizontal.
+    """
+    t_eval = np.asarray(t_eval_s, dtype=float)
+    if t_eval.ndim != 1:
+        raise ValueError(f"t_eval_s has shape {t_eval.shape}; expected a 1-d array")
+    t_end = float(t_eval[-1]) if t_end_s is None else float(t_end_s)
+    if not (math.isfinite(t_start_s) and math.isfinite(t_end) and t_end > t_start_s):
+        raise ValueError(f"time span ({t_start_s!r}, {t_end!r}): expected finite, start < end")
+    if t_eval.size and (
+        np.any(np.diff(t_eval) <= 0) or t_eval[0] < t_start_s or t_eval[-1] > t_end
+    ):
+        raise ValueError(
+            f"t_eval_s must increase strictly within [{t_start_s}, {t_end}]; "
+            f"it spans [{t_eval[0]}, {t_eval[-1]}]"
+        )
+    if lowpass_tau_s is not None:
+        _require_finite("lowpass_tau_s", lowpass_tau_s, lower=0.0, strict=True)
+    for name, value in (("theta0_rad", theta0_rad), ("theta_dot0_rad_s", theta_dot0_rad_s)):
+        _require_finite(name, value, lower=-math.inf, strict=False)
+    if math.cos(theta0_rad) <= 0.0:
+        raise OverTheTopError(f"theta0_rad = {theta0_rad!r} is at or above the horizontal")
+
+    equations = _Equations(pendulum, table, lowpass_tau_s)
+    state = [float(theta0_rad), float(theta_dot0_rad_s)]
+    if lowpass_tau_s is not None:
+        state.append(float(theta0_rad if lowpass0_rad is None else lowpass0_rad))
+    y = np.array(state)
+    mode = _initial_mode(equations, t_start_s, y)
+    if mode.stuck:
+        y[1] = 0.0
+    max_step = MAX_STEP_FRACTION * min(table.period_s, 2.0 * math.pi / pendulum.omega_rad_s)
+    # the end of the span is sampled too: it gives the final state
+    times = t_eval if t_eval.size and t_eval[-1] == t_end else np.append(t_eval, t_end)
+
+    samples = np.empty((y.size, times.size))
+    filled = 0
+    events: list[Event] = []
+    t = float(t_start_s)
+    empty_pieces = 0
+    while filled < times.size:
+        piece_events, handlers = _piece_events(equations, mode)
+        solution = solve_ivp(
+            equations.rhs(mode),
+            (t, t_end),
+            y,
+            method="DOP853",
+            t_eval=times[filled:],
+            events=piece_events,
+            rtol=rtol,
+            atol=atol,
+            max_step=max_step,
+        )
+        if solution.status < 0:
+            raise RuntimeError(f"solve_ivp failed after t = {t}: {solution.message}")
+        count = len(solution.t)  # solve_ivp gives a list when no sample fell in the piece
+        if count:
+            samples[:, filled:filled + count] = solution.y
+        filled += count
+        if solution.status == 0:
+            break
+        t_event = max(found[-1] for found in solution.t_events if len(found))
+        empty_pieces = empty_pieces + 1 if t_event == t else 0
+        if empty_pieces > MAX_EMPTY_PIECES:
+            raise RuntimeError(f"event logic makes no progress at t = {t_event} ({mode})")
+        t = float(t_event)
+        for index, found in enumerate(solution.t_events):
+            if len(found) and found[-1] == t_event:
+                y = np.array(solution.y_events[index][-1], dtype=float)
+                kind = handlers[index](t, y, mode)
+                events.append(Event(t, kind, float(y[0]), float(y[1])))
+        if mode.stuck:
+            y[1] = 0.0
+    if filled != times.size:
+        raise RuntimeError(f"sampled {filled} of {times.size} requested times")
+    return ReferenceRun(
+        t_s=t_eval,
+        theta_rad=samples[0, : t_eval.size],
+        theta_dot_rad_s=samples[1, : t_eval.size],
+        lowpass_rad=samples[2, : t_eval.size] if lowpass_tau_s is not None else None,
+        events=tuple(events),
+        final_t_s=t_end,
+        final_state=samples[:, -1].copy(),
+    )
+
+
+def _initial_mode(equations: _Equations, t: float, y: np.ndarray) -> _Mode:
+    """The mode of a state that is not on an event surface (or is at rest: may stick)."""
+    theta, theta_dot = float(y[0]), float(y[1])
+    in_contact = equations.p.barrier and equations.surface(theta) > 0.0
+    clamped = in_contact and equations.clamp_indicator(theta, theta_dot) < 0.0
+    mode = _Mode(in_contact=in_contact, clamped=clamped, direction=1.0, stuck=False)
+    if equations.friction_acc > 0.0:
+        if theta_dot != 0.0:
+            mode.direction = math.copysign(1.0, theta_dot)
+        else:
+            _stick_or_slide(equations, t, theta, mode)
+    return mode
+
+
+def _stick_or_slide(equations: _Equations, t: float, theta: float, mode: _Mode) -> str:
+    """At theta' = 0: stick while the other torques stay within Tc, else slide their way."""
+    other = equations.acceleration_without_friction(t, theta, 0.0)
+    if abs(other) <= equations.friction_acc:
+        mode.stuck = True
+        return "stick"
+    mode.stuck = False
+    mode.direction = math.copysign(1.0, other)
+    return "reversal"
+
+
+def _piece_events(equations: _Equations, mode: _Mode):
+    """The terminal event functions of one mode and, for each, what it does to the mode."""
+    functions = []
+    handlers = []
+
+    def over_the_top(t: float, y: np.ndarray) -> float:
+        return math.cos(y[0])
+
+    def refuse_over_the_top(t: float, y: np.ndarray, mode: _Mode) -> str:
+        raise OverTheTopError(
+            f"the pendulum reached the horizontal at t = {t:.6f} s (theta = {y[0]:.4f} rad): "
+            "driven over the top, outside the experiment's regime"
+        )
+
+    functions.append(_terminal(over_the_top, -1.0))
+    handlers.append(refuse_over_the_top)
+
+    if equations.p.barrier:
+
+        def surface(t: float, y: np.ndarray) -> float:
+            return equations.surface(y[0])
+
+        def cross_surface(t: float, y: np.ndarray, mode: _Mode) -> str:
+            mode.in_contact = not mode.in_contact
+            mode.clamped = False  # the force starts from 0 and grows at entry; 0 after exit
+            return "contact_entry" if mode.in_contact else "contact_exit"
+
+        # after entry only an exit can come next, and vice versa: a restart that lands a
+        # rounding error on the wrong side cannot fire the same crossing again
+        functions.append(_terminal(surface, -1.0 if mode.in_contact else 1.0))
+        handlers.append(cross_surface)
+
+    if mode.in_contact and not mode.stuck:
+
+        def clamp(t: float, y: np.ndarray) -> float:
+            return equations.clamp_indicator(y[0], y[1])
+
+        def toggle_clamp(t: float, y: np.ndarray, mode: _Mode) -> str:
+            mode.clamped = not mode.clamped
+            return "clamp" if mode.clamped else "unclamp"
+
+        functions.append(_terminal(clamp, 1.0 if mode.clamped else -1.0))
+        handlers.append(toggle_clamp)
+
+    if equations.friction_acc > 0.0:
+        if mode.stuck:
+
+            def slip_forward(t: float, y: np.ndarray) -> float:
+                other = equations.acceleration_without_friction(t, y[0], 0.0)
+                return other - equations.friction_acc
+
+            def slip_backward(t: float, y: np.ndarray) -> float:
+                other = equations.acceleration_without_friction(t, y[0], 0.0)
+                return other + equations.friction_acc
+
+            def slip(direction: float):
+                def start_sliding(t: float, y: np.ndarray, mode: _Mode) -> str:
+                    mode.stuck = False
+                    mode.direction = direction
+                    return "slip"
+
+                return start_sliding
+
+            functions += [_terminal(slip_forward, 1.0), _terminal(slip_backward, -1.0)]
+            handlers += [slip(1.0), slip(-1.0)]
+        else:
+
+            def speed(t: float, y: np.ndarray) -> float:
+                return y[1]
+
+            def speed_zero(t: float, y: np.ndarray, mode: _Mode) -> str:
+                y[1] = 0.0
+                return _stick_or_slide(equations, t, float(y[0]), mode)
+
+            functions.append(_terminal(speed, -mode.direction))
+            handlers.append(speed_zero)
+    return functions, handlers
+
+
+def _require_finite(name: str, value: float, *, lower: float, strict: bool) -> None:
+    if isinstance(value, bool) or not isinstance(value, int | float | np.floating | np.integer):
+        raise ValueError(f"{name} = {value!r}: expected a number")
+    if not math.isfinite(value) or value < lower or (strict and value == lower):
+        bound = f"> {lower}" if strict else f">= {lower}"
+        raise ValueError(f"{name} = {value!r}: expected a finite number {bound}")
