@@ -1,0 +1,76 @@
+"""Many short runs of one model in one compiled call: the segments of a multiple-shooting fit.
+
+Each segment starts from its own (time, theta, theta') and is sampled at its own times;
+the last requested time of a segment is its end, whose state the caller compares with
+the next segment's start.  The loop over segments runs in the compiled code (no Python
+per segment), and releases the GIL so that finite-difference columns of a Jacobian run
+in threads.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from analysis.model import P
+from analysis.simulate import integrator as ig
+from analysis.simulate.simulation import DEFAULT_MAX_STEPS, check_step_settings
+
+
+@ig.kernel(nogil=True)
+def _integrate_segments(p, t0, theta0, theta_dot0, out_t, bounds, rtol, atol, max_steps,
+                        out_th, out_om, status):
+    no_dense = np.empty((0, 3))
+    for k in range(t0.shape[0]):
+        a = bounds[k]
+        b = bounds[k + 1]
+        state = ig.new_state(t0[k], theta0[k], theta_dot0[k], p)
+        ig.integrate(
+            p, state, out_t[a:b], out_th[a:b], out_om[a:b], 0.0, 1.0,
+            np.empty(0), np.empty(0), out_t[b - 1], rtol, atol, np.inf, max_steps,
+            np.empty((16, ig.EV_SIZE)), 0, False, no_dense, 0,
+        )
+        status[k] = state[ig.S_STATUS]
+
+
+def integrate_segments(
+    packed: np.ndarray,
+    t0: np.ndarray,
+    state0: np.ndarray,
+    out_t: np.ndarray,
+    bounds: np.ndarray,
+    *,
+    rtol: float = 1e-8,
+    atol: float = 1e-10,
+    max_steps: int = DEFAULT_MAX_STEPS,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Run segment k from (t0[k], state0[k]) and sample it at out_t[bounds[k]:bounds[k+1]].
+
+    ``out_t`` holds every segment's times, increasing within a segment and not before its
+    start; the last time of a segment is where it ends.  Returns theta and theta' at
+    ``out_t`` (NaN where a run stopped early) and each segment's status code
+    (``integrator.STATUS_NAMES``).  ``max_steps`` caps each segment's steps: a fit's trial
+    parameters can make the contact absurdly stiff, and such a trial should fail fast.
+    """
+    p = np.ascontiguousarray(packed, dtype=float)
+    if p.shape != (P.SIZE,):
+        raise ValueError(f"packed vector has shape {p.shape}; expected ({int(P.SIZE)},)")
+    check_step_settings(rtol, atol)
+    t0 = np.ascontiguousarray(t0, dtype=float)
+    state0 = np.ascontiguousarray(state0, dtype=float)
+    bounds = np.ascontiguousarray(bounds, dtype=np.int64)
+    out_t = np.ascontiguousarray(out_t, dtype=float)
+    if state0.shape != (t0.size, 2) or bounds.shape != (t0.size + 1,):
+        raise ValueError(
+            f"{t0.size} segments need state0 of shape ({t0.size}, 2) and {t0.size + 1} bounds; "
+            f"got {state0.shape} and {bounds.shape}"
+        )
+    if bounds[0] != 0 or bounds[-1] != out_t.size or np.any(np.diff(bounds) < 1):
+        raise ValueError("bounds must start at 0, end at len(out_t) and give each segment a time")
+    if not np.all(np.isfinite(state0)):
+        raise ValueError("segment start states must be finite")
+    out_th = np.empty(out_t.size)
+    out_om = np.empty(out_t.size)
+    status = np.zeros(t0.size)
+    _integrate_segments(p, t0, state0[:, 0].copy(), state0[:, 1].copy(), out_t, bounds, rtol,
+                        atol, int(max_steps), out_th, out_om, status)
+    return out_th, out_om, status.astype(np.int64)
