@@ -1,0 +1,544 @@
+"""Multiple shooting: fit a model to a long record as many short segments, each from its own
+fitted initial state, linked by a continuity penalty.
+
+One long simulation cannot follow a record whose start is uncertain, nor a chaotic one:
+a small error in the initial state or a parameter grows until the fit sees only a
+different trajectory.  Over a segment of a few drive periods the model's response to its
+parameters stays smooth, so each segment gets its own (theta, theta') and the parameters
+are shared; the penalty on the jump between a segment's end and the next one's start ties
+the segments into one trajectory where the model allows it.
+
+A segment may also run on past its fitted samples into samples it does not see: those are
+forecasts from the fitted state, the held-out judge of a model.
+
+The solver is Levenberg-Marquardt on the joint vector (shared parameters, segment states).
+Its Jacobian is a forward difference: one run per shared parameter, and two runs for all
+segment states at once (a segment's samples depend only on its own state).  The runs are
+compiled code that releases the GIL, so they go to threads.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Callable, Mapping
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sparse
+from scipy.sparse.linalg import splu
+
+from analysis.identify.intervals import Z95, autocorrelation
+from analysis.identify.result import Estimate
+from analysis.simulate.segments import integrate_segments
+
+RTOL = 1e-8
+ATOL = 1e-10
+MAX_ITERATIONS = 40
+MAX_STEPS_PER_SEGMENT = 20_000  # a few hundred suffice; a trial needing more fails
+COST_TOLERANCE = 0.05  # a step gaining less chi^2 / 2 than this changes no judgement
+FAILED_RESIDUAL = 1e3  # in noise units, for samples a stopped run did not reach
+CORRELATION_CUTOFF = 0.05
+
+PackedOf = Callable[[Mapping[str, float]], np.ndarray]
+# (values, times, true angle, rate at the first time) -> measured angle, for one stretch of
+# contiguous samples
+Measure = Callable[[Mapping[str, float], np.ndarray, np.ndarray, float], np.ndarray]
+
+
+@dataclass(frozen=True)
+class FreeParameter:
+    """A shared parameter the fit adjusts: start value, finite-difference step (in log units
+    when ``log``), and bounds."""
+
+    name: str
+    start: float
+    step: float
+    log: bool = False
+    lower: float = -math.inf
+    upper: float = math.inf
+
+
+@dataclass(frozen=True)
+class Segments:
+    """How a record is cut: segment k starts at sample ``start[k]`` (its state is fitted
+    there), is fitted to samples ``start[k]:fit_stop[k]``, forecasts ``fit_stop[k]:stop[k]``
+    and ends at time ``end_s[k]``; when ``linked[k]`` its end state is compared with
+    segment k+1's start state."""
+
+    start: np.ndarray
+    fit_stop: np.ndarray
+    stop: np.ndarray
+    end_s: np.ndarray
+    linked: np.ndarray
+
+    @property
+    def count(self) -> int:
+        """Number of segments."""
+        return int(self.start.size)
+
+    def fit_mask(self, n: int) -> np.ndarray:
+        """Samples some segment is fitted to."""
+        return _cover(n, self.start, self.fit_stop)
+
+    def forecast_mask(self, n: int) -> np.ndarray:
+        """Samples some segment forecasts without seeing them."""
+        return _cover(n, self.fit_stop, self.stop)
+
+
+def _cover(n: int, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    mark = np.zeros(n + 1, dtype=np.int64)
+    np.add.at(mark, a, 1)
+    np.add.at(mark, b, -1)
+    return np.cumsum(mark[:-1]) > 0
+
+
+def cut_segments(
+    t: np.ndarray, first_s: float, length_s: float, *, heldout_s: float = 0.0
+) -> Segments:
+    """Contiguous linked segments from ``first_s`` on, each ``length_s`` fitted and then
+    ``heldout_s`` forecast; the record's last partial segment is kept if it is at least half
+    a segment long."""
+    dt = float(t[1] - t[0])
+    span = length_s + heldout_s
+    starts_s = np.arange(first_s, t[-1] - 0.5 * length_s, span)
+    start = np.searchsorted(t, starts_s - 0.5 * dt)
+    start = np.unique(start[start < t.size - 2])
+    if start.size == 0:
+        raise ValueError(f"record of {t[-1] - t[0]:.3g} s is shorter than one segment")
+    stop = np.append(start[1:], t.size)
+    fit_stop = np.minimum(np.searchsorted(t, t[start] + length_s - 0.5 * dt), stop)
+    fit_stop = np.maximum(fit_stop, start + 1)
+    end_s = np.append(t[start[1:]], t[-1])
+    linked = np.append(np.ones(start.size - 1, dtype=bool), False)
+    return Segments(start, fit_stop, stop, end_s, linked)
+
+
+@dataclass(frozen=True)
+class ShootingFit:
+    """A multiple-shooting fit: shared values, segment states, and what they predict."""
+
+    values: dict[str, float]
+    states: np.ndarray  # (segments, 2): theta, theta' at each segment's start
+    estimates: dict[str, Estimate]  # the free shared parameters with 95 % intervals
+    prediction: np.ndarray  # measured angle the model gives, NaN where no segment runs
+    rate: np.ndarray  # the model's true angular rate there [rad/s]
+    true_angle: np.ndarray  # the model's true angle there (before the sensor) [rad]
+    residual: np.ndarray  # prediction - data on fitted valid samples, NaN elsewhere
+    forecast_residual: np.ndarray  # prediction - data on held-out valid samples, NaN elsewhere
+    jumps: np.ndarray  # (links, 2): end state - next start state of linked segments
+    n_params: int
+    success: bool
+    message: str
+    iterations: int
+    correlation: np.ndarray | None = None  # of the free shared parameters, same order
+
+    @property
+    def rss(self) -> float:
+        """Residual sum of squares over the fitted samples [rad^2]."""
+        r = self.residual[np.isfinite(self.residual)]
+        return float(r @ r)
+
+    @property
+    def n(self) -> int:
+        """Number of fitted samples."""
+        return int(np.count_nonzero(np.isfinite(self.residual)))
+
+    @property
+    def rms(self) -> float:
+        """RMS residual over the fitted samples [rad]."""
+        return math.sqrt(self.rss / max(self.n, 1))
+
+    @property
+    def forecast_rms(self) -> float:
+        """RMS error of the forecasts over the held-out samples [rad] (nan without any)."""
+        r = self.forecast_residual[np.isfinite(self.forecast_residual)]
+        return float(math.sqrt(np.mean(r * r))) if r.size else math.nan
+
+
+class ShootingProblem:
+    """The record, its segments and the model (as functions of the shared values)."""
+
+    def __init__(
+        self,
+        t: np.ndarray,
+        y: np.ndarray,
+        valid: np.ndarray,
+        noise_rad: float,
+        segments: Segments,
+        packed_of: PackedOf,
+        free: list[FreeParameter],
+        fixed: Mapping[str, float],
+        *,
+        measure: Measure | None = None,
+        rate_scale: float = 1.0,
+        threads: int | None = None,
+    ) -> None:
+        self.t = np.asarray(t, dtype=float)
+        self.y = np.asarray(y, dtype=float)
+        self.valid = np.asarray(valid, dtype=bool) & np.isfinite(self.y)
+        self.sigma = float(noise_rad)
+        if not self.sigma > 0:
+            raise ValueError(f"noise_rad = {noise_rad!r}: must be > 0")
+        self.segments = segments
+        self.packed_of = packed_of
+        self.measure = measure
+        self.free = list(free)
+        self.fixed = dict(fixed)
+        self.rate_scale = float(rate_scale)  # theta' jumps count as theta jumps times this
+        self.threads = threads or min(4, os.cpu_count() or 1)
+        s = segments
+        # sample times of all segments back to back, each followed by its end time
+        pieces, bounds = [], [0]
+        for a, b, end in zip(s.start, s.stop, s.end_s, strict=True):
+            pieces.append(self.t[a:b])
+            pieces.append([end])
+            bounds.append(bounds[-1] + (b - a) + 1)
+        self.out_t = np.concatenate(pieces)
+        self.bounds = np.asarray(bounds, dtype=np.int64)
+        self.sample_of = np.concatenate([np.arange(a, b) for a, b in zip(s.start, s.stop,
+                                                                          strict=True)])
+        self.segment_of = np.repeat(np.arange(s.count), s.stop - s.start)
+        self.is_end = np.zeros(self.out_t.size, dtype=bool)
+        self.is_end[self.bounds[1:] - 1] = True
+        fit = np.zeros(self.sample_of.size, dtype=bool)
+        offset = 0
+        for a, f, b in zip(s.start, s.fit_stop, s.stop, strict=True):
+            fit[offset:offset + f - a] = True
+            offset += b - a
+        self.fitted = fit & self.valid[self.sample_of]  # rows of the data residual
+        self.links = np.flatnonzero(s.linked[:-1]) if s.count > 1 else np.zeros(0, np.int64)
+        # chains of linked segments: the measurement runs over each as one stretch (a
+        # filter's memory carries across a link, not across a gap)
+        heads = np.concatenate([[0], np.flatnonzero(~s.linked[:-1]) + 1])
+        rows = self.bounds - np.arange(s.count + 1)  # segment starts among sample rows
+        tails = np.append(heads[1:], s.count)
+        self.chains = [(int(rows[h]), int(rows[e]), int(self.bounds[h]))
+                       for h, e in zip(heads, tails, strict=True)]
+
+    # ------------------------------------------------------------------ model evaluation
+
+    def values_of(self, u: np.ndarray) -> dict[str, float]:
+        """Shared values at the step-unit vector ``u``."""
+        out = dict(self.fixed)
+        for p, ui in zip(self.free, u, strict=True):
+            x = (math.log(p.start) if p.log else p.start) + ui * p.step
+            out[p.name] = math.exp(x) if p.log else x
+        return out
+
+    def run(self, values: Mapping[str, float], states: np.ndarray) -> tuple[np.ndarray, ...]:
+        """Measured angle at every segment sample, and every segment's end state."""
+        p = self.packed_of(values)
+        th, om, _ = integrate_segments(p, self.t[self.segments.start], states, self.out_t,
+                                       self.bounds, rtol=RTOL, atol=ATOL,
+                                       max_steps=MAX_STEPS_PER_SEGMENT)
+        ends = np.column_stack([th[self.is_end], om[self.is_end]])
+        theta = th[~self.is_end]
+        if self.measure is not None:
+            times = self.t[self.sample_of]
+            theta = np.concatenate([
+                self.measure(values, times[a:b], theta[a:b], float(om[first]))
+                for a, b, first in self.chains
+            ])
+        return theta, ends
+
+    def motion(self, values: Mapping[str, float], states: np.ndarray
+               ) -> tuple[np.ndarray, np.ndarray]:
+        """The model's true angle and rate at every segment sample (no sensor applied)."""
+        p = self.packed_of(values)
+        th, om, _ = integrate_segments(p, self.t[self.segments.start], states, self.out_t,
+                                       self.bounds, rtol=RTOL, atol=ATOL,
+                                       max_steps=MAX_STEPS_PER_SEGMENT)
+        return th[~self.is_end], om[~self.is_end]
+
+    def residuals(self, theta: np.ndarray, ends: np.ndarray, states: np.ndarray) -> np.ndarray:
+        """Noise-scaled data residuals of the fitted rows, then the continuity jumps."""
+        r = (theta[self.fitted] - self.y[self.sample_of[self.fitted]]) / self.sigma
+        r = np.where(np.isfinite(r), r, FAILED_RESIDUAL)
+        jumps = (ends[self.links] - states[self.links + 1]) / np.array(
+            [self.sigma, self.sigma * self.rate_scale]
+        )
+        jumps = np.where(np.isfinite(jumps), jumps, FAILED_RESIDUAL)
+        return np.concatenate([r, jumps.ravel()])
+
+    # ------------------------------------------------------------------ the fit
+
+    def fit_states(
+        self, states0: np.ndarray, values: Mapping[str, float] | None = None, *,
+        state_steps: tuple[float, float] = (1e-6, 1e-6),
+        horizons: tuple[float, ...] = (0.25, 0.5, 1.0), iterations: int = 8,
+    ) -> np.ndarray:
+        """Each segment's start state fitted alone with the shared values held (their starts
+        unless given): over the first quarter of its samples, then half, then all, so that a
+        rough start (a smoothed derivative) is drawn onto the data before the model's
+        sensitivity to it grows.  Segments are independent here: no continuity."""
+        values = dict(values) if values is not None else self.values_of(np.zeros(len(self.free)))
+        hs = np.asarray(state_steps, dtype=float)
+        s = np.asarray(states0, dtype=float).copy()
+        n_seg = self.segments.count
+        seg_rows = self.segment_of
+        position = np.arange(self.sample_of.size) - np.repeat(
+            self.bounds[:-1] - np.arange(n_seg), self.segments.stop - self.segments.start)
+        length = (self.segments.fit_stop - self.segments.start)[seg_rows]
+        y = self.y[self.sample_of]
+
+        def segment_costs(theta: np.ndarray, use: np.ndarray) -> np.ndarray:
+            r = np.where(use, (theta - y) / self.sigma, 0.0)
+            r = np.where(np.isfinite(r), r, FAILED_RESIDUAL)
+            return np.bincount(seg_rows, r * r, minlength=n_seg), r
+
+        for horizon in horizons:
+            use = self.fitted & (position < np.maximum(horizon * length, 8))
+            lam = np.full(n_seg, 1e-3)
+            theta, _ = self.run(values, s)
+            cost, r = segment_costs(theta, use)
+            for _ in range(iterations):
+                cols = []
+                for k in range(2):
+                    ds = s.copy()
+                    ds[:, k] += hs[k]
+                    th, _ = self.run(values, ds)
+                    d = np.where(use, (th - theta) / self.sigma, 0.0)
+                    cols.append(np.where(np.isfinite(d), d, 0.0))
+                a00 = np.bincount(seg_rows, cols[0] ** 2, minlength=n_seg)
+                a01 = np.bincount(seg_rows, cols[0] * cols[1], minlength=n_seg)
+                a11 = np.bincount(seg_rows, cols[1] ** 2, minlength=n_seg)
+                g0 = np.bincount(seg_rows, cols[0] * r, minlength=n_seg)
+                g1 = np.bincount(seg_rows, cols[1] * r, minlength=n_seg)
+                for _attempt in range(6):
+                    d00 = a00 * (1 + lam) + 1e-12
+                    d11 = a11 * (1 + lam) + 1e-12
+                    det = d00 * d11 - a01 * a01
+                    step0 = -(d11 * g0 - a01 * g1) / det
+                    step1 = -(d00 * g1 - a01 * g0) / det
+                    trial = s + np.column_stack([step0, step1]) * hs
+                    th, _ = self.run(values, trial)
+                    new_cost, _new_r = segment_costs(th, use)
+                    better = new_cost < cost
+                    s[better] = trial[better]
+                    lam = np.where(better, lam / 3.0, lam * 4.0)
+                    if better.any():
+                        theta, _ = self.run(values, s)
+                        cost, r = segment_costs(theta, use)
+                        break
+        return s
+
+    def fit(
+        self, states0: np.ndarray, *, max_iterations: int = MAX_ITERATIONS,
+        state_steps: tuple[float, float] = (1e-6, 1e-6),
+    ) -> ShootingFit:
+        """Levenberg-Marquardt from the free parameters' starts and the given segment states."""
+        g = len(self.free)
+        n_seg = self.segments.count
+        hs = np.asarray(state_steps, dtype=float)
+        lower, upper = self._bounds()
+        u = np.clip(np.zeros(g), lower, upper)
+        s = np.asarray(states0, dtype=float).copy()
+        # one iteration moves a log-scale parameter by at most a factor e
+        max_move = np.array([1.0 / p.step if p.log else math.inf for p in self.free])
+
+        def evaluate(u_, s_):
+            values = self.values_of(u_)
+            theta, ends = self.run(values, s_)
+            return self.residuals(theta, ends, s_), theta, ends
+
+        r, theta, ends = evaluate(u, s)
+        cost = 0.5 * float(r @ r)
+        lam = 1e-3
+        nu = 2.0
+        message = "maximum iterations reached"
+        success = False
+        small_before = False
+        iterations = 0
+        for iterations in range(1, max_iterations + 1):  # noqa: B007 - read after the loop
+            jac = self._jacobian(u, s, r, theta, ends, hs)
+            a = (jac.T @ jac).tocsc()
+            grad = jac.T @ r
+            diag = a.diagonal()
+            diag = np.maximum(diag, 1e-12 * max(1.0, float(np.max(diag))))
+            improved = False
+            for _ in range(12):
+                try:
+                    step = -splu((a + sparse.diags(lam * diag)).tocsc()).solve(grad)
+                except RuntimeError:  # singular
+                    lam *= nu
+                    nu *= 2.0
+                    continue
+                if not np.all(np.isfinite(step)):
+                    lam *= nu
+                    nu *= 2.0
+                    continue
+                u_new = np.clip(u + np.clip(step[:g], -max_move, max_move), lower, upper)
+                s_new = s + step[g:].reshape(n_seg, 2) * hs
+                try:
+                    r_new, theta_new, ends_new = evaluate(u_new, s_new)
+                    cost_new = 0.5 * float(r_new @ r_new)
+                except (ValueError, OverflowError, ZeroDivisionError):
+                    cost_new = math.inf  # a trial outside the model's domain: a rejected step
+                predicted = -(grad @ step) - 0.5 * step @ (a @ step)
+                rho = (cost - cost_new) / predicted if predicted > 0 else -1.0
+                if cost_new < cost:
+                    gain = cost - cost_new
+                    u, s, r, theta, ends = u_new, s_new, r_new, theta_new, ends_new
+                    cost = cost_new
+                    lam *= max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3)
+                    nu = 2.0
+                    improved = True
+                    break
+                lam *= nu
+                nu *= 2.0
+            if not improved:
+                message = "no step lowers the cost"
+                success = True
+                break
+            if gain <= COST_TOLERANCE and (lam < 1e-2 or small_before):
+                message = "cost converged"
+                success = True
+                break
+            small_before = gain <= COST_TOLERANCE
+        return self._result(u, s, r, theta, ends, hs, success, message, iterations)
+
+    def _bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """Lower and upper bounds of the shared parameters in step units."""
+        return (np.array([_to_u(p, p.lower) for p in self.free]),
+                np.array([_to_u(p, p.upper) for p in self.free]))
+
+    def _jacobian(self, u, s, r, theta, ends, hs) -> sparse.csr_matrix:
+        """Forward-difference Jacobian in step units (sparse: a data row sees the shared
+        parameters and its own segment's state)."""
+        g = len(self.free)
+        n_seg = self.segments.count
+        rows_data = int(np.count_nonzero(self.fitted))
+        n_links = self.links.size
+
+        _lower, upper = self._bounds()
+
+        def shared_column(i: int) -> np.ndarray:
+            h = 1.0 if u[i] + 1.0 <= upper[i] else -1.0  # stay inside the bounds
+            du = u.copy()
+            du[i] += h
+            values = self.values_of(du)
+            th, en = self.run(values, s)
+            return (self.residuals(th, en, s) - r) / h
+
+        def state_run(k: int) -> tuple[np.ndarray, np.ndarray]:
+            ds = s.copy()
+            ds[:, k] += hs[k]
+            return self.run(self.values_of(u), ds)
+
+        with ThreadPoolExecutor(max_workers=self.threads) as pool:
+            shared = list(pool.map(shared_column, range(g)))
+            perturbed = list(pool.map(state_run, range(2)))
+        blocks = [sparse.csr_matrix(np.column_stack(shared)) if g else
+                  sparse.csr_matrix((r.size, 0))]
+        # data rows: d(residual)/d(own state), one column pair per segment
+        seg_rows = self.segment_of[self.fitted]
+        data_cols = []
+        for k in range(2):
+            th, _ = perturbed[k]
+            d = (th[self.fitted] - theta[self.fitted]) / self.sigma
+            data_cols.append(np.where(np.isfinite(d), d, 0.0))
+        row_idx = np.concatenate([np.arange(rows_data), np.arange(rows_data)])
+        col_idx = np.concatenate([2 * seg_rows, 2 * seg_rows + 1])
+        vals = np.concatenate(data_cols)
+        # link rows: (end_k - start_k+1) / scale; d/d s_k from the perturbed ends, d/d s_k+1 = -I
+        scale = np.array([self.sigma, self.sigma * self.rate_scale])
+        link_rows, link_cols, link_vals = [], [], []
+        for k in range(2):  # which state component was perturbed
+            _, en = perturbed[k]
+            d_end = (en[self.links] - ends[self.links]) / scale  # (links, 2)
+            d_end = np.where(np.isfinite(d_end), d_end, 0.0)
+            for c in range(2):  # which end component
+                link_rows.append(rows_data + 2 * np.arange(n_links) + c)
+                link_cols.append(2 * self.links + k)
+                link_vals.append(d_end[:, c])
+        for c in range(2):
+            link_rows.append(rows_data + 2 * np.arange(n_links) + c)
+            link_cols.append(2 * (self.links + 1) + c)
+            link_vals.append(np.full(n_links, -hs[c] / scale[c]))
+        row_idx = np.concatenate([row_idx, *link_rows])
+        col_idx = np.concatenate([col_idx, *link_cols])
+        vals = np.concatenate([vals, *link_vals])
+        states_block = sparse.csr_matrix((vals, (row_idx, col_idx)),
+                                         shape=(r.size, 2 * n_seg))
+        return sparse.hstack([blocks[0], states_block], format="csr")
+
+    def _result(self, u, s, r, theta, ends, hs, success, message, iterations) -> ShootingFit:
+        values = self.values_of(u)
+        n = self.t.size
+        prediction = np.full(n, np.nan)
+        prediction[self.sample_of] = theta
+        true_angle = np.full(n, np.nan)
+        rate = np.full(n, np.nan)
+        true_angle[self.sample_of], rate[self.sample_of] = self.motion(values, s)
+        fit_rows = np.zeros(n, dtype=bool)
+        fit_rows[self.sample_of[self.fitted]] = True
+        residual = np.where(fit_rows, prediction - self.y, np.nan)
+        held = self.segments.forecast_mask(n) & self.valid
+        forecast = np.where(held, prediction - self.y, np.nan)
+        jumps = ends[self.links] - s[self.links + 1]
+        estimates, correlation = self._estimates(u, s, r, theta, ends, hs, residual)
+        return ShootingFit(
+            values=values, states=s, estimates=estimates, prediction=prediction, rate=rate,
+            true_angle=true_angle,
+            residual=residual, forecast_residual=forecast, jumps=jumps,
+            n_params=len(self.free) + 2 * self.segments.count, success=success,
+            message=message, iterations=iterations, correlation=correlation,
+        )
+
+    def _estimates(self, u, s, r, theta, ends, hs, residual):
+        """95 % intervals of the shared parameters: (J^T J)^-1 scaled by the residual
+        variance and widened by the residual's correlation time (effective samples)."""
+        g = len(self.free)
+        if g == 0:
+            return {}, None
+        jac = self._jacobian(u, s, r, theta, ends, hs)
+        a = (jac.T @ jac).tocsc()
+        dof = max(r.size - a.shape[0], 1)
+        s2 = max(float(r @ r) / dof, 1.0)
+        tau = correlation_time(residual)
+        try:
+            unit = np.zeros((a.shape[0], g))
+            unit[:g, :g] = np.eye(g)
+            cov = splu(a).solve(unit)[:g, :g] * s2 * tau
+        except RuntimeError:  # singular: some parameter has no influence
+            cov = np.full((g, g), np.nan)
+        values = self.values_of(u)
+        out = {}
+        var = np.diag(cov)
+        for i, p in enumerate(self.free):
+            value = values[p.name]
+            half = Z95 * math.sqrt(var[i]) * p.step if var[i] >= 0 else math.nan
+            if not math.isfinite(half) or (p.log and half > 50.0):
+                out[p.name] = Estimate(value)
+            elif p.log:
+                out[p.name] = Estimate(value, (value * math.exp(-half), value * math.exp(half)))
+            else:
+                out[p.name] = Estimate(value, (value - half, value + half))
+        with np.errstate(invalid="ignore", divide="ignore"):
+            sd = np.sqrt(np.maximum(var, 0.0))
+            correlation = cov / np.outer(sd, sd)
+        return out, correlation
+
+
+def _to_u(p: FreeParameter, x: float) -> float:
+    """A bound in step units (infinite bounds stay infinite)."""
+    if not math.isfinite(x):
+        return x
+    if p.log:
+        if x <= 0:
+            return -math.inf
+        return (math.log(x) - math.log(p.start)) / p.step
+    return (x - p.start) / p.step
+
+
+def correlation_time(residual: np.ndarray) -> float:
+    """Integrated autocorrelation time (samples) of a residual: 1 for white noise."""
+    r = residual[np.isfinite(residual)]
+    if r.size < 8:
+        return 1.0
+    rho = autocorrelation(r, max(1, min(r.size // 4, 2000)))
+    below = np.flatnonzero(rho[1:] < CORRELATION_CUTOFF)
+    stop = int(below[0]) + 1 if below.size else rho.size
+    return float(max(1.0, 1.0 + 2.0 * np.sum(rho[1:stop])))
