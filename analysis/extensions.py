@@ -36,7 +36,9 @@ class ParameterSpec:
 
 
 DynamicsHook = Callable[["Model", Mapping[str, float], np.ndarray], None]
-MeasurementHook = Callable[[np.ndarray, np.ndarray, Mapping[str, float]], np.ndarray]
+# (times, true angle, values, rate at the first sample or None) -> measured angle
+MeasurementHook = Callable[[np.ndarray, np.ndarray, Mapping[str, float], float | None],
+                           np.ndarray]
 
 
 @dataclass(frozen=True)
@@ -157,21 +159,30 @@ def _amplitude(model: Model, v: Mapping[str, float], p: np.ndarray) -> None:
 # --------------------------------------------------------------------------- measurement causes
 
 
-def _offset(t: np.ndarray, theta: np.ndarray, v: Mapping[str, float]) -> np.ndarray:
+def _offset(t: np.ndarray, theta: np.ndarray, v: Mapping[str, float],
+            theta_dot0: float | None = None) -> np.ndarray:
     return theta + v["offset_rad"]
 
 
-def _nonlinearity(t: np.ndarray, theta: np.ndarray, v: Mapping[str, float]) -> np.ndarray:
+def _nonlinearity(t: np.ndarray, theta: np.ndarray, v: Mapping[str, float],
+                  theta_dot0: float | None = None) -> np.ndarray:
     return theta + v["k3"] * theta**3
 
 
-def _lag(t: np.ndarray, theta: np.ndarray, v: Mapping[str, float]) -> np.ndarray:
-    """First-order low pass, exact for an input held between uniform samples."""
+def _lag(t: np.ndarray, theta: np.ndarray, v: Mapping[str, float],
+         theta_dot0: float | None = None) -> np.ndarray:
+    """First-order low pass, exact for an input held between uniform samples.
+
+    The filter starts settled: on a constant input, or, given the rate ``theta_dot0`` at
+    the first sample, on a ramp, whose lagged copy trails it by tau theta' (a record cut
+    out of a moving signal, as a fit's segments are).
+    """
     if theta.size < 2 or v["tau_s"] == 0.0:
         return theta
     dt = float(t[1] - t[0])
     a = math.exp(-dt / v["tau_s"])
-    filtered, _ = lfilter([1.0 - a], [1.0, -a], theta, zi=[a * theta[0]])
+    first = theta[0] - (v["tau_s"] * theta_dot0 if theta_dot0 is not None else 0.0)
+    filtered, _ = lfilter([1.0 - a], [1.0, -a], theta, zi=[a * first])
     return filtered
 
 
