@@ -20,6 +20,9 @@ import numpy as np
 PULSE_TOLERANCE_SAMPLES = 3.0
 PULSE_TOLERANCE_FRACTION = 0.05  # ... or this fraction of a period, when that is larger
 MIN_PULSES = 3
+# The tach line is sampled with the analog inputs (docs/daq_protocol.md): a pulse shows on
+# the first sample at or after it, so it happened on average half a sample before its mark.
+PULSE_MARK_LAG_SAMPLES = 0.5
 MIN_PERIOD_SAMPLES = 8  # a drive period shorter than this cannot be strobed at several phases
 
 
@@ -98,6 +101,9 @@ def clock_from_tach(
 ) -> StrobeClock:
     """Fit t_k = t0 + k T to tach pulses (sample indices; missing, extra or jittered ones allowed).
 
+    A pulse index is the sample where the sampled tach line first reads high; the pulse
+    itself is taken half a sample earlier (PULSE_MARK_LAG_SAMPLES).
+
     The rough period is the typical pulse spacing, or the stated one when that places
     the pulses better (more pulses on the clock, fewer periods without one: many
     doubled pulses spoil the spacing; a wrong stated frequency places few).  Each
@@ -110,6 +116,7 @@ def clock_from_tach(
     pulses = np.unique(np.asarray(pulse_indices, dtype=float).ravel())
     if not np.all(np.isfinite(pulses)):
         raise ValueError("tach pulse indices contain NaN or infinite values")
+    pulses = pulses - PULSE_MARK_LAG_SAMPLES
     if pulses.size < MIN_PULSES:
         raise ValueError(
             f"{pulses.size} tach pulse(s): need at least {MIN_PULSES} to fit the drive clock"

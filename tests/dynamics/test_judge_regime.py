@@ -45,10 +45,10 @@ def _period_k_motion(k: int, t: np.ndarray, drive_hz: float, rng) -> np.ndarray:
 
 
 def _lab_tach(n_samples: int, drive_hz: float, rng) -> np.ndarray:
-    """Pulses at drive phase 0 on the nearest sample give or take one, one missing, one
-    doubled by a bounce and one spurious."""
+    """Pulses at drive phase 0 on the first sample at or after it (the tach line is
+    sampled) give or take one, one missing, one doubled by a bounce and one spurious."""
     crossings = np.arange(0.0, n_samples - 1.0, FS / drive_hz)
-    pulses = np.rint(crossings) + rng.integers(-1, 2, crossings.size)
+    pulses = np.ceil(crossings) + rng.integers(-1, 2, crossings.size)
     pulses = np.delete(pulses, 17)
     extra = [pulses[30] + 1, pulses[60] + 0.5 * FS / drive_hz]
     pulses = np.sort(np.concatenate([pulses, extra]))

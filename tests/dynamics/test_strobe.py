@@ -26,11 +26,12 @@ def _crossings(n_samples: int) -> np.ndarray:
 
 
 def _lab_pulses(n_samples: int, seed: int) -> np.ndarray:
-    """Pulses as a lab records them: on the nearest sample give or take one, one missing,
-    one doubled by a bounce, one spurious (also before the first true pulse)."""
+    """Pulses as a lab records them: on the first sample at or after the crossing (the tach
+    line is sampled), give or take one, one missing, one doubled by a bounce, one spurious
+    (also before the first true pulse)."""
     rng = np.random.default_rng(seed)
     crossings = _crossings(n_samples)
-    pulses = np.rint(crossings) + rng.integers(-1, 2, crossings.size)
+    pulses = np.ceil(crossings) + rng.integers(-1, 2, crossings.size)
     pulses = np.delete(pulses, 40)
     bounce = pulses[70] + 1
     spurious = [pulses[0] - 0.45 * FS / DRIVE_HZ, pulses[100] + 0.4 * FS / DRIVE_HZ]
