@@ -74,8 +74,26 @@ def envelope_shape(times: np.ndarray, sizes: np.ndarray) -> dict[str, float]:
     }
 
 
-def localize(data: FitData, baseline: FitResult, sim: SimulationResult) -> Localization:
-    """Describe the baseline's residual (model - data) of a fitted record."""
+def motion_of(data: FitData, sim: SimulationResult) -> tuple[np.ndarray, np.ndarray]:
+    """The model's rate at the record's samples and the samples near a contact (with a guard
+    of CONTACT_GUARD_SAMPLES either side), from one simulation of the record."""
+    n = data.t.size
+    theta_dot = np.full(n, np.nan)
+    rate = np.asarray(sim.theta_dot, dtype=float)[:n]
+    theta_dot[:rate.size] = rate
+    in_contact = np.zeros(n, dtype=bool)
+    idx_in = np.floor(sim.contacts.t_in / data.dt).astype(int) - CONTACT_GUARD_SAMPLES
+    idx_out = np.ceil(sim.contacts.t_out / data.dt).astype(int) + CONTACT_GUARD_SAMPLES
+    for a, b in zip(idx_in, idx_out, strict=True):
+        in_contact[max(a, 0):min(b, n)] = True
+    return theta_dot, in_contact
+
+
+def localize(
+    data: FitData, baseline: FitResult, theta_dot: np.ndarray, in_contact: np.ndarray
+) -> Localization:
+    """Describe the baseline's residual (model - data) of a fitted record, given the model's
+    rate and its contact samples."""
     r = baseline.residual
     valid = np.isfinite(r)
     noise = data.noise_rad
@@ -95,8 +113,7 @@ def localize(data: FitData, baseline: FitResult, sim: SimulationResult) -> Local
     amp = np.nanmax(np.abs(model_theta))
     big_angle = np.abs(model_theta) > 0.5 * amp
     f["rms_large_angle_over_small"] = _rms(r[big_angle]) / max(_rms(r[~big_angle]), 1e-300)
-    theta_dot = np.asarray(sim.theta_dot, dtype=float)[: r.size]
-    if theta_dot.size == r.size:
+    if np.any(np.isfinite(theta_dot)):
         fast = np.abs(theta_dot) > 0.5 * np.nanmax(np.abs(theta_dot))
         f["rms_fast_over_slow"] = _rms(r[fast]) / max(_rms(r[~fast]), 1e-300)
     # correlation of the residual with odd powers of the angle (scale and cubic sensor errors)
@@ -105,13 +122,9 @@ def localize(data: FitData, baseline: FitResult, sim: SimulationResult) -> Local
         cube = model_theta[good] ** 3
         f["correlation_with_angle_cubed"] = float(np.corrcoef(r[good], -cube)[0, 1])
     # phase of motion: samples near a contact against free flight
-    if sim.contacts.count:
-        in_contact = np.zeros(r.size, dtype=bool)
-        idx_in = np.floor(sim.contacts.t_in / data.dt).astype(int) - CONTACT_GUARD_SAMPLES
-        idx_out = np.ceil(sim.contacts.t_out / data.dt).astype(int) + CONTACT_GUARD_SAMPLES
-        for a, b in zip(idx_in, idx_out, strict=True):
-            in_contact[max(a, 0):min(b, r.size)] = True
-        f["contacts"] = int(sim.contacts.count)
+    if in_contact.any():
+        edges = np.diff(np.concatenate([[0], in_contact.astype(np.int8), [0]]))
+        f["contacts"] = int(np.count_nonzero(edges == 1))
         f["rms_near_contact_rad"] = _rms(r[in_contact])
         f["rms_free_flight_rad"] = _rms(r[~in_contact])
     # drive phase

@@ -17,8 +17,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 
-from analysis.discrepancy.analyze import Analysis
 from analysis.discrepancy.fitting import predict
+from analysis.discrepancy.outcome import Analysis
 from analysis.extensions import NONE
 
 
@@ -53,6 +53,8 @@ def write_json(analysis: Analysis, path: str | Path) -> Path:
 
 
 def _curves(analysis: Analysis) -> tuple[np.ndarray, np.ndarray | None]:
+    if analysis.curves is not None:
+        return analysis.curves
     data = analysis.data
     base, _ = predict(data, NONE, analysis.baseline.values)
     best = analysis.chosen_outcome
@@ -145,17 +147,25 @@ def write_report(analysis: Analysis, directory: str | Path, name: str = "report"
         f"- baseline rms residual {js['baseline']['rms_residual']:.3g} rad; extended "
         f"{js['extended']['rms_residual']:.3g} rad (noise {js['noise_rad']:.3g} rad)",
     ]
+    if js.get("regime"):
+        lines.append(f"- regime judged from the record: {js['regime']['label']}")
+    if js.get("drive"):
+        d = js["drive"]
+        lines.append(
+            f"- drive: {d['frequency_hz']:.6g} Hz from the {d['frequency_source']} (stated "
+            f"{d['stated']['frequency_hz']:.6g} Hz), phase from the {d['phase_source']}"
+        )
     if js.get("comparison") == "invariant statistics":
         lines.append(
-            f"- chaotic response (0-1 test K = {js['chaos_01_K']:.2f}): candidates judged on "
-            "invariant statistics (Poincare section, turning points, spectral lines), not "
-            "point by point; ranking's verdicts give each one's invariant-distance ratio"
+            "- chaotic response: candidates judged on invariant statistics (Poincare section, "
+            "turning points, spectral lines), not point by point; ranking's verdicts give each "
+            "one's invariant-distance ratio"
         )
     lines += [f"- **caution:** {w}" for w in js.get("warnings", [])]
     gain = js["gain"]
     if gain["heldout_rms_baseline"] is not None:
         lines.append(
-            f"- held-out prediction (fit on the first part, predict the rest): baseline "
+            f"- held-out prediction ({js['heldout']}): baseline "
             f"{gain['heldout_rms_baseline']:.3g} rad, extended "
             f"{(gain['heldout_rms_extended'] or 0):.3g} rad; BIC gain "
             f"{gain['information_criterion_delta']:.4g}"

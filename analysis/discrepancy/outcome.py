@@ -1,0 +1,197 @@
+"""What a discrepancy analysis returns: the candidates' fits and verdicts, the choice, and the
+report of MODEL.md section 6 (the same for every kind of experiment)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from analysis.discrepancy.fitting import FitData, FitResult
+from analysis.discrepancy.localize import Localization
+from analysis.discrepancy.selection import Verdict, heldout_rms
+from analysis.extensions import NONE, cause
+from analysis.identify.result import Estimate
+from analysis.records import Record
+
+UNEXPLAINED_RATIO = 5.0  # final rms this many times the noise: say the story is incomplete
+
+
+class AnalysisError(ValueError):
+    """The record cannot be analysed; the message says why."""
+
+
+@dataclass(frozen=True)
+class CandidateOutcome:
+    """One cause fitted as an extension: training fit, full fit and the judges' verdict."""
+
+    cause: str
+    train: FitResult
+    full: FitResult
+    verdict: Verdict
+    prediction: np.ndarray  # training fit run over the whole record (held-out part included)
+    rival: FitResult | None = None  # baseline refitted from this candidate's solution
+
+
+@dataclass
+class Analysis:
+    """Everything the discrepancy analysis of one record found."""
+
+    record: Record
+    data: FitData
+    n_train: int
+    baseline_train: FitResult
+    baseline: FitResult
+    baseline_prediction: np.ndarray
+    candidates: list[CandidateOutcome]
+    excluded: dict[str, str]
+    chosen: str
+    localization: Localization
+    restitution: dict[str, Any] | None = None
+    zero_one_k: float | None = None  # forced records: 0-1 test K on the Poincare section
+    chaotic: bool = False  # judged on invariant statistics instead of point by point
+    timings: dict[str, float] = field(default_factory=dict)
+    notes: list[str] = field(default_factory=list)
+    # forced records: the regime judged from the data, the drive as measured, the held-out
+    # forecast error of the baseline (interleaved stretches, not one held-out tail) and the
+    # model curves over the record (multiple shooting: one segment after another)
+    regime: dict[str, Any] | None = None
+    drive: dict[str, Any] | None = None
+    baseline_heldout_rms: float | None = None
+    curves: tuple[np.ndarray, np.ndarray | None] | None = None
+    heldout_description: str | None = None
+
+    @property
+    def chosen_outcome(self) -> CandidateOutcome | None:
+        """The chosen candidate (None for ``none``)."""
+        for c in self.candidates:
+            if c.cause == self.chosen:
+                return c
+        return None
+
+    def warnings(self) -> list[str]:
+        """Caveats on the finding: what the chosen model still leaves unexplained."""
+        out = []
+        best = self.chosen_outcome
+        final = best.full if best is not None else self.baseline
+        ratio = final.rms / max(self.data.noise_rad, 1e-300)
+        if ratio > UNEXPLAINED_RATIO:
+            what = f"the baseline extended by {best.cause}" if best is not None else "the baseline"
+            out.append(
+                f"{what} still leaves {final.rms:.3g} rad rms, {ratio:.3g} x the noise: "
+                "structure outside the named causes (or a fit caught in a local minimum) "
+                "remains; treat the named cause as the best of the candidates, not the whole story"
+            )
+        return out
+
+    def ranked(self) -> list[CandidateOutcome]:
+        """Candidates by score (information-criterion gain), best first."""
+        return sorted(self.candidates, key=lambda c: -c.verdict.information_criterion_delta)
+
+    def as_json(self) -> dict[str, Any]:
+        """The report of MODEL.md section 6, parameters keyed as section 7."""
+        rig = self.data.rig
+        best = self.chosen_outcome
+        extended = best.full if best is not None else self.baseline
+        baseline_heldout = self.baseline_heldout_rms if self.baseline_heldout_rms is not None \
+            else heldout_rms(self.baseline_prediction, self.data.y, self.data.valid, self.n_train)
+        extended_heldout = best.verdict.heldout_rms_extended if best is not None \
+            else baseline_heldout
+        ranking = [
+            {
+                "cause": c.cause,
+                "score": c.verdict.information_criterion_delta,
+                "parameters": cause_parameters(c.full),
+                "heldout_ratio": c.verdict.heldout_ratio,
+                "invariant_ratio": c.verdict.invariant_ratio,
+                "rms_residual": c.full.rms,
+                "earns_keep": c.verdict.earns_keep,
+                "verdict": c.verdict.why,
+            }
+            for c in self.ranked()
+        ]
+        out: dict[str, Any] = {
+            "experiment": self.data.experiment,
+            "cause": self.chosen,
+            "ranking": ranking,
+            "baseline": {
+                "parameters": report_parameters(self.baseline, rig),
+                "rms_residual": self.baseline.rms,
+            },
+            "extended": {
+                "cause": self.chosen,
+                "parameters": report_parameters(extended, rig),
+                "rms_residual": extended.rms,
+            },
+            "gain": {
+                "rms_reduction": 1.0 - extended.rms / self.baseline.rms
+                if self.baseline.rms > 0 else 0.0,
+                "heldout_rms_baseline": baseline_heldout,
+                "heldout_rms_extended": extended_heldout,
+                "information_criterion_delta": (
+                    best.verdict.information_criterion_delta if best is not None else 0.0
+                ),
+            },
+            "localization": self.localization.text,
+            "comparison": "invariant statistics" if self.chaotic else "point by point",
+            "chaos_01_K": self.zero_one_k,
+            "warnings": self.warnings(),
+            "localization_details": self.localization.features,
+            "excluded": self.excluded,
+            "noise_rad": self.data.noise_rad,
+            "samples_fitted": self.data.n_valid,
+            "heldout_from_s": float(self.data.t[self.n_train]) if self.n_train < self.data.t.size
+            else None,
+            "heldout": self.heldout_description or "the record after its first "
+            f"{100 * self.n_train / max(self.data.t.size, 1):.0f} % (fitted on that part)",
+            "source": self.record.source,
+            "notes": self.notes,
+            "timings_s": self.timings,
+        }
+        if self.regime is not None:
+            out["regime"] = self.regime
+        if self.drive is not None:
+            out["drive"] = self.drive
+        if self.restitution is not None:
+            out["restitution_comparison"] = {
+                k: v for k, v in self.restitution.items()
+                if k not in ("residual", "curve", "values")
+            }
+        return out
+
+
+def cause_parameters(result: FitResult) -> dict[str, Any]:
+    """The cause's own parameters of an extended fit, as {value, ci95}."""
+    if result.cause == NONE:
+        return {}
+    return {
+        spec.name: result.estimates[spec.name].as_json()
+        for spec in cause(result.cause).parameters
+        if spec.name in result.estimates
+    }
+
+
+def report_parameters(result: FitResult, rig) -> dict[str, Any]:
+    """All fitted parameters under MODEL.md section 7 keys, with derived L and E."""
+    out: dict[str, Any] = {}
+    g = rig.g_m_s2
+    est = result.estimates
+    if "omega_rad_s" in est:
+        omega = est["omega_rad_s"]
+        ci = None
+        if omega.ci95 is not None and omega.ci95[0] > 0:
+            ci = (g / omega.ci95[1] ** 2, g / omega.ci95[0] ** 2)
+        out["L_m"] = Estimate(g / omega.value**2, ci).as_json()
+    for key, value in est.items():
+        out[key] = value.as_json()
+    if "K_N_per_m1.5" in est:
+        K = est["K_N_per_m1.5"]
+        factor = 3.0 / (4.0 * math.sqrt(rig.R_m))
+        ci = (K.ci95[0] * factor, K.ci95[1] * factor) if K.ci95 else None
+        out["E_Pa"] = Estimate(K.value * factor, ci).as_json()
+        out["R_m"] = {"value": rig.R_m}
+    if (result.cause != "barrier_offset" and "K_N_per_m1.5" in est) or "K_n" in est:
+        out.setdefault("theta_b_rad", {"value": 0.0, "held": True})
+    return out
