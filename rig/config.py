@@ -22,6 +22,10 @@ from drivers.sensors import LaserCalibration, PotentiometerCalibration, Tachomet
 DEFAULT_CONFIG_NAME = "default_rig.toml"
 RIG_KINDS = ("virtual", "real")
 SHAKER_TRANSPORTS = ("tcp", "rtu")
+MAX_INPUT_V = 100.0  # no DAQ input reads beyond this
+GAIN_RAD_PER_V_RANGE = (1e-6, 100.0)
+M_PER_UNIT_RANGE = (1e-12, 1.0)  # from a count of a 32-bit converter to a volt of a 1 m sensor
+MAX_TABLE_ZERO_M = 1.0
 
 
 class ConfigError(ValueError):
@@ -165,6 +169,15 @@ class _Section:
         if low is not None and (value < low or (low_open and value == low)):
             raise self._bad(key, value, expected)
         if (high is not None and value > high) or (nonzero and value == 0):
+            raise self._bad(key, value, expected)
+        return float(value)
+
+    def magnitude(self, key: str, smallest: float, largest: float) -> float:
+        """A number of either sign whose size lies in [smallest, largest]."""
+        expected = f"a number whose size is in [{smallest:g}, {largest:g}] (either sign)"
+        value = self._get(key, expected)
+        is_number = isinstance(value, int | float) and not isinstance(value, bool)
+        if not is_number or not math.isfinite(value) or not smallest <= abs(value) <= largest:
             raise self._bad(key, value, expected)
         return float(value)
 
@@ -316,16 +329,18 @@ def parse_config(text: str, source: str = "<rig file>") -> RigConfig:
 
     calibration = top.section("calibration")
     angle = calibration.section("angle")
+    # Bounds far outside any real sensor: they catch a typo (1e308, a lost minus in an
+    # exponent) before it turns every sample into inf.
     angle_calibration = PotentiometerCalibration(
-        offset_v=angle.number("offset_v"),
-        gain_rad_per_v=angle.number("gain_rad_per_v", nonzero=True),
+        offset_v=angle.number("offset_v", low=-MAX_INPUT_V, high=MAX_INPUT_V),
+        gain_rad_per_v=angle.magnitude("gain_rad_per_v", *GAIN_RAD_PER_V_RANGE),
         linearity=tuple(angle.numbers("linearity")),
     )
     angle.finish()
     table = calibration.section("table")
     table_calibration = LaserCalibration(
-        zero_m=table.number("zero_m"),
-        m_per_unit=table.number("m_per_unit", nonzero=True),
+        zero_m=table.number("zero_m", low=-MAX_TABLE_ZERO_M, high=MAX_TABLE_ZERO_M),
+        m_per_unit=table.magnitude("m_per_unit", *M_PER_UNIT_RANGE),
         unit=table.text("unit", choices=("V", "count")),
         measuring_range_m=table.interval("measuring_range_m"),
     )

@@ -52,6 +52,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Replay until every stream has played its last block; print what was seen."""
+    from analysis.recording_file import RecordingFormatError
     from rig.engine import AcquisitionEngine
     from rig.recorder import (
         ChannelSpec,
@@ -60,7 +61,6 @@ def run(args: argparse.Namespace) -> int:
         RecordingMetadata,
         attach_recorder,
     )
-    from rig.recording_reader import RecordingFormatError
     from rig.replay import Replay
 
     speed = math.inf if args.fast else args.speed

@@ -266,7 +266,9 @@ def _write_hdf5(path: Path, columns: dict[str, Any], metadata: dict) -> None:
             if values is None:
                 continue
             dtype = np.int8 if name == "tach" else np.float64
-            handle.create_dataset(name, data=np.asarray(values, dtype=dtype))
+            handle.create_dataset(
+                name, data=np.asarray(values, dtype=dtype), chunks=True, fletcher32=True
+            )
         handle.attrs["metadata"] = json.dumps(metadata)
 
 

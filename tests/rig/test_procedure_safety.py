@@ -8,12 +8,12 @@ import dataclasses
 import numpy as np
 import pytest
 
+from analysis.recording_file import open_recording
 from rig.cli import main
 from rig.config import load_config
 from rig.devices import open_rig
 from rig.engine import AcquisitionError
 from rig.procedures import SweepPlan, TimedPlan, record_timed, run_sweep
-from rig.recording_reader import open_recording
 from tests.rig.streams import TachStream
 
 

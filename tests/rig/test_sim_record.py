@@ -8,10 +8,11 @@ import numpy as np
 import pytest
 
 from analysis.exchange import read_exchange
+from analysis.recording_file import open_recording
 from drivers.sensors import FLAG_OUT_OF_RANGE
 from rig.cli import main
 from rig.config import default_config_path, load_config
-from rig.recording_reader import open_recording
+from rig.replay import iter_sample_blocks
 
 L_M = load_config().constants.L_m
 
@@ -256,5 +257,5 @@ def test_laser_readings_beyond_its_range_are_recorded_flagged_and_replayed(tmp_p
         assert beyond.sum() > 0.1 * len(table) and within.sum() > 0.1 * len(table)
         assert out_of_range[beyond].all() and not out_of_range[within].any()
         assert not angle.flags.any()
-        replayed = np.concatenate([block.flags for block in rec.iter_sample_blocks("table")])
+        replayed = np.concatenate([block.flags for block in iter_sample_blocks(rec, "table")])
         np.testing.assert_array_equal(replayed, table.flags)
