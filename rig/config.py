@@ -93,6 +93,16 @@ class VirtualRigConfig:
 
 
 @dataclass(frozen=True)
+class DriveTolerance:
+    """How far the amplifier's read-back drive may be from the asked drive before a run stops."""
+
+    frequency_hz: float = 0.05
+    amplitude_fraction: float = 0.1  # of the asked amplitude ...
+    amplitude_floor_m: float = 50e-6  # ... but never tighter than this
+    settle_s: float = 5.0  # how long the output may take to reach a new setting
+
+
+@dataclass(frozen=True)
 class RigConfig:
     """One validated rig file."""
 
@@ -109,6 +119,8 @@ class RigConfig:
     limits: ShakerLimits
     watchdog_s: float
     virtual: VirtualRigConfig
+    operator: str = ""  # who runs the rig, unless --operator says otherwise
+    drive_tolerance: DriveTolerance = field(default_factory=lambda: DriveTolerance())
 
     @property
     def is_virtual(self) -> bool:
@@ -300,6 +312,7 @@ def parse_config(text: str, source: str = "<rig file>") -> RigConfig:
     rig = top.section("rig")
     name = rig.text("name")
     kind = rig.text("kind", choices=RIG_KINDS)
+    operator = rig.text("operator") if "operator" in rig.table else ""
     constants_section = rig.section("constants")
     constants = RigConstants(
         m_kg=constants_section.number("m_kg", low=0, low_open=True),
@@ -375,6 +388,15 @@ def parse_config(text: str, source: str = "<rig file>") -> RigConfig:
         )
     }
     watchdog_s = limits_section.number("watchdog_s", low=0.05, high=60)
+    defaults = DriveTolerance()
+    tolerance = DriveTolerance(
+        **{
+            name: limits_section.number(f"drive_tolerance_{name}", low=0, low_open=True)
+            if f"drive_tolerance_{name}" in limits_section.table
+            else getattr(defaults, name)
+            for name in ("frequency_hz", "amplitude_fraction", "amplitude_floor_m", "settle_s")
+        }
+    )
     limits_section.finish()
     try:
         limits = ShakerLimits(**limit_values)
@@ -407,4 +429,6 @@ def parse_config(text: str, source: str = "<rig file>") -> RigConfig:
         limits=limits,
         watchdog_s=watchdog_s,
         virtual=virtual,
+        operator=operator,
+        drive_tolerance=tolerance,
     )

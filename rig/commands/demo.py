@@ -81,7 +81,6 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="rig file whose constants and calibrations the virtual rig takes "
         "(default: the shipped rig/default_rig.toml); always run on the virtual rig",
     )
-    parser.add_argument("--quiet", action="store_true", help="no progress lines")
     parser.set_defaults(func=run)
 
 

@@ -101,7 +101,6 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         metavar="RAD",
         help="decays: stop when half the peak-to-peak swing over 1 s is below this (default 0.005)",
     )
-    parser.add_argument("--quiet", action="store_true", help="no progress lines")
     parser.set_defaults(func=run)
 
 

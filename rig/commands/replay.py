@@ -46,7 +46,6 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--record", metavar="COPY.h5", help="record what the engine receives into a new file"
     )
     parser.add_argument("--overwrite", action="store_true", help="replace COPY.h5 if it exists")
-    parser.add_argument("--quiet", action="store_true", help="no progress lines")
     parser.set_defaults(func=run)
 
 
