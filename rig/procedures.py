@@ -14,7 +14,7 @@ import threading
 import time
 from collections import deque
 from collections.abc import Callable
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -47,6 +47,7 @@ class ProcedureResult:
     samples_lost: int
     duration_s: float
     steps: int = 0
+    lost_per_stream: dict[str, int] = field(default_factory=dict)
 
 
 class PretriggerGate:
@@ -247,6 +248,7 @@ class ProcedureSession:
             stop_reason=self.stop_reason,
             samples_written=self.recorder.samples_written,
             samples_lost=self.engine.stats().samples_lost,
+            lost_per_stream=self.engine.stats().lost_per_stream,
             duration_s=time.monotonic() - self.started,
             steps=steps,
         )

@@ -9,6 +9,7 @@ holds everything up to the last flush if the process dies.
 from __future__ import annotations
 
 import contextlib
+import math
 import os
 import shutil
 import threading
@@ -202,8 +203,9 @@ class Recorder:
 
     @property
     def samples_lost(self) -> int:
-        """Samples recorded as gaps, all channels."""
-        return sum(b.lost for b in self._buffers.values())
+        """Samples recorded as gaps by the sampled channels (a pulse stream's gaps are the same
+        board samples again, and are in its own gaps table)."""
+        return sum(b.lost for b in self._buffers.values() if b.spec.kind == "samples")
 
     @property
     def flush_due(self) -> bool:
@@ -224,6 +226,12 @@ class Recorder:
         self._last_host_time_s = max(self._last_host_time_s, host_time_s)
         if isinstance(event, SampleBlock):
             buffer = self._channel(event.channel, "samples")
+            if not (math.isfinite(event.timestamp_s) and event.timestamp_s >= 0):
+                raise RecordingError(
+                    f"{self.path}: channel {event.channel!r}: block at sample "
+                    f"{event.first_index} has timestamp {event.timestamp_s!r}; expected a "
+                    "finite device time >= 0"
+                )
             n = len(event)
             flags = np.zeros(n, "u1") if event.flags is None else np.asarray(event.flags, "u1")
             if flags.shape != (n,):

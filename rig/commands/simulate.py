@@ -119,6 +119,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument(
         "--out", type=Path, required=True, help="output FILE.csv (+ FILE.json) or FILE.h5"
     )
+    parser.add_argument(
+        "--overwrite", action="store_true", help="replace an existing output file (and sidecar)"
+    )
     parser.add_argument("--noise-rad", type=float, default=0.0, help="angle noise std [rad]")
     parser.add_argument(
         "--quantization-rad", type=float, default=0.0, help="angle quantization step [rad]"
@@ -240,6 +243,7 @@ def build_model(
 
 def _metadata(model: Any, experiment: str, args: argparse.Namespace, extra: dict) -> Any:
     from analysis.exchange import ExchangeMeta
+    from analysis.provenance import provenance
 
     rig = model.rig
     drive = None
@@ -253,7 +257,7 @@ def _metadata(model: Any, experiment: str, args: argparse.Namespace, extra: dict
         rig={"m_kg": rig.m_kg, "l_m": rig.l_m, "R_m": rig.R_m, "g": rig.g_m_s2},
         drive=drive,
         notes=f"simulated by impact-rig simulate ({' '.join(sys.argv[1:]) or 'library call'})",
-        extra={"simulation": extra},
+        extra={"simulation": extra, "provenance": provenance()},
     )
 
 
@@ -261,7 +265,7 @@ def _write_hdf5(path: Path, columns: dict[str, Any], metadata: dict) -> None:
     import h5py
     import numpy as np
 
-    with h5py.File(path, "w") as handle:
+    with h5py.File(path, "w") as handle:  # an existing file was refused or --overwrite given
         for name, values in columns.items():
             if values is None:
                 continue
@@ -279,6 +283,7 @@ def run(args: argparse.Namespace) -> int:
     from analysis.exchange import ExchangeRecord, write_exchange
     from analysis.measurement import MeasurementModel, has_measurement_causes
     from analysis.model import P, ParameterError
+    from analysis.output_paths import check_outputs
     from analysis.simulate import simulate
 
     suffix = args.out.suffix.lower()
@@ -286,6 +291,8 @@ def run(args: argparse.Namespace) -> int:
         raise CommandError(f"--out {args.out}: expected a .csv or .h5 file name")
     if not args.out.parent.exists():
         raise CommandError(f"--out {args.out}: folder {args.out.parent} does not exist")
+    outputs = [args.out] + ([args.out.with_suffix(".json")] if suffix == ".csv" else [])
+    check_outputs(outputs, overwrite=args.overwrite)
     for name in ("duration", "fs"):
         value = getattr(args, name)
         if not (math.isfinite(value) and value > 0):
