@@ -44,6 +44,7 @@ class RecordingArrays:
 def read_recording_arrays(path: str | Path) -> RecordingArrays:
     """The analysable content of a recording: angle, table and tach on shared sample indices."""
     with open_recording(path) as recording:
+        recording.verify()  # damage anywhere refuses the file before any of it is used
         info = recording.info
         angle_name = info.roles.get("angle", "angle")
         if angle_name not in recording.channel_names:

@@ -766,6 +766,22 @@ class Recording:
                     f"timestamp_s {float(blocks['timestamp_s'][row])!r})"
                 )
 
+    def verify(self, slab: int = 1 << 20) -> None:
+        """Read every stored byte once, so that damage anywhere (checksums) is an error now,
+        before any of the file is used."""
+        for dataset in self._datasets():
+            for start in range(0, dataset.shape[0], slab):
+                self.read(dataset, np.s_[start : start + slab])
+        for name in self.channel_names:
+            group = self._file["channels"][name]
+            if "time_s" in group:  # the stored times agree with the block table
+                blocks = self.complete_blocks(name)
+                expected = sample_times(blocks, float(group.attrs["sample_rate_hz"]))
+                stored = self.read(group["time_s"], np.s_[: expected.size])
+                if not np.allclose(stored, expected, rtol=0, atol=1e-9, equal_nan=False):
+                    row = int(np.flatnonzero(~np.isclose(stored, expected, rtol=0, atol=1e-9))[0])
+                    raise self._fail(f"{group['time_s'].name}[{row}] disagrees with the blocks")
+
     def read_samples(self, name: str, start: int, stop: int) -> tuple[np.ndarray, ...]:
         """(raw, values, flags) of stored samples [start, stop) of a sampled channel."""
         group = self._group("channels", name)

@@ -200,6 +200,7 @@ class Replay:
         self.recording = open_recording(path)
         names = channels or self.recording.channel_names + self.recording.pulse_names
         try:
+            self.recording.verify()  # damage refuses the file before a block is played
             for name in names:
                 self.recording.sample_rate_hz(name)  # an unknown name fails here, clearly
         except RecordingFormatError:
