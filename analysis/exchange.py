@@ -1,4 +1,4 @@
-"""The CSV + JSON exchange format of MODEL.md section 5: read it with clear errors, write it.
+"""The CSV + JSON exchange format of docs/MODEL.md section 5: read it with clear errors, write it.
 
 A record is a uniformly sampled angle (plus optional table displacement and tach
 pulses) with a JSON sidecar naming the experiment, the rig constants and the drive.

@@ -5,7 +5,7 @@
 clock and returns the raw ADC counts of the angle potentiometer and the table
 laser, and the tachometer line.  The table follows a :class:`ShakerResponse`
 (which the amplifier emulator commands), updated in short chunks with the drive
-phase kept continuous.  Named causes of MODEL.md section 6 are switched on in the
+phase kept continuous.  Named causes of docs/MODEL.md section 6 are switched on in the
 model (``Model(...).with_extension(...)``): dynamics causes act in the integrator,
 measurement causes on the angle channel.  Thread safe: the Modbus server thread
 may command the shaker while the DAQ thread generates.

@@ -34,7 +34,7 @@ class ConfigError(ValueError):
 
 @dataclass(frozen=True)
 class RigConstants:
-    """MODEL.md section 3 constants of this rig."""
+    """docs/MODEL.md section 3 constants of this rig."""
 
     m_kg: float
     l_m: float
@@ -43,7 +43,7 @@ class RigConstants:
     g_m_s2: float
 
     def as_exchange(self) -> dict[str, float]:
-        """The constants under the exchange-format keys (MODEL.md section 5) plus L_m."""
+        """The constants under the exchange-format keys (docs/MODEL.md section 5) plus L_m."""
         return {
             "m_kg": self.m_kg,
             "l_m": self.l_m,
@@ -86,7 +86,7 @@ class VirtualRigConfig:
     noise_rad: float
     seed: int
     # physical effects the baseline model lacks, switched on in the simulation
-    # (MODEL.md section 6 cause name -> its parameter values), from [virtual.causes]
+    # (docs/MODEL.md section 6 cause name -> its parameter values), from [virtual.causes]
     causes: Mapping[str, Mapping[str, float]] = field(
         default_factory=lambda: MappingProxyType({})
     )
@@ -254,7 +254,7 @@ def _range_words(low: float | None, high: float | None, low_open: bool) -> str:
 
 
 def _virtual_causes(virtual: _Section) -> Mapping[str, Mapping[str, float]]:
-    """The optional [virtual.causes] table: named causes (MODEL.md section 6) and their values,
+    """The optional [virtual.causes] table: named causes (docs/MODEL.md section 6) and their values,
     e.g. ``coulomb_friction = { Tc_N_m = 2e-5 }``; checked against the cause registry."""
     if "causes" not in virtual.table:
         return MappingProxyType({})

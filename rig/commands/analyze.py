@@ -1,5 +1,5 @@
 """``impact-rig analyze``: where the model fails on a record, which named cause explains it,
-and how much the extended model gains (MODEL.md section 6)."""
+and how much the extended model gains (docs/MODEL.md section 6)."""
 
 from __future__ import annotations
 
@@ -11,9 +11,9 @@ from pathlib import Path
 from rig.cli import CommandError
 
 DESCRIPTION = """\
-Explain a measured record: fit the baseline model of MODEL.md section 2, show where it
+Explain a measured record: fit the baseline model of docs/MODEL.md section 2, show where it
 fails (phase of motion, angle, velocity, envelope, spectrum), fit every named cause of
-MODEL.md section 6 that can show in this kind of experiment as an extension of the model,
+docs/MODEL.md section 6 that can show in this kind of experiment as an extension of the model,
 and choose the one that earns its keep on two counts: the information criterion (BIC with
 the data's own noise level and effective sample count) and the prediction of the last
 part of the record from a fit of the first part. `none` when no extension helps clearly.

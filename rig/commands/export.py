@@ -1,4 +1,4 @@
-"""``impact-rig export``: a recording as CSV + JSON exchange files (MODEL.md section 5)."""
+"""``impact-rig export``: a recording as CSV + JSON exchange files (docs/MODEL.md section 5)."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ from pathlib import Path
 from rig.cli import CommandError
 
 DESCRIPTION = """\
-Write an HDF5 recording as the exchange format of MODEL.md section 5: FILE.csv
+Write an HDF5 recording as the exchange format of docs/MODEL.md section 5: FILE.csv
 (time_s, angle_rad, table_m, tach) and FILE.json beside it (experiment, rig
 constants, drive, notes), which every analysis command and other software read.
 

@@ -15,7 +15,7 @@ if TYPE_CHECKING:
     from analysis.records import Record
 
 DESCRIPTION = """\
-Identify the model parameters of a record (MODEL.md section 7 keys, 95 % intervals
+Identify the model parameters of a record (docs/MODEL.md section 7 keys, 95 % intervals
 from the Jacobian, widened for correlated residuals by a Newey-West sandwich).
 
 The experiment named in the metadata decides the fit:

@@ -1,6 +1,6 @@
 """``impact-rig simulate``: simulate the impact pendulum and write a record (CSV + JSON or HDF5).
 
-The CSV output is the exchange format of MODEL.md section 5 (``time_s``, ``angle_rad``,
+The CSV output is the exchange format of docs/MODEL.md section 5 (``time_s``, ``angle_rad``,
 and for forced runs ``table_m`` and ``tach``; the JSON sidecar beside it), so every
 analysis command reads a simulated record like a measured one.
 
@@ -37,9 +37,9 @@ NONDIMENSIONAL_PARAMETERS = {
 MAX_SAMPLES = 50_000_000
 
 DESCRIPTION = """\
-Simulate the impact pendulum (MODEL.md section 2) and write the record.
+Simulate the impact pendulum (docs/MODEL.md section 2) and write the record.
 
-Parameters start from the paper's rig (MODEL.md section 3) or, with --case, from the
+Parameters start from the paper's rig (docs/MODEL.md section 3) or, with --case, from the
 paper's nondimensional values for that forced case; --param changes any of them.
 The experiment decides barrier and drive:
   free_decay    no barrier, no drive (the pendulum swings freely from --theta0)
@@ -59,7 +59,7 @@ parameters (--param NAME=VALUE, SI units in the names):
   rig        m_kg l_m L_m R_m g_m_s2 zeta E_Pa mu0_s_per_m theta_b_rad
   drive      f_drive_hz A_m beta
   paper      eta mu gamma (with the drive frequency; applied after the rig values)
-  causes     parameters of the named causes of MODEL.md section 6, e.g. Tc_N_m
+  causes     parameters of the named causes of docs/MODEL.md section 6, e.g. Tc_N_m
              (coulomb_friction), c2_per_rad, n and K_n, c_N_s_per_m, h2 phi2_rad, eps,
              offset_rad, k3, tau_s; giving one switches its cause on (as --cause does)
 
@@ -101,7 +101,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         action="append",
         default=[],
         metavar="NAME",
-        help="switch on a named cause of MODEL.md section 6 (repeatable)",
+        help="switch on a named cause of docs/MODEL.md section 6 (repeatable)",
     )
     parser.add_argument("--theta0", type=float, default=-0.3, help="initial angle [rad] (-0.3)")
     parser.add_argument(

@@ -1,4 +1,4 @@
-"""The paper's forced cases (MODEL.md section 4) classified from simulations of our model.
+"""The paper's forced cases (docs/MODEL.md section 4) classified from simulations of our model.
 
 Each run: 200 drive periods of transient, then 300 periods recorded.  The expected
 kinds are what the paper's own simulations report; the Lyapunov exponent of the

@@ -152,7 +152,7 @@ def test_free_decay_starts_just_before_the_release_and_decays(tmp_path):
 
 def test_impact_decay_is_recorded_fast_enough_to_resolve_the_impact(tmp_path):
     """At the impact-decay default (20 kHz) the first impact's peak penetration matches the
-    Hertz oracle of MODEL.md section 4 (linearised contact, mu0 = 0 bound)."""
+    Hertz oracle of docs/MODEL.md section 4 (linearised contact, mu0 = 0 bound)."""
     path = tmp_path / "impacts.h5"
     status = main(
         [
