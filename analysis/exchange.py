@@ -1,4 +1,4 @@
-"""The CSV + JSON exchange format of MODEL.md section 5: read it with clear errors, write it.
+"""The CSV + JSON exchange format of docs/MODEL.md section 5: read it with clear errors, write it.
 
 A record is a uniformly sampled angle (plus optional table displacement and tach
 pulses) with a JSON sidecar naming the experiment, the rig constants and the drive.
@@ -164,6 +164,14 @@ def read_exchange(csv_path: str | Path, meta_path: str | Path | None = None) -> 
             f"{csv_path}: line {row}: time_s step {steps[bad[0]]:.6g} s differs from the mean "
             f"{mean_step:.6g} s; the exchange format needs uniform sampling"
         )
+    for name in ("angle_rad", "table_m"):
+        values = columns.get(name)
+        if values is not None and not np.all(np.isfinite(values)):
+            row = int(np.flatnonzero(~np.isfinite(values))[0]) + 2
+            raise ExchangeFormatError(
+                f"{csv_path}: line {row}: {name} is {values[row - 2]!r}, not a finite number; "
+                "remove the row or mark the sample some other way (a gap is not allowed here)"
+            )
     return ExchangeRecord(
         time_s=time_s,
         angle_rad=columns["angle_rad"],

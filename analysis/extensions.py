@@ -1,4 +1,4 @@
-"""Registry of the named causes of MODEL.md section 6, each an extension of the baseline model.
+"""Registry of the named causes of docs/MODEL.md section 6, each an extension of the baseline model.
 
 A cause declares its parameters once (name, unit, default, physical bounds) and
 how it acts: a dynamics cause writes its terms into the packed parameter vector

@@ -1,7 +1,7 @@
 """The recorder's HDF5 files (docs/recording_layout.md) as analysis ``Record`` objects.
 
-Analysis imports nothing of the rig, so this reads the documented layout with h5py
-directly (file I/O, not device I/O).  A record must be uniformly sampled: a recording
+The recording is read through :mod:`analysis.recording_file` (which validates it and
+refuses a damaged one).  A record must be uniformly sampled: a recording
 with gaps is returned as its gap-free segments, never with samples filled in; a
 sweep is returned one record per step (its steady-state dwell, with its drive).
 The flat file that ``impact-rig simulate --out FILE.h5`` writes is read as well.
@@ -19,9 +19,9 @@ import h5py
 import numpy as np
 
 from analysis.exchange import meta_from_json
+from analysis.recording_file import RecordingFormatError, open_recording
 from analysis.records import Record, RecordFormatError, register_loader
 
-FORMAT_NAME = "impact-rig recording"
 RIG_KEYS = ("m_kg", "l_m", "R_m", "g")
 
 
@@ -41,77 +41,44 @@ class RecordingArrays:
     steps: np.ndarray  # the /sweep_steps table
 
 
-def _channel(path: Path, f: h5py.File, name: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(indices, times, values) of the fully stored blocks of a sampled channel."""
-    try:
-        group = f["channels"][name]
-    except KeyError:
-        raise RecordFormatError(
-            f"{path}: no channel {name!r}; the recording has {list(f['channels'].keys())}"
-        ) from None
-    blocks = group["blocks"][()]
-    # the consistent prefix of docs/recording_layout.md (format 1 files have no flags)
-    stored = min(group[part].shape[0] for part in ("raw", "values", "flags") if part in group)
-    blocks = blocks[blocks["stored_start"] + blocks["n_samples"] <= stored]
-    n = int(blocks["stored_start"][-1] + blocks["n_samples"][-1]) if blocks.size else 0
-    fs = float(group.attrs["sample_rate_hz"])
-    offset = np.arange(n) - np.repeat(blocks["stored_start"], blocks["n_samples"])
-    indices = np.repeat(blocks["first_index"], blocks["n_samples"]) + offset
-    times = np.repeat(blocks["timestamp_s"], blocks["n_samples"]) + offset / fs
-    return indices.astype(np.int64), times, group["values"][:n].astype(float)
-
-
 def read_recording_arrays(path: str | Path) -> RecordingArrays:
     """The analysable content of a recording: angle, table and tach on shared sample indices."""
-    path = Path(path)
-    try:
-        f = h5py.File(path, "r", libver="latest", swmr=True)
-    except FileNotFoundError:
-        raise RecordFormatError(f"{path}: file not found") from None
-    except OSError as error:
-        raise RecordFormatError(f"{path}: not a readable HDF5 file ({error})") from None
-    with f:
-        if f.attrs.get("format") != FORMAT_NAME:
-            raise RecordFormatError(
-                f"{path}: not an impact-rig recording (attribute 'format' is "
-                f"{f.attrs.get('format')!r}; expected {FORMAT_NAME!r})"
+    with open_recording(path) as recording:
+        recording.verify()  # damage anywhere refuses the file before any of it is used
+        info = recording.info
+        angle_name = info.roles.get("angle", "angle")
+        if angle_name not in recording.channel_names:
+            raise RecordingFormatError(
+                f"{path}: no channel {angle_name!r}; the recording has {recording.channel_names}"
             )
-        try:
-            roles = json.loads(f.attrs.get("roles_json", "{}"))
-            rig_all = json.loads(f.attrs.get("rig_json", "{}"))
-            drive = json.loads(f.attrs.get("drive_json", "null"))
-        except json.JSONDecodeError as error:
-            raise RecordFormatError(f"{path}: a metadata attribute is not JSON ({error})") from None
-        angle_name = roles.get("angle", "angle")
-        indices, times, angle = _channel(path, f, angle_name)
+        angle_data = recording.channel(angle_name)
+        indices, times, angle = (
+            angle_data.indices, angle_data.times_s, angle_data.values.astype(float)
+        )
         table = None
-        table_name = roles.get("table")
-        if table_name and table_name in f["channels"]:
-            t_indices, _, t_values = _channel(path, f, table_name)
+        table_name = info.roles.get("table")
+        if table_name and table_name in recording.channel_names:
+            table_data = recording.channel(table_name)
             common, in_angle, in_table = np.intersect1d(
-                indices, t_indices, assume_unique=True, return_indices=True
+                indices, table_data.indices, assume_unique=True, return_indices=True
             )
             indices, times, angle = common, times[in_angle], angle[in_angle]
-            table = t_values[in_table]
+            table = table_data.values.astype(float)[in_table]
         edges = np.zeros(0, dtype=np.int64)
-        tach_name = roles.get("tach")
-        if tach_name and tach_name in f["pulses"]:
-            group = f["pulses"][tach_name]
-            stored = min(group["edge_indices"].shape[0], group["edge_times_s"].shape[0])
-            covered = group["blocks"][()]
-            complete = int(covered["n_edges"][np.cumsum(covered["n_edges"]) <= stored].sum())
-            edges = group["edge_indices"][:complete].astype(np.int64)
+        tach_name = info.roles.get("tach")
+        if tach_name and tach_name in recording.pulse_names:
+            edges = recording.pulses(tach_name).edge_indices.astype(np.int64)
         return RecordingArrays(
             indices=indices,
             time_s=times,
             angle_rad=angle,
             table_m=table,
             tach_edges=edges,
-            experiment=str(f.attrs.get("experiment", "")),
-            rig={key: rig_all.get(key) for key in RIG_KEYS},
-            drive=drive,
-            notes=str(f.attrs.get("notes", "")),
-            steps=f["sweep_steps"][()],
+            experiment=info.experiment,
+            rig={key: info.rig.get(key) for key in RIG_KEYS},
+            drive=info.drive,
+            notes=info.notes,
+            steps=recording.sweep_steps(),
         )
 
 
@@ -204,16 +171,25 @@ def load_simulated_hdf5(path: str | Path) -> Record:
     in ``rig/commands/simulate.py``.
     """
     path = Path(path)
-    with h5py.File(path, "r") as f:
-        try:
-            meta = meta_from_json(json.loads(f.attrs["metadata"]), path)
-        except json.JSONDecodeError as error:
-            raise RecordFormatError(f"{path}: attribute 'metadata' is not JSON ({error})") from None
-        missing = [name for name in ("time_s", "angle_rad") if name not in f]
-        if missing:
-            raise RecordFormatError(f"{path}: no dataset {missing[0]!r} at the root")
-        columns = {name: f[name][()] for name in ("time_s", "angle_rad", "table_m", "tach")
-                   if name in f}
+    try:
+        with h5py.File(path, "r") as f:
+            try:
+                meta = meta_from_json(json.loads(f.attrs["metadata"]), path)
+            except json.JSONDecodeError as error:
+                raise RecordFormatError(
+                    f"{path}: attribute 'metadata' is not JSON ({error})"
+                ) from None
+            missing = [name for name in ("time_s", "angle_rad") if name not in f]
+            if missing:
+                raise RecordFormatError(f"{path}: no dataset {missing[0]!r} at the root")
+            names = ("time_s", "angle_rad", "table_m", "tach")
+            columns = {name: f[name][()] for name in names if name in f}
+    except (OSError, RuntimeError) as error:  # checksum failures: damaged, never used
+        raise RecordFormatError(f"{path}: damaged ({str(error).splitlines()[0]})") from None
+    for name, values in columns.items():
+        if name != "tach" and not np.all(np.isfinite(values)):
+            row = int(np.flatnonzero(~np.isfinite(values))[0])
+            raise RecordFormatError(f"{path}: {name}[{row}] is not a finite number")
     tach = columns.get("tach")
     return Record(
         time_s=columns["time_s"],

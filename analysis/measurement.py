@@ -1,6 +1,6 @@
 """How a simulated angle becomes a measured one: sensor causes, Gaussian noise, quantization.
 
-The measurement causes of MODEL.md section 6 (offset, nonlinearity, lag) act first,
+The measurement causes of docs/MODEL.md section 6 (offset, nonlinearity, lag) act first,
 through :func:`analysis.extensions.apply_measurement`; then white Gaussian noise of
 a given standard deviation is added and the result is rounded to the converter's
 step.  The random generator is seeded, so a simulated record can be reproduced.

@@ -1,9 +1,9 @@
-"""The impact-pendulum model of MODEL.md: parameters, nondimensional form, equations of motion.
+"""The impact-pendulum model of docs/MODEL.md: parameters, nondimensional form, equations of motion.
 
 The equations are written once, as numba-compiled functions of a packed parameter
 vector (layout in ``P``), so the simulator, the virtual rig and the analysis all
 integrate exactly the same physics.  Every term of the superset equation is off
-(zero) by default; the named causes of MODEL.md section 6 switch terms on through
+(zero) by default; the named causes of docs/MODEL.md section 6 switch terms on through
 the registry in :mod:`analysis.extensions`, never by editing these equations.
 """
 
@@ -30,7 +30,7 @@ class ParameterError(ValueError):
 
 @dataclass(frozen=True)
 class RigParameters:
-    """Physical constants of the pendulum and barrier, SI units (MODEL.md section 3)."""
+    """Physical constants of the pendulum and barrier, SI units (docs/MODEL.md section 3)."""
 
     m_kg: float = 0.0326
     l_m: float = 0.050
@@ -188,7 +188,7 @@ def from_nondimensional(
 
 @dataclass(frozen=True)
 class PaperCase:
-    """One forced case of the paper (MODEL.md section 4 table)."""
+    """One forced case of the paper (docs/MODEL.md section 4 table)."""
 
     name: str
     frequency_hz: float
@@ -277,7 +277,7 @@ class P(IntEnum):
 class Model:
     """A complete simulation model: rig, drive, barrier in or out, and active extensions.
 
-    ``extensions`` maps a cause name of MODEL.md section 6 to its parameter values;
+    ``extensions`` maps a cause name of docs/MODEL.md section 6 to its parameter values;
     :mod:`analysis.extensions` knows how each one acts.
     """
 
@@ -339,7 +339,7 @@ def penetration(theta: float, p: np.ndarray) -> float:
 
 @numba.njit(cache=True)
 def contact_force(theta: float, theta_dot: float, p: np.ndarray) -> float:
-    """Barrier force Fc [N] of MODEL.md section 2, generalised by the contact extensions.
+    """Barrier force Fc [N] of docs/MODEL.md section 2, generalised by the contact extensions.
 
     Fc = K delta^n (1 + mu0 deltadot) + c deltadot, clamped at 0 (no adhesion);
     zero out of contact, with the barrier removed, or beyond the horizontal.
@@ -376,7 +376,8 @@ def smooth_acceleration(t: float, theta: float, theta_dot: float, p: np.ndarray)
 
 @numba.njit(cache=True)
 def acceleration(t: float, theta: float, theta_dot: float, p: np.ndarray) -> float:
-    """theta'' of MODEL.md section 2 plus the active extension terms, while sliding (theta' != 0).
+    """theta'' of docs/MODEL.md section 2 plus the active extension terms, while sliding
+    (theta' != 0).
 
     Coulomb friction enters as -Tc/(m L^2) sign(theta'); at theta' = 0 the pendulum
     sticks unless the other torques exceed Tc, which the integrator resolves.

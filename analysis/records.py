@@ -27,7 +27,7 @@ class RecordFormatError(ValueError):
 
 @dataclass(frozen=True)
 class Record:
-    """One uniformly sampled measurement: angle (rad, MODEL.md convention) and its context.
+    """One uniformly sampled measurement: angle (rad, docs/MODEL.md convention) and its context.
 
     ``rig`` holds the known rig constants under the exchange keys ``m_kg``, ``l_m``,
     ``R_m``, ``g`` (None where unknown); ``drive`` the stated ``frequency_hz`` and

@@ -21,7 +21,7 @@ from analysis.records import load_record
 from analysis.report import write_report
 from analysis.report.discrepancy import report_json
 
-DEFAULT_DATA = Path("/work/shared/data/real/exchange")
+DEFAULT_DATA = Path(__file__).resolve().parents[1] / "tests" / "data" / "real_exchange"
 
 
 def main() -> int:

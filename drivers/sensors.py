@@ -19,6 +19,7 @@ from drivers.interfaces import PulseBlock, SampleBlock, StreamStatus
 
 FLAG_AT_RAIL = 1  # the ADC reading is saturated: the true value is beyond it
 FLAG_OUT_OF_RANGE = 2  # the reading lies outside the sensor's measuring range
+FLAG_NOT_FINITE = 4  # the calibrated value is infinite or NaN (set by the recorder)
 
 
 def _require_finite(owner: str, **values: float) -> None:

@@ -97,6 +97,16 @@ class MeasuredDrive:
     faults: tuple[str, ...]
 
 
+@dataclass(frozen=True)
+class Setpoints:
+    """The amplifier's holding registers: what it is asked to do, by the host or anyone else."""
+
+    frequency_hz: float
+    amplitude_m: float
+    ramp_rate_m_s: float
+    enabled: bool
+
+
 class RegisterSetting:
     """A setpoint held in holding registers: unit, scaling and limits declared in one place.
 
@@ -331,6 +341,21 @@ class ShakerAmplifier:
             ramping=bool(status & Status.RAMPING),
             at_zero=bool(status & Status.AT_ZERO),
             faults=fault_words(regs[1]),
+        )
+
+    def setpoints(self) -> Setpoints:
+        """The setpoints the amplifier holds now (whoever wrote them), in one request."""
+        regs = self._io(
+            "read setpoints",
+            self.backend.read_holding_registers,
+            int(Holding.FREQUENCY_MHZ_HI),
+            int(Holding.ENABLE) - int(Holding.FREQUENCY_MHZ_HI) + 1,
+        )
+        return Setpoints(
+            frequency_hz=join_u32(regs[0], regs[1]) / 1000.0,
+            amplitude_m=regs[2] * 1e-6,
+            ramp_rate_m_s=regs[3] * 1e-6,
+            enabled=bool(regs[4]),
         )
 
     def faults(self) -> tuple[str, ...]:

@@ -21,6 +21,7 @@ from pathlib import Path
 
 from PySide6.QtCore import QObject, Signal
 
+from analysis.recording_file import open_recording
 from drivers.interfaces import (
     ActuatorStatus,
     DeviceError,
@@ -35,7 +36,6 @@ from rig.engine import AcquisitionEngine, EngineStats, Subscription
 from rig.events import StepMark
 from rig.procedures import SweepPlan, base_metadata
 from rig.recorder import ChannelSpec, Recorder, RecorderThread, attach_recorder
-from rig.recording_reader import open_recording
 from rig.replay import Replay
 
 VIEW_QUEUE_ITEMS = 4000  # the GUI's own bounded queue; when full it loses only its own view

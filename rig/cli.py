@@ -12,7 +12,7 @@ import argparse
 import signal
 import sys
 import threading
-from importlib.metadata import entry_points
+from importlib.metadata import PackageNotFoundError, entry_points, version
 
 COMMAND_GROUP = "impact_rig.commands"
 
@@ -31,6 +31,9 @@ def build_parser() -> argparse.ArgumentParser:
         ),
         epilog="Run 'impact-rig COMMAND --help' for the options of one command.",
     )
+    parser.add_argument(
+        "--version", action="version", version=f"impact-rig {_installed_version()}"
+    )
     subparsers = parser.add_subparsers(title="commands", dest="command", metavar="COMMAND")
     for entry in sorted(entry_points(group=COMMAND_GROUP), key=lambda e: e.name):
         try:
@@ -39,7 +42,33 @@ def build_parser() -> argparse.ArgumentParser:
             _register_unavailable(subparsers, entry.name, error)
             continue
         register(subparsers)
+    for command in subparsers.choices.values():
+        add_common_options(command)
     return parser
+
+
+def _installed_version() -> str:
+    try:
+        return version("impact-rig")
+    except PackageNotFoundError:
+        return "(not installed)"
+
+
+def add_common_options(parser: argparse.ArgumentParser) -> None:
+    """--verbose, --quiet and --operator, which every command takes."""
+    group = parser.add_argument_group("every command")
+    loudness = group.add_mutually_exclusive_group()
+    loudness.add_argument(
+        "--verbose", action="store_true", help="log everything, and tracebacks of errors"
+    )
+    loudness.add_argument("--quiet", action="store_true", help="no progress lines, errors only")
+    group.add_argument(
+        "--operator",
+        default="",
+        metavar="NAME",
+        help="who ran this, kept in the provenance of every file written "
+        "(default: the rig file's rig.operator, if any)",
+    )
 
 
 def _register_unavailable(subparsers: argparse._SubParsersAction, name: str, error: Exception):
@@ -61,14 +90,36 @@ def main(argv: list[str] | None = None) -> int:
     if not getattr(args, "func", None):
         parser.print_help()
         return 1
+    from analysis.provenance import set_invocation
+    from rig import logs
+
+    logs.configure(verbose=args.verbose, quiet=args.quiet)
+    set_invocation(["impact-rig", *(sys.argv[1:] if argv is None else argv)], args.operator)
     try:
         return int(args.func(args) or 0)
     except CommandError as error:
-        print(f"impact-rig {args.command}: error: {error}", file=sys.stderr)
-        return 2
+        return _fail(args, error, str(error))
     except KeyboardInterrupt:
         print(f"impact-rig {args.command}: interrupted", file=sys.stderr)
         return 130
+    except Exception as error:  # never a traceback for the user; --verbose shows it
+        from analysis.output_paths import OutputPathError
+        from analysis.records import RecordFormatError
+
+        text = str(error).strip().splitlines()[0] if str(error).strip() else repr(error)
+        if not isinstance(error, RecordFormatError | OutputPathError):
+            text = f"{type(error).__name__}: {text}"  # unforeseen: say what kind of failure
+        return _fail(args, error, text)
+
+
+def _fail(args: argparse.Namespace, error: BaseException, message: str) -> int:
+    """One line naming what was wrong (the traceback too with --verbose); exit status 2."""
+    print(f"impact-rig {args.command}: error: {message}", file=sys.stderr)
+    if args.verbose:
+        import traceback
+
+        traceback.print_exception(error, file=sys.stderr)
+    return 2
 
 
 def _stop_on_sigterm() -> None:

@@ -22,6 +22,10 @@ from drivers.sensors import LaserCalibration, PotentiometerCalibration, Tachomet
 DEFAULT_CONFIG_NAME = "default_rig.toml"
 RIG_KINDS = ("virtual", "real")
 SHAKER_TRANSPORTS = ("tcp", "rtu")
+MAX_INPUT_V = 100.0  # no DAQ input reads beyond this
+GAIN_RAD_PER_V_RANGE = (1e-6, 100.0)
+M_PER_UNIT_RANGE = (1e-12, 1.0)  # from a count of a 32-bit converter to a volt of a 1 m sensor
+MAX_TABLE_ZERO_M = 1.0
 
 
 class ConfigError(ValueError):
@@ -30,7 +34,7 @@ class ConfigError(ValueError):
 
 @dataclass(frozen=True)
 class RigConstants:
-    """MODEL.md section 3 constants of this rig."""
+    """docs/MODEL.md section 3 constants of this rig."""
 
     m_kg: float
     l_m: float
@@ -39,7 +43,7 @@ class RigConstants:
     g_m_s2: float
 
     def as_exchange(self) -> dict[str, float]:
-        """The constants under the exchange-format keys (MODEL.md section 5) plus L_m."""
+        """The constants under the exchange-format keys (docs/MODEL.md section 5) plus L_m."""
         return {
             "m_kg": self.m_kg,
             "l_m": self.l_m,
@@ -82,10 +86,20 @@ class VirtualRigConfig:
     noise_rad: float
     seed: int
     # physical effects the baseline model lacks, switched on in the simulation
-    # (MODEL.md section 6 cause name -> its parameter values), from [virtual.causes]
+    # (docs/MODEL.md section 6 cause name -> its parameter values), from [virtual.causes]
     causes: Mapping[str, Mapping[str, float]] = field(
         default_factory=lambda: MappingProxyType({})
     )
+
+
+@dataclass(frozen=True)
+class DriveTolerance:
+    """How far the amplifier's read-back drive may be from the asked drive before a run stops."""
+
+    frequency_hz: float = 0.05
+    amplitude_fraction: float = 0.1  # of the asked amplitude ...
+    amplitude_floor_m: float = 50e-6  # ... but never tighter than this
+    settle_s: float = 5.0  # how long the output may take to reach a new setting
 
 
 @dataclass(frozen=True)
@@ -105,6 +119,8 @@ class RigConfig:
     limits: ShakerLimits
     watchdog_s: float
     virtual: VirtualRigConfig
+    operator: str = ""  # who runs the rig, unless --operator says otherwise
+    drive_tolerance: DriveTolerance = field(default_factory=lambda: DriveTolerance())
 
     @property
     def is_virtual(self) -> bool:
@@ -165,6 +181,15 @@ class _Section:
         if low is not None and (value < low or (low_open and value == low)):
             raise self._bad(key, value, expected)
         if (high is not None and value > high) or (nonzero and value == 0):
+            raise self._bad(key, value, expected)
+        return float(value)
+
+    def magnitude(self, key: str, smallest: float, largest: float) -> float:
+        """A number of either sign whose size lies in [smallest, largest]."""
+        expected = f"a number whose size is in [{smallest:g}, {largest:g}] (either sign)"
+        value = self._get(key, expected)
+        is_number = isinstance(value, int | float) and not isinstance(value, bool)
+        if not is_number or not math.isfinite(value) or not smallest <= abs(value) <= largest:
             raise self._bad(key, value, expected)
         return float(value)
 
@@ -229,7 +254,7 @@ def _range_words(low: float | None, high: float | None, low_open: bool) -> str:
 
 
 def _virtual_causes(virtual: _Section) -> Mapping[str, Mapping[str, float]]:
-    """The optional [virtual.causes] table: named causes (MODEL.md section 6) and their values,
+    """The optional [virtual.causes] table: named causes (docs/MODEL.md section 6) and their values,
     e.g. ``coulomb_friction = { Tc_N_m = 2e-5 }``; checked against the cause registry."""
     if "causes" not in virtual.table:
         return MappingProxyType({})
@@ -287,6 +312,7 @@ def parse_config(text: str, source: str = "<rig file>") -> RigConfig:
     rig = top.section("rig")
     name = rig.text("name")
     kind = rig.text("kind", choices=RIG_KINDS)
+    operator = rig.text("operator") if "operator" in rig.table else ""
     constants_section = rig.section("constants")
     constants = RigConstants(
         m_kg=constants_section.number("m_kg", low=0, low_open=True),
@@ -316,16 +342,18 @@ def parse_config(text: str, source: str = "<rig file>") -> RigConfig:
 
     calibration = top.section("calibration")
     angle = calibration.section("angle")
+    # Bounds far outside any real sensor: they catch a typo (1e308, a lost minus in an
+    # exponent) before it turns every sample into inf.
     angle_calibration = PotentiometerCalibration(
-        offset_v=angle.number("offset_v"),
-        gain_rad_per_v=angle.number("gain_rad_per_v", nonzero=True),
+        offset_v=angle.number("offset_v", low=-MAX_INPUT_V, high=MAX_INPUT_V),
+        gain_rad_per_v=angle.magnitude("gain_rad_per_v", *GAIN_RAD_PER_V_RANGE),
         linearity=tuple(angle.numbers("linearity")),
     )
     angle.finish()
     table = calibration.section("table")
     table_calibration = LaserCalibration(
-        zero_m=table.number("zero_m"),
-        m_per_unit=table.number("m_per_unit", nonzero=True),
+        zero_m=table.number("zero_m", low=-MAX_TABLE_ZERO_M, high=MAX_TABLE_ZERO_M),
+        m_per_unit=table.magnitude("m_per_unit", *M_PER_UNIT_RANGE),
         unit=table.text("unit", choices=("V", "count")),
         measuring_range_m=table.interval("measuring_range_m"),
     )
@@ -360,6 +388,15 @@ def parse_config(text: str, source: str = "<rig file>") -> RigConfig:
         )
     }
     watchdog_s = limits_section.number("watchdog_s", low=0.05, high=60)
+    defaults = DriveTolerance()
+    tolerance = DriveTolerance(
+        **{
+            name: limits_section.number(f"drive_tolerance_{name}", low=0, low_open=True)
+            if f"drive_tolerance_{name}" in limits_section.table
+            else getattr(defaults, name)
+            for name in ("frequency_hz", "amplitude_fraction", "amplitude_floor_m", "settle_s")
+        }
+    )
     limits_section.finish()
     try:
         limits = ShakerLimits(**limit_values)
@@ -392,4 +429,6 @@ def parse_config(text: str, source: str = "<rig file>") -> RigConfig:
         limits=limits,
         watchdog_s=watchdog_s,
         virtual=virtual,
+        operator=operator,
+        drive_tolerance=tolerance,
     )

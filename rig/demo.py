@@ -2,7 +2,7 @@
 explained by the same drivers, procedures and analysis a real rig uses, into a report folder.
 
 The virtual rig runs over its real protocols (serial DAQ on a pty, amplifier on
-Modbus TCP), faster than real time, with one named cause of MODEL.md section 6
+Modbus TCP), faster than real time, with one named cause of docs/MODEL.md section 6
 switched on that the baseline model lacks.  The demo records a free decay, an
 impact decay and a forced amplitude sweep at 10 Hz (up and down); identifies L,
 zeta, K and mu0 with intervals; runs the discrepancy analysis on every record
@@ -338,7 +338,7 @@ def run_demo(
 
 
 def _truth(config: RigConfig) -> dict[str, float]:
-    """The virtual rig's true values under the MODEL.md section 7 keys."""
+    """The virtual rig's true values under the docs/MODEL.md section 7 keys."""
     from analysis.model import RigParameters
 
     c = config.constants

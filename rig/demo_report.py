@@ -46,7 +46,7 @@ def write_report(result, settings, recordings, findings, figures, config) -> Pat
         f"Modbus TCP), run {settings.virtual_speed:g}x faster than real time at "
         f"{settings.sample_rate_hz:g} Hz ({settings.name} demo, "
         f"{result.timings_s.get('total', math.nan):.0f} s). The rig simulates the pendulum with "
-        "one physical effect that the baseline model of MODEL.md lacks; the analysis below is "
+        "one physical effect that the baseline model of docs/MODEL.md lacks; the analysis below is "
         "not told which one. It is revealed at the end."
     )
     add("")
@@ -69,7 +69,7 @@ def write_report(result, settings, recordings, findings, figures, config) -> Pat
     add("")
     model_name = "baseline" + "".join(f" + {name}" for name in result.causes)
     add(
-        "First the baseline model of MODEL.md alone (L, zeta from the free decay; K, mu0 from "
+        "First the baseline model of docs/MODEL.md alone (L, zeta from the free decay; K, mu0 from "
         "the impact decay with L and zeta held), then the model the discrepancy analysis "
         f"arrived at (**{model_name}**), against the virtual rig's true values."
     )
@@ -155,9 +155,10 @@ def write_report(result, settings, recordings, findings, figures, config) -> Pat
         add("")
     add("## Files")
     add("")
-    add("- `parameters.json`: identified parameters (MODEL.md section 7 keys) and the true ones")
+    add("- `parameters.json`: identified parameters (docs/MODEL.md section 7 keys) and the "
+        "true ones")
     add("- `identify_free_decay.json`, `identify_impact_decay.json`: the identification reports")
-    add("- `analysis/*.md`, `analysis/*.json`: discrepancy analysis of each record (MODEL.md "
+    add("- `analysis/*.md`, `analysis/*.json`: discrepancy analysis of each record (docs/MODEL.md "
         "section 6) with its figures")
     add("- `sweep_regimes.json`, `bifurcation.json`: regimes and diagram data")
     add("- `demo.json`: settings, timings and a summary of all of the above")

@@ -138,6 +138,7 @@ class ChannelStats:
     sample_rate_hz: float = 0.0  # estimated from arrivals over the last seconds
     edges: int = 0
     last_edge_times_s: tuple[float, ...] = ()
+    pulse: bool = False  # a pulse (tach) stream: its lost indices are not samples
 
     @property
     def tach_frequency_hz(self) -> float | None:
@@ -173,8 +174,14 @@ class EngineStats:
 
     @property
     def samples_lost(self) -> int:
-        """Samples lost over all channels."""
-        return sum(c.samples_lost for c in self.channels.values())
+        """Samples lost by the sampled streams (the tach stream's lost indices apart: they
+        are the same board samples again, not samples of their own)."""
+        return sum(c.samples_lost for c in self.channels.values() if not c.pulse)
+
+    @property
+    def lost_per_stream(self) -> dict[str, int]:
+        """Samples (for the tach stream: covered indices) lost, per stream."""
+        return {name: c.samples_lost for name, c in self.channels.items()}
 
 
 @dataclass
@@ -350,6 +357,7 @@ class AcquisitionEngine:
                     self._sample_channels.add(block.channel)
                     stats.samples_received += len(block)
                 else:
+                    stats.pulse = True
                     stats.samples_received += block.end_index - block.first_index
                     if block.edge_times_s.size:
                         stats.edges += int(block.edge_times_s.size)

@@ -14,13 +14,15 @@ import threading
 import time
 from collections import deque
 from collections.abc import Callable
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 import numpy as np
 
+from analysis.provenance import invocation_operator, provenance
 from drivers.interfaces import DeviceError, SampleBlock
 from rig.devices import ANGLE, TABLE, TACH, RigDevices
+from rig.drive_monitor import DriveMonitor
 from rig.engine import AcquisitionEngine, Delivery, Subscription
 from rig.events import StepMark
 from rig.recorder import Recorder, RecorderThread, RecordingMetadata
@@ -45,6 +47,7 @@ class ProcedureResult:
     samples_lost: int
     duration_s: float
     steps: int = 0
+    lost_per_stream: dict[str, int] = field(default_factory=dict)
 
 
 class PretriggerGate:
@@ -155,6 +158,12 @@ class ProcedureSession:
             compression=compression,
         )
         self.engine = AcquisitionEngine(devices.streams)
+        self.monitor = DriveMonitor(
+            devices.shaker,
+            self.engine,
+            devices.config.drive_tolerance,
+            where=devices.shaker.backend.description,
+        )
         self._failed = threading.Event()
         self.engine.on_failure(lambda error: self._failed.set())
         subscription = self.engine.subscribe("recorder", privileged=True)
@@ -174,7 +183,9 @@ class ProcedureSession:
         self.writer.start()
         self.started = time.monotonic()
         try:
+            self.monitor.check_idle()  # before anything moves: nobody else drives the table
             self.engine.start()  # a stream that cannot start still leaves a closed, valid file
+            self.monitor.start()
             if not self.wait(FIRST_DATA_TIMEOUT_S, until=lambda: self.engine.latest_index):
                 raise ProcedureError(
                     f"no data from the DAQ board within {FIRST_DATA_TIMEOUT_S:g} s "
@@ -205,10 +216,11 @@ class ProcedureSession:
     def set_drive(self, frequency_hz: float, amplitude_m: float) -> None:
         """Command the drive (validated by the shaker's limits) and log it in the file."""
         shaker = self.devices.shaker
-        shaker.frequency_hz = frequency_hz
-        shaker.amplitude_m = amplitude_m
-        if not shaker.enabled:
-            shaker.enabled = True
+        with self.monitor.commanding(frequency_hz, amplitude_m, True):
+            shaker.frequency_hz = frequency_hz
+            shaker.amplitude_m = amplitude_m
+            if not shaker.enabled:
+                shaker.enabled = True
         self.engine.note_drive(frequency_hz, amplitude_m, True)
 
     def __exit__(self, kind, error, traceback) -> None:
@@ -216,6 +228,7 @@ class ProcedureSession:
             self.stop_reason = (
                 "interrupted (Ctrl-C)" if issubclass(kind, KeyboardInterrupt) else f"error: {error}"
             )
+        self.monitor.stop()
         with contextlib.suppress(DeviceError):
             self.devices.shaker.stop()
         self.engine.note_drive(0.0, 0.0, False)
@@ -235,6 +248,7 @@ class ProcedureSession:
             stop_reason=self.stop_reason,
             samples_written=self.recorder.samples_written,
             samples_lost=self.engine.stats().samples_lost,
+            lost_per_stream=self.engine.stats().lost_per_stream,
             duration_s=time.monotonic() - self.started,
             steps=steps,
         )
@@ -246,6 +260,7 @@ def base_metadata(
     """What every recording of a procedure carries."""
     config = devices.config
     return RecordingMetadata(
+        provenance=provenance(operator=invocation_operator() or config.operator),
         experiment=experiment,
         notes=notes,
         rig=config.constants.as_exchange(),

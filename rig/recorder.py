@@ -9,85 +9,52 @@ holds everything up to the last flush if the process dies.
 from __future__ import annotations
 
 import contextlib
-import json
+import math
 import os
 import shutil
 import threading
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import replace
 from datetime import UTC, datetime
 from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
 from typing import Any, Protocol
 
-import h5py
 import numpy as np
 
+from analysis.recording_file import (
+    FORMAT_NAME,
+    FORMAT_VERSION,
+    ChannelSpec,
+    RecordingMetadata,
+    RecordingStatus,
+    RecordingWriter,
+    chunk_length,
+)
 from drivers.interfaces import PulseBlock, SampleBlock
+from drivers.sensors import FLAG_NOT_FINITE
 from rig.events import DriveSetting, Event, Gap, StepMark
 
-FORMAT_NAME = "impact-rig recording"
-FORMAT_VERSION = 2  # 2: per-sample status flags of every sampled channel
+__all__ = [
+    "FORMAT_NAME",
+    "FORMAT_VERSION",
+    "ChannelSpec",
+    "DiskFullError",
+    "Recorder",
+    "RecorderThread",
+    "RecordingError",
+    "RecordingExistsError",
+    "RecordingMetadata",
+    "attach_recorder",
+    "check_destination",
+    "software_version",
+]
+
 DEFAULT_FLUSH_INTERVAL_S = 0.5
 MAX_FLUSH_INTERVAL_S = 1.0
-STOP_REASON_BYTES = 256
-FAST_CHANNEL_HZ = 50_000.0  # above this rate channels are compressed with lzf, not gzip
 DISK_RESERVE_BYTES = 1 << 20  # kept free besides what the next flush may need
 RECORDER_NICENESS = 5  # the writer thread runs this much "nicer" than acquisition
-
-SAMPLE_BLOCK_DTYPE = np.dtype(
-    [
-        ("first_index", "<i8"),
-        ("n_samples", "<i8"),
-        ("stored_start", "<i8"),
-        ("timestamp_s", "<f8"),
-        ("host_time_s", "<f8"),
-        ("lost_before", "<i8"),
-    ]
-)
-PULSE_BLOCK_DTYPE = np.dtype(
-    [
-        ("first_index", "<i8"),
-        ("end_index", "<i8"),
-        ("host_time_s", "<f8"),
-        ("lost_before", "<i8"),
-        ("n_edges", "<i8"),
-    ]
-)
-GAP_DTYPE = np.dtype([("start_index", "<i8"), ("length", "<i8")])
-DRIVE_DTYPE = np.dtype(
-    [
-        ("host_time_s", "<f8"),
-        ("sample_index", "<i8"),
-        ("frequency_hz", "<f8"),
-        ("amplitude_m", "<f8"),
-        ("enabled", "u1"),
-        ("source", "u1"),
-    ]
-)
-STEP_DTYPE = np.dtype(
-    [
-        ("step", "<i4"),
-        ("direction", "i1"),
-        ("frequency_hz", "<f8"),
-        ("amplitude_m", "<f8"),
-        ("settle_start_index", "<i8"),
-        ("dwell_start_index", "<i8"),
-        ("dwell_end_index", "<i8"),
-        ("complete", "u1"),
-    ]
-)
-STATUS_DTYPE = np.dtype(
-    [
-        ("end_host_time_s", "<f8"),
-        ("samples_written", "<i8"),
-        ("samples_lost", "<i8"),
-        ("flushes", "<i8"),
-        ("closed", "u1"),
-        ("stop_reason", f"S{STOP_REASON_BYTES}"),
-    ]
-)
 
 
 class RecordingError(RuntimeError):
@@ -100,43 +67,6 @@ class RecordingExistsError(RecordingError):
 
 class DiskFullError(RecordingError):
     """The disk is (almost) full: recording stopped before a write could fail half-way."""
-
-
-@dataclass(frozen=True)
-class ChannelSpec:
-    """One channel to record: ``kind`` is 'samples' (SampleBlock) or 'pulses' (PulseBlock)."""
-
-    name: str
-    kind: str = "samples"
-    unit: str = ""
-    sample_rate_hz: float = 0.0
-    device: str = ""
-    calibration: dict[str, Any] | None = None
-    raw_dtype: str = "int32"
-
-    def __post_init__(self) -> None:
-        if self.kind not in ("samples", "pulses"):
-            raise ValueError(
-                f"channel {self.name!r}: kind is {self.kind!r}; expected 'samples' or 'pulses'"
-            )
-        if not self.name or "/" in self.name:
-            raise ValueError(f"channel name {self.name!r} must be non-empty and contain no '/'")
-
-
-@dataclass(frozen=True)
-class RecordingMetadata:
-    """What a recording must carry to be analysed years later (root attributes of the file)."""
-
-    experiment: str
-    notes: str = ""
-    rig: dict[str, float | None] = field(default_factory=dict)
-    calibrations: dict[str, Any] = field(default_factory=dict)
-    devices: dict[str, Any] = field(default_factory=dict)
-    config_toml: str = ""
-    drive: dict[str, float] | None = None
-    roles: dict[str, str] = field(default_factory=dict)
-    extra: dict[str, Any] = field(default_factory=dict)
-    start_time_utc: str = ""
 
 
 def software_version() -> str:
@@ -170,12 +100,6 @@ def check_destination(
             f"{min_free_bytes / 1e6:.1f} MB"
         )
     return path
-
-
-def _chunk_length(sample_rate_hz: float) -> int:
-    """About one second of samples per chunk, between 4096 and 65536 elements."""
-    target = max(4096, min(65536, int(sample_rate_hz)))
-    return 1 << (target - 1).bit_length() if target < 65536 else 65536
 
 
 class _ChannelBuffer:
@@ -239,77 +163,36 @@ class Recorder:
         self._failed: RecordingError | None = None
         self._closed = False
         self._chunk_bytes = sum(
-            _chunk_length(spec.sample_rate_hz) * (5 + np.dtype(spec.raw_dtype).itemsize)
+            chunk_length(spec.sample_rate_hz) * (5 + np.dtype(spec.raw_dtype).itemsize)
             for spec in channels
         )
         if overwrite and self.path.exists():
             self.path.unlink()
+        meta = metadata
+        if not meta.start_time_utc:
+            meta = replace(meta, start_time_utc=datetime.now(UTC).isoformat())
         try:
-            self._file = h5py.File(self.path, "w-", libver="latest")
-        except OSError as error:
-            raise RecordingError(f"{self.path}: cannot create the file ({error})") from None
+            self._file = RecordingWriter(
+                self.path,
+                channels,
+                meta,
+                software_version=software_version(),
+                compression=compression,
+            )
+        except FileExistsError:
+            raise RecordingExistsError(
+                f"{self.path}: already exists; choose another name or pass --overwrite"
+            ) from None
+        except (OSError, ValueError) as error:
+            raise RecordingError(f"{self.path}: cannot set up the file ({error})") from None
         try:
-            self._create_layout(channels, metadata, compression)
-            self._file.swmr_mode = True
             self._write_status(closed=False, reason="recording")
             self._file.flush()
         except (OSError, ValueError) as error:
             self._abandon()
-            with contextlib.suppress(OSError):  # the stub just created holds no data: a retry
-                self.path.unlink()  # must not be refused as "already exists"
+            with contextlib.suppress(OSError):
+                self.path.unlink()
             raise RecordingError(f"{self.path}: cannot set up the file ({error})") from None
-
-    # -- layout -------------------------------------------------------------------------------
-
-    def _create_layout(
-        self, channels: list[ChannelSpec], meta: RecordingMetadata, compression: str | None
-    ) -> None:
-        f = self._file
-        f.attrs["format"] = FORMAT_NAME
-        f.attrs["format_version"] = FORMAT_VERSION
-        f.attrs["software_version"] = software_version()
-        f.attrs["start_time_utc"] = meta.start_time_utc or datetime.now(UTC).isoformat()
-        f.attrs["experiment"] = meta.experiment
-        f.attrs["notes"] = meta.notes
-        f.attrs["rig_json"] = json.dumps(meta.rig)
-        f.attrs["calibrations_json"] = json.dumps(meta.calibrations)
-        f.attrs["devices_json"] = json.dumps(meta.devices)
-        f.attrs["config_toml"] = meta.config_toml
-        f.attrs["drive_json"] = json.dumps(meta.drive)
-        f.attrs["roles_json"] = json.dumps(meta.roles)
-        f.attrs["extra_json"] = json.dumps(meta.extra)
-        samples = f.create_group("channels")
-        pulses = f.create_group("pulses")
-        for spec in channels:
-            packed = _packing(compression, spec.sample_rate_hz)
-            group = (samples if spec.kind == "samples" else pulses).create_group(spec.name)
-            group.attrs["kind"] = spec.kind
-            group.attrs["unit"] = spec.unit
-            group.attrs["sample_rate_hz"] = float(spec.sample_rate_hz)
-            group.attrs["device"] = spec.device
-            group.attrs["calibration_json"] = json.dumps(spec.calibration)
-            chunk = _chunk_length(spec.sample_rate_hz)
-            if spec.kind == "samples":
-                group.create_dataset(
-                    "raw", (0,), maxshape=(None,), dtype=spec.raw_dtype, chunks=(chunk,), **packed
-                )
-                group.create_dataset(
-                    "values", (0,), maxshape=(None,), dtype="<f4", chunks=(chunk,), **packed
-                )
-                group.create_dataset(
-                    "flags", (0,), maxshape=(None,), dtype="u1", chunks=(chunk,), **packed
-                )
-                _table(group, "blocks", SAMPLE_BLOCK_DTYPE)
-            else:
-                for name, dtype in (("edge_indices", "<i8"), ("edge_times_s", "<f8")):
-                    group.create_dataset(
-                        name, (0,), maxshape=(None,), dtype=dtype, chunks=(1024,), **packed
-                    )
-                _table(group, "blocks", PULSE_BLOCK_DTYPE)
-            _table(group, "gaps", GAP_DTYPE)
-        _table(f, "drive", DRIVE_DTYPE)
-        _table(f, "sweep_steps", STEP_DTYPE)
-        f.create_dataset("status", (1,), dtype=STATUS_DTYPE)
 
     # -- writing ------------------------------------------------------------------------------
 
@@ -320,8 +203,9 @@ class Recorder:
 
     @property
     def samples_lost(self) -> int:
-        """Samples recorded as gaps, all channels."""
-        return sum(b.lost for b in self._buffers.values())
+        """Samples recorded as gaps by the sampled channels (a pulse stream's gaps are the same
+        board samples again, and are in its own gaps table)."""
+        return sum(b.lost for b in self._buffers.values() if b.spec.kind == "samples")
 
     @property
     def flush_due(self) -> bool:
@@ -342,12 +226,22 @@ class Recorder:
         self._last_host_time_s = max(self._last_host_time_s, host_time_s)
         if isinstance(event, SampleBlock):
             buffer = self._channel(event.channel, "samples")
+            if not (math.isfinite(event.timestamp_s) and event.timestamp_s >= 0):
+                raise RecordingError(
+                    f"{self.path}: channel {event.channel!r}: block at sample "
+                    f"{event.first_index} has timestamp {event.timestamp_s!r}; expected a "
+                    "finite device time >= 0"
+                )
             n = len(event)
             flags = np.zeros(n, "u1") if event.flags is None else np.asarray(event.flags, "u1")
             if flags.shape != (n,):
                 raise ValueError(f"channel {event.channel!r}: {flags.size} flags for {n} samples")
+            values = np.asarray(event.values, dtype="<f4")
+            finite = np.isfinite(values)
+            if not finite.all():  # an inf or NaN is kept as read, but never marked good
+                flags = flags | np.where(finite, 0, FLAG_NOT_FINITE).astype("u1")
             buffer.raw.append(np.asarray(event.raw))
-            buffer.values.append(np.asarray(event.values, dtype="<f4"))
+            buffer.values.append(values)
             buffer.flags.append(flags)
             buffer.blocks.append(
                 (
@@ -450,8 +344,8 @@ class Recorder:
         try:
             for buffer in self._buffers.values():
                 self._write_channel(buffer)
-            _append(self._file["drive"], self._drive, DRIVE_DTYPE)
-            _append(self._file["sweep_steps"], self._steps, STEP_DTYPE)
+            self._file.append_drive(self._drive)
+            self._file.append_steps(self._steps)
             self._drive.clear()
             self._steps.clear()
             self._flushes += 1
@@ -466,32 +360,28 @@ class Recorder:
         self._last_flush = time.monotonic()
 
     def _write_channel(self, buffer: _ChannelBuffer) -> None:
-        group = self._file[f"{'channels' if buffer.spec.kind == 'samples' else 'pulses'}"][
-            buffer.spec.name
-        ]
-        # Data before the tables that point into them: a reader after a crash keeps the
-        # rows whose samples are present.
         if buffer.spec.kind == "samples":
-            _append(group["raw"], buffer.raw, None)
-            _append(group["values"], buffer.values, None)
-            _append(group["flags"], buffer.flags, None)
-            _append(group["blocks"], buffer.blocks, SAMPLE_BLOCK_DTYPE)
+            self._file.append_samples(
+                buffer.spec.name, buffer.raw, buffer.values, buffer.flags, buffer.blocks,
+                buffer.gaps,
+            )
         else:
-            _append(group["edge_indices"], buffer.edges, None)
-            _append(group["edge_times_s"], buffer.edge_times, None)
-            _append(group["blocks"], buffer.blocks, PULSE_BLOCK_DTYPE)
-        _append(group["gaps"], buffer.gaps, GAP_DTYPE)
+            self._file.append_pulses(
+                buffer.spec.name, buffer.edges, buffer.edge_times, buffer.blocks, buffer.gaps
+            )
         buffer.clear()
 
     def _write_status(self, *, closed: bool, reason: str) -> None:
-        row = np.zeros(1, dtype=STATUS_DTYPE)
-        row["end_host_time_s"] = self._last_host_time_s
-        row["samples_written"] = self.samples_written
-        row["samples_lost"] = self.samples_lost
-        row["flushes"] = self._flushes
-        row["closed"] = int(closed)
-        row["stop_reason"] = reason.encode("utf-8")[:STOP_REASON_BYTES]
-        self._file["status"][0] = row[0]
+        self._file.write_status(
+            RecordingStatus(
+                end_host_time_s=self._last_host_time_s,
+                samples_written=self.samples_written,
+                samples_lost=self.samples_lost,
+                flushes=self._flushes,
+                closed=closed,
+                stop_reason=reason,
+            )
+        )
 
     def close(self, stop_reason: str = "completed") -> None:
         """Flush what is pending, mark the file closed with ``stop_reason`` and release it.
@@ -533,8 +423,8 @@ class Recorder:
             buffer.stored -= sum(len(part) for part in pending)
             buffer.clear()
         try:
-            _append(self._file["drive"], self._drive, DRIVE_DTYPE)
-            _append(self._file["sweep_steps"], self._steps, STEP_DTYPE)
+            self._file.append_drive(self._drive)
+            self._file.append_steps(self._steps)
             self._write_status(closed=True, reason=str(self._failed))
             self._file.flush()
             self._file.close()
@@ -567,35 +457,6 @@ class Recorder:
             reason = "interrupted" if issubclass(kind, KeyboardInterrupt) else f"error: {value}"
             with contextlib.suppress(RecordingError):  # the propagating exception says why
                 self.close(reason)
-
-
-def _packing(compression: str | None, sample_rate_hz: float) -> dict[str, Any]:
-    """Filters of a channel's datasets.  'auto': gzip level 1 (readable by every HDF5 tool)
-    up to FAST_CHANNEL_HZ, lzf above it (2-3 times less CPU for ~10 % more bytes)."""
-    if compression == "auto":
-        compression = "lzf" if sample_rate_hz > FAST_CHANNEL_HZ else "gzip"
-    if compression not in ("gzip", "lzf", None):
-        raise ValueError(f"compression {compression!r}; expected 'auto', 'gzip', 'lzf' or None")
-    packed: dict[str, Any] = {"compression": compression, "shuffle": compression is not None}
-    if compression == "gzip":
-        packed["compression_opts"] = 1
-    return packed
-
-
-def _table(group: h5py.Group, name: str, dtype: np.dtype) -> None:
-    group.create_dataset(name, (0,), maxshape=(None,), dtype=dtype, chunks=(256,))
-
-
-def _append(dataset: h5py.Dataset, pending: list, dtype: np.dtype | None) -> None:
-    """Append the pending arrays (or table rows) to a resizable 1-D dataset."""
-    if not pending:
-        return
-    data = np.array(pending, dtype=dtype) if dtype is not None else np.concatenate(pending)
-    if data.size == 0:
-        return
-    start = dataset.shape[0]
-    dataset.resize((start + data.size,))
-    dataset[start:] = data
 
 
 def _plain(error: BaseException) -> str:

@@ -15,9 +15,57 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Protocol
 
+from analysis.recording_file import Recording, RecordingFormatError, open_recording
 from drivers.interfaces import PulseBlock, SampleBlock, StreamStatus
 from rig.events import DriveSetting, StepMark
-from rig.recording_reader import Recording, RecordingFormatError, open_recording
+
+
+def iter_sample_blocks(
+    recording: Recording, name: str, max_samples: int = 4096, slab_samples: int = 1 << 18
+) -> Iterator[SampleBlock]:
+    """A sampled channel's stored blocks as the driver delivered them, large blocks split.
+
+    The file is read in slabs of ``slab_samples`` so that small blocks cost no HDF5 call each.
+    """
+    fs = recording.sample_rate_hz(name)
+    slab_start = 0
+    raw, values, flags = recording.read_samples(name, 0, 0)
+    for row in recording.complete_blocks(name):
+        start, n = int(row["stored_start"]), int(row["n_samples"])
+        if start + n > slab_start + raw.size:
+            slab_start = start
+            raw, values, flags = recording.read_samples(name, start, start + max(n, slab_samples))
+        base = start - slab_start
+        for offset in range(0, n, max_samples):
+            count = min(max_samples, n - offset)
+            part = slice(base + offset, base + offset + count)
+            yield SampleBlock(
+                channel=name,
+                first_index=int(row["first_index"]) + offset,
+                timestamp_s=float(row["timestamp_s"]) + offset / fs,
+                sample_rate_hz=fs,
+                raw=raw[part],
+                values=values[part].astype(float),
+                lost_before=int(row["lost_before"]) if offset == 0 else 0,
+                flags=flags[part],
+            )
+
+
+def iter_pulse_blocks(recording: Recording, name: str) -> Iterator[PulseBlock]:
+    """A pulse channel's blocks as the driver delivered them."""
+    data = recording.pulses(name)
+    position = 0
+    for row in data.covered:
+        n = int(row["n_edges"])
+        yield PulseBlock(
+            channel=name,
+            first_index=int(row["first_index"]),
+            end_index=int(row["end_index"]),
+            edge_indices=data.edge_indices[position : position + n],
+            edge_times_s=data.edge_times_s[position : position + n],
+            lost_before=int(row["lost_before"]),
+        )
+        position += n
 
 
 class ReplayClock:
@@ -87,9 +135,9 @@ class ReplayStream:
     def start(self) -> None:
         """Start (or restart) playing from the beginning of the recording."""
         if self.is_pulse:
-            self._blocks = self.recording.iter_pulse_blocks(self.channel)
+            self._blocks = iter_pulse_blocks(self.recording, self.channel)
         else:
-            self._blocks = self.recording.iter_sample_blocks(self.channel, self.max_block_samples)
+            self._blocks = iter_sample_blocks(self.recording, self.channel, self.max_block_samples)
         self._pending = None
         self._running = True
         self.finished = False
@@ -152,6 +200,7 @@ class Replay:
         self.recording = open_recording(path)
         names = channels or self.recording.channel_names + self.recording.pulse_names
         try:
+            self.recording.verify()  # damage refuses the file before a block is played
             for name in names:
                 self.recording.sample_rate_hz(name)  # an unknown name fails here, clearly
         except RecordingFormatError:

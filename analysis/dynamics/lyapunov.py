@@ -207,7 +207,7 @@ def model_lyapunov(
 
 
 def contact_time_s(p: np.ndarray, entry_speed_m_s: float) -> float:
-    """Hertz contact duration 3.2181 (m_eff^2 / (K^2 v))^(1/5) (MODEL.md section 4 oracle).
+    """Hertz contact duration 3.2181 (m_eff^2 / (K^2 v))^(1/5) (docs/MODEL.md section 4 oracle).
 
     m_eff = m L^2 / l^2 = 1 / (contact gain * l); the law is for exponent 3/2 and no
     damping, which is all a step-size choice needs.

@@ -32,7 +32,7 @@ class PoincareRuns:
 
 
 def model_at_beta(model: Model, beta: float) -> Model:
-    """The same model with drive amplitude A = beta L (beta = A / L, MODEL.md section 4)."""
+    """The same model with drive amplitude A = beta L (beta = A / L, docs/MODEL.md section 4)."""
     if not beta >= 0:
         raise ValueError(f"beta = {beta!r}: the amplitude ratio must be >= 0")
     if model.drive.frequency_hz <= 0:

@@ -1,4 +1,4 @@
-"""Reports of the discrepancy analysis: the JSON of MODEL.md section 6 and a Markdown page
+"""Reports of the discrepancy analysis: the JSON of docs/MODEL.md section 6 and a Markdown page
 with figures (matplotlib, Agg backend)."""
 
 from analysis.report.discrepancy import write_json, write_report

@@ -43,7 +43,7 @@ class ShakerPanel(QGroupBox):
         self.amplitude_mm.setSuffix(" mm")
         self.amplitude_mm.setSingleStep(0.1)
         self.beta = QDoubleSpinBox(decimals=4, maximum=100.0, singleStep=0.005)
-        self.beta.setToolTip("beta = A / L, the nondimensional drive amplitude (MODEL.md)")
+        self.beta.setToolTip("beta = A / L, the nondimensional drive amplitude (docs/MODEL.md)")
         self.ramp = QDoubleSpinBox(decimals=3, maximum=DEVICE_MAX_RAMP_RATE_UM_S / 1000.0)
         self.ramp.setSuffix(" mm/s")
         self.ramp.setValue(5.0)

@@ -1,5 +1,5 @@
 """``impact-rig analyze``: where the model fails on a record, which named cause explains it,
-and how much the extended model gains (MODEL.md section 6)."""
+and how much the extended model gains (docs/MODEL.md section 6)."""
 
 from __future__ import annotations
 
@@ -11,9 +11,9 @@ from pathlib import Path
 from rig.cli import CommandError
 
 DESCRIPTION = """\
-Explain a measured record: fit the baseline model of MODEL.md section 2, show where it
+Explain a measured record: fit the baseline model of docs/MODEL.md section 2, show where it
 fails (phase of motion, angle, velocity, envelope, spectrum), fit every named cause of
-MODEL.md section 6 that can show in this kind of experiment as an extension of the model,
+docs/MODEL.md section 6 that can show in this kind of experiment as an extension of the model,
 and choose the one that earns its keep on two counts: the information criterion (BIC with
 the data's own noise level and effective sample count) and the prediction of the last
 part of the record from a fit of the first part. `none` when no extension helps clearly.
@@ -47,6 +47,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--json", type=Path, dest="json_out", help="write the JSON report here")
     parser.add_argument("--report", type=Path, help="write a Markdown report with figures here")
     parser.add_argument(
+        "--overwrite", action="store_true", help="replace existing --json and report files"
+    )
+    parser.add_argument(
         "--free-decay", type=Path, dest="free_decay",
         help="forced records: a free decay of the same rig (CSV/HDF5) to start L and zeta",
     )
@@ -57,7 +60,6 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument(
         "--workers", type=int, default=None, help="processes fitting candidates (default: 2)"
     )
-    parser.add_argument("--quiet", action="store_true", help="no progress messages")
     parser.set_defaults(func=run)
 
 
@@ -67,14 +69,25 @@ def run(args: argparse.Namespace) -> int:
     from analysis.discrepancy import AnalysisError, analyze_record
     from analysis.discrepancy.analyze import priors_from_decays
     from analysis.identify import IdentificationError
+    from analysis.output_paths import check_outputs, record_inputs
+    from analysis.provenance import provenance
     from analysis.records import RecordFormatError, load_record
-    from analysis.report import write_json, write_report
+    from analysis.report import write_report
     from analysis.report.discrepancy import report_json
 
     if not args.file.exists():
         raise CommandError(f"{args.file}: no such file")
     if args.workers is not None and args.workers < 1:
         raise CommandError(f"--workers {args.workers}: expected at least 1")
+    inputs = record_inputs(args.file, args.meta)
+    for decay in (args.free_decay, args.impact_decay):
+        inputs += record_inputs(decay) if decay else []
+    outputs = [args.json_out] if args.json_out else []
+    if args.report and args.report.exists():  # a new folder is made by write_report
+        if not args.report.is_dir():
+            raise CommandError(f"--report {args.report}: is a file; expected a folder")
+        outputs += report_files(args.report, args.file.stem)
+    check_outputs(outputs, inputs=inputs, overwrite=args.overwrite)  # before a long analysis
 
     def progress(message: str) -> None:
         if not args.quiet:
@@ -93,13 +106,15 @@ def run(args: argparse.Namespace) -> int:
                                   priors=priors)
     except (RecordFormatError, AnalysisError, IdentificationError, ValueError) as error:
         raise CommandError(str(error)) from error
+    js = report_json(analysis)
+    js["provenance"] = provenance()
     if args.json_out:
-        write_json(analysis, args.json_out)
+        _write_json(js, args.json_out)
         progress(f"wrote {args.json_out}")
     if args.report:
         md = write_report(analysis, args.report, name=args.file.stem)
+        _write_json(js, args.report / f"{args.file.stem}.json")  # the same, with provenance
         progress(f"wrote {md}")
-    js = report_json(analysis)
     if not args.json_out:
         print(json.dumps(js, indent=2))
     else:
@@ -108,3 +123,16 @@ def run(args: argparse.Namespace) -> int:
         for warning in js["warnings"]:
             print(f"caution: {warning}")
     return 0
+
+
+def report_files(folder: Path, name: str) -> list[Path]:
+    """The files ``analysis.report.write_report`` writes into ``folder`` for record ``name``."""
+    return [folder / f"{name}{suffix}" for suffix in (".md", ".json", "_fit.png",
+                                                       "_restitution.png")]
+
+
+def _write_json(report: dict, path: Path) -> None:
+    try:
+        path.write_text(json.dumps(report, indent=2) + "\n", encoding="utf-8")
+    except OSError as error:
+        raise CommandError(f"{path}: cannot write ({error.strerror or error})") from None

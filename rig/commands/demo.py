@@ -24,7 +24,7 @@ physical effect switched on that the baseline model lacks:
      period on the tachometer (aware of the noise), and draw the measured bifurcation
      diagram against the one simulated with the identified model
   5. write a report folder: report.md with figures, the JSON reports
-     (MODEL.md sections 6 and 7) and the recordings; the effect is revealed there
+     (docs/MODEL.md sections 6 and 7) and the recordings; the effect is revealed there
 
 Takes a few minutes on two cores (--quick: under a minute, smaller records).
 """
@@ -35,7 +35,7 @@ examples:
   impact-rig demo --quick --out /tmp/demo
   impact-rig demo --cause sensor_offset --param offset_rad=0.004 --out offset-demo
   impact-rig demo --cause none --out baseline-demo       # the baseline model is exact
-causes (MODEL.md section 6): coulomb_friction, quadratic_drag, barrier_offset,
+causes (docs/MODEL.md section 6): coulomb_friction, quadratic_drag, barrier_offset,
   contact_exponent, contact_damping_law, sensor_offset, sensor_nonlinearity,
   sensor_lag, excitation_distortion, excitation_amplitude, none
 """
@@ -82,7 +82,6 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="rig file whose constants and calibrations the virtual rig takes "
         "(default: the shipped rig/default_rig.toml); always run on the virtual rig",
     )
-    parser.add_argument("--quiet", action="store_true", help="no progress lines")
     parser.set_defaults(func=run)
 
 

@@ -1,4 +1,4 @@
-"""``impact-rig export``: a recording as CSV + JSON exchange files (MODEL.md section 5)."""
+"""``impact-rig export``: a recording as CSV + JSON exchange files (docs/MODEL.md section 5)."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ from pathlib import Path
 from rig.cli import CommandError
 
 DESCRIPTION = """\
-Write an HDF5 recording as the exchange format of MODEL.md section 5: FILE.csv
+Write an HDF5 recording as the exchange format of docs/MODEL.md section 5: FILE.csv
 (time_s, angle_rad, table_m, tach) and FILE.json beside it (experiment, rig
 constants, drive, notes), which every analysis command and other software read.
 
@@ -67,12 +67,14 @@ def to_exchange(record):
     if record.tach_indices.size or record.experiment == "forced":
         tach = np.zeros(record.time_s.size, dtype=np.int64)
         tach[record.tach_indices] = 1
+    from analysis.provenance import provenance
+
     meta = ExchangeMeta(
         experiment=record.experiment,
         rig={key: record.rig.get(key) for key in RIG_KEYS},
         drive=None if record.drive is None else dict(record.drive),
         notes=record.notes,
-        extra={"source": record.source},
+        extra={"source": record.source, "provenance": provenance()},
     )
     return ExchangeRecord(record.time_s, record.angle_rad, meta, record.table_m, tach)
 
@@ -81,6 +83,7 @@ def run(args: argparse.Namespace) -> int:
     """Load, cut (steps or segments), write; one line per file written."""
     from analysis.exchange import sidecar_path, write_exchange
     from analysis.hdf5_records import load_hdf5_segments, load_hdf5_steps
+    from analysis.output_paths import check_outputs
     from analysis.records import RecordFormatError
 
     out = Path(args.out)
@@ -89,6 +92,7 @@ def run(args: argparse.Namespace) -> int:
     folder = out.parent if str(out.parent) else Path(".")
     if not folder.is_dir():
         raise CommandError(f"--out {out}: folder {folder} does not exist")
+    check_outputs([out, sidecar_path(out)], inputs=[args.recording], overwrite=args.overwrite)
     try:
         if args.per_step:
             records = load_hdf5_steps(args.recording)
@@ -111,10 +115,11 @@ def run(args: argparse.Namespace) -> int:
                     ]
     except RecordFormatError as error:
         raise CommandError(str(error)) from None
-    for name in names:
-        for path in (name, sidecar_path(name)):
-            if path.exists() and not args.overwrite:
-                raise CommandError(f"{path}: already exists; pass --overwrite to replace it")
+    check_outputs(
+        [path for name in names for path in (name, sidecar_path(name))],
+        inputs=[args.recording],
+        overwrite=args.overwrite,
+    )
     for k, (record, name) in enumerate(zip(records, names, strict=True)):
         if len(records) > 1:
             print(f"writing {k + 1}/{len(records)} ...", file=sys.stderr, flush=True)

@@ -15,7 +15,7 @@ if TYPE_CHECKING:
     from analysis.records import Record
 
 DESCRIPTION = """\
-Identify the model parameters of a record (MODEL.md section 7 keys, 95 % intervals
+Identify the model parameters of a record (docs/MODEL.md section 7 keys, 95 % intervals
 from the Jacobian, widened for correlated residuals by a Newey-West sandwich).
 
 The experiment named in the metadata decides the fit:
@@ -54,6 +54,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     parser.add_argument("--meta", type=Path, help="JSON sidecar, if not NAME.json beside FILE")
     parser.add_argument("--json", type=Path, dest="json_out", help="write the report here")
+    parser.add_argument("--overwrite", action="store_true", help="replace an existing --json file")
     parser.add_argument(
         "--hold",
         default="",
@@ -84,12 +85,16 @@ def _parse_hold(text: str) -> dict[str, float]:
 def run(args: argparse.Namespace) -> int:
     """Load the record, run the fit its experiment calls for, print and save the report."""
     from analysis.identify import IdentificationError, fit_free_decay, pool_free_decays
+    from analysis.output_paths import check_outputs, record_inputs
+    from analysis.provenance import provenance
     from analysis.records import load_record
 
     if len(args.files) > 1 and args.meta:
         raise CommandError("--meta applies to a single FILE; give each CSV its NAME.json")
-    if args.json_out and not args.json_out.parent.is_dir():  # say so before a long fit
-        raise CommandError(f"--json {args.json_out}: folder {args.json_out.parent} does not exist")
+    if args.json_out:  # refused before a long fit: an existing file, an input, no folder
+        inputs = [p for path in args.files for p in record_inputs(path, args.meta)]
+        inputs += [args.free_decay] if args.free_decay else []
+        check_outputs([args.json_out], inputs=inputs, overwrite=args.overwrite)
     try:
         records = [load_record(path, args.meta) for path in args.files]
         if len(records) > 1:
@@ -116,6 +121,7 @@ def run(args: argparse.Namespace) -> int:
     if args.json_out:
         report = result.as_json()
         report["source"] = [str(path) for path in args.files]
+        report["provenance"] = provenance()
         try:
             args.json_out.write_text(json.dumps(report, indent=1) + "\n", encoding="utf-8")
         except OSError as error:

@@ -70,7 +70,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     run_group.add_argument("--drive-hz", type=float, metavar="HZ", help="drive frequency")
     amplitude = run_group.add_mutually_exclusive_group()
     amplitude.add_argument(
-        "--beta", type=float, help="drive amplitude as a fraction of L (A = beta L, MODEL.md)"
+        "--beta", type=float, help="drive amplitude as a fraction of L (A = beta L, docs/MODEL.md)"
     )
     amplitude.add_argument("--amplitude-mm", type=float, help="drive amplitude in mm")
     run_group.add_argument(
@@ -101,7 +101,6 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         metavar="RAD",
         help="decays: stop when half the peak-to-peak swing over 1 s is below this (default 0.005)",
     )
-    parser.add_argument("--quiet", action="store_true", help="no progress lines")
     parser.set_defaults(func=run)
 
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import math
 import sys
 import time
@@ -46,13 +47,15 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--record", metavar="COPY.h5", help="record what the engine receives into a new file"
     )
     parser.add_argument("--overwrite", action="store_true", help="replace COPY.h5 if it exists")
-    parser.add_argument("--quiet", action="store_true", help="no progress lines")
     parser.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
     """Replay until every stream has played its last block; print what was seen."""
+    from analysis.output_paths import check_outputs
+    from analysis.provenance import provenance
     from rig.engine import AcquisitionEngine
+    from rig.logs import log, log_file, log_path_for
     from rig.recorder import (
         ChannelSpec,
         Recorder,
@@ -60,17 +63,19 @@ def run(args: argparse.Namespace) -> int:
         RecordingMetadata,
         attach_recorder,
     )
-    from rig.recording_reader import RecordingFormatError
     from rig.replay import Replay
 
     speed = math.inf if args.fast else args.speed
     if not speed > 0:
         raise CommandError(f"--speed is {args.speed}; expected a positive number")
-    try:
-        replay = Replay(args.recording, speed=speed)
-    except RecordingFormatError as error:
-        raise CommandError(str(error)) from None
-    with replay:
+    if args.record:
+        check_outputs(
+            [args.record, log_path_for(args.record)],
+            inputs=[args.recording],
+            overwrite=args.overwrite,
+        )
+    replay = Replay(args.recording, speed=speed)  # a bad file: one line from the dispatcher
+    with replay, contextlib.ExitStack() as stack:
         rec = replay.recording
         engine = AcquisitionEngine(replay.streams)
         recorder = thread = None
@@ -98,13 +103,20 @@ def run(args: argparse.Namespace) -> int:
                 config_toml=info.config_toml,
                 drive=info.drive,
                 roles=info.roles,
-                extra={**info.extra, "replayed_from": str(Path(args.recording).resolve())},
+                extra={
+                    **info.extra,
+                    "replayed_from": str(Path(args.recording).resolve()),
+                    "source_provenance": info.provenance,
+                },
+                provenance=provenance(),
             )
             try:
                 recorder = Recorder(args.record, specs, meta, overwrite=args.overwrite)
             except RecordingError as error:
                 raise CommandError(str(error)) from None
             thread = attach_recorder(engine, recorder)
+            logging_to = stack.enter_context(log_file(log_path_for(args.record)))
+            log.info("replaying %s into %s (log %s)", args.recording, args.record, logging_to)
         engine.start()
         replay.publish_annotations(engine)
         started = time.monotonic()

@@ -8,6 +8,7 @@ Modbus TCP amplifier, started in this process).
 from __future__ import annotations
 
 import argparse
+import logging
 import math
 import sys
 import time
@@ -21,6 +22,8 @@ if TYPE_CHECKING:  # imported lazily at run time: a fast --help
     from rig.config import RigConfig
     from rig.devices import RigDevices
     from rig.procedures import ProcedureResult
+
+progress_log = logging.getLogger("impact_rig.progress")
 
 CONFIG_HELP = (
     "rig file (TOML): devices and ports, calibrations, safety limits, rig constants "
@@ -90,9 +93,14 @@ def load_rig_config(args: argparse.Namespace) -> RigConfig:
 
 
 def check_output(args: argparse.Namespace) -> Path:
-    """Refuse an output that exists or cannot be written before any device is touched."""
+    """Refuse an output (or the log beside it) that exists or cannot be written, before any
+    device is touched; with --config, the rig file is an input never written over."""
+    from analysis.output_paths import check_outputs
+    from rig.logs import log_path_for
     from rig.recorder import RecordingError, check_destination
 
+    inputs = [Path(args.config)] if args.config else []
+    check_outputs([Path(args.out), log_path_for(args.out)], inputs=inputs, overwrite=args.overwrite)
     try:
         return check_destination(Path(args.out), overwrite=args.overwrite)
     except RecordingError as error:
@@ -136,8 +144,28 @@ def run_procedure(
     """Open the rig, run ``procedure(devices)``, close the rig; its result.
 
     A device, recording or acquisition failure becomes a CommandError that says the drive
-    went to zero and the file keeps what was recorded (the procedure saw to both).
+    went to zero and the file keeps what was recorded (the procedure saw to both).  Every
+    log record of the run goes to RUN.log beside the recording.
     """
+    from rig.logs import log, log_file, log_path_for
+
+    with log_file(log_path_for(path)) as logging_to:
+        log.info("impact-rig run of %s into %s (this log: %s)", config.source, path, logging_to)
+        try:
+            result = _run_on_devices(config, fs, path, procedure)
+        except CommandError as error:
+            log.error("%s", error)
+            raise
+        log.info("%s: %s", path, result.stop_reason)
+        return result
+
+
+def _run_on_devices(
+    config: RigConfig,
+    fs: float | None,
+    path: Path,
+    procedure: Callable[[RigDevices], ProcedureResult],
+) -> ProcedureResult:
     from drivers.interfaces import DeviceError, LimitError
     from rig.engine import AcquisitionError, SubscriberOverrunError
     from rig.procedures import ProcedureError
@@ -172,6 +200,8 @@ class ProgressLine:
     def __call__(self, text: str) -> None:
         now = time.monotonic()
         kind = text.split(":", 1)[0]
+        if kind != self._kind or now - self._last >= 1.0:
+            progress_log.info("%s", text)  # the log file keeps about one line a second
         if self.quiet or (kind == self._kind and now - self._last < 0.2):
             return
         self._last, self._kind = now, kind
@@ -183,7 +213,9 @@ def report(result: ProcedureResult) -> None:
     print(
         f"{result.path}: {result.experiment}, {result.samples_written} samples written "
         "(all channels), "
-        f"{result.samples_lost} lost, {result.duration_s:.1f} s"
+        f"{result.samples_lost} lost ("
+        + ", ".join(f"{name} {lost}" for name, lost in result.lost_per_stream.items())
+        + f"), {result.duration_s:.1f} s"
         + (f", {result.steps} sweep steps" if result.steps else "")
         + f" ({result.stop_reason})"
     )

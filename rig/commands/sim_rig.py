@@ -16,7 +16,7 @@ from typing import Any
 from rig.cli import CommandError
 
 CAUSE_HELP = """\
-causes (MODEL.md section 6) are switched on with --cause NAME, each followed by
+causes (docs/MODEL.md section 6) are switched on with --cause NAME, each followed by
 its parameters as --param NAME=VALUE, e.g.
   impact-rig sim-rig --cause coulomb_friction --param Tc_N_m=2e-4 --cause sensor_offset \\
       --param offset_rad=0.01

@@ -1,6 +1,6 @@
 """``impact-rig simulate``: simulate the impact pendulum and write a record (CSV + JSON or HDF5).
 
-The CSV output is the exchange format of MODEL.md section 5 (``time_s``, ``angle_rad``,
+The CSV output is the exchange format of docs/MODEL.md section 5 (``time_s``, ``angle_rad``,
 and for forced runs ``table_m`` and ``tach``; the JSON sidecar beside it), so every
 analysis command reads a simulated record like a measured one.
 
@@ -37,9 +37,9 @@ NONDIMENSIONAL_PARAMETERS = {
 MAX_SAMPLES = 50_000_000
 
 DESCRIPTION = """\
-Simulate the impact pendulum (MODEL.md section 2) and write the record.
+Simulate the impact pendulum (docs/MODEL.md section 2) and write the record.
 
-Parameters start from the paper's rig (MODEL.md section 3) or, with --case, from the
+Parameters start from the paper's rig (docs/MODEL.md section 3) or, with --case, from the
 paper's nondimensional values for that forced case; --param changes any of them.
 The experiment decides barrier and drive:
   free_decay    no barrier, no drive (the pendulum swings freely from --theta0)
@@ -59,7 +59,7 @@ parameters (--param NAME=VALUE, SI units in the names):
   rig        m_kg l_m L_m R_m g_m_s2 zeta E_Pa mu0_s_per_m theta_b_rad
   drive      f_drive_hz A_m beta
   paper      eta mu gamma (with the drive frequency; applied after the rig values)
-  causes     parameters of the named causes of MODEL.md section 6, e.g. Tc_N_m
+  causes     parameters of the named causes of docs/MODEL.md section 6, e.g. Tc_N_m
              (coulomb_friction), c2_per_rad, n and K_n, c_N_s_per_m, h2 phi2_rad, eps,
              offset_rad, k3, tau_s; giving one switches its cause on (as --cause does)
 
@@ -101,7 +101,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         action="append",
         default=[],
         metavar="NAME",
-        help="switch on a named cause of MODEL.md section 6 (repeatable)",
+        help="switch on a named cause of docs/MODEL.md section 6 (repeatable)",
     )
     parser.add_argument("--theta0", type=float, default=-0.3, help="initial angle [rad] (-0.3)")
     parser.add_argument(
@@ -118,6 +118,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     parser.add_argument(
         "--out", type=Path, required=True, help="output FILE.csv (+ FILE.json) or FILE.h5"
+    )
+    parser.add_argument(
+        "--overwrite", action="store_true", help="replace an existing output file (and sidecar)"
     )
     parser.add_argument("--noise-rad", type=float, default=0.0, help="angle noise std [rad]")
     parser.add_argument(
@@ -240,6 +243,7 @@ def build_model(
 
 def _metadata(model: Any, experiment: str, args: argparse.Namespace, extra: dict) -> Any:
     from analysis.exchange import ExchangeMeta
+    from analysis.provenance import provenance
 
     rig = model.rig
     drive = None
@@ -253,7 +257,7 @@ def _metadata(model: Any, experiment: str, args: argparse.Namespace, extra: dict
         rig={"m_kg": rig.m_kg, "l_m": rig.l_m, "R_m": rig.R_m, "g": rig.g_m_s2},
         drive=drive,
         notes=f"simulated by impact-rig simulate ({' '.join(sys.argv[1:]) or 'library call'})",
-        extra={"simulation": extra},
+        extra={"simulation": extra, "provenance": provenance()},
     )
 
 
@@ -261,12 +265,14 @@ def _write_hdf5(path: Path, columns: dict[str, Any], metadata: dict) -> None:
     import h5py
     import numpy as np
 
-    with h5py.File(path, "w") as handle:
+    with h5py.File(path, "w") as handle:  # an existing file was refused or --overwrite given
         for name, values in columns.items():
             if values is None:
                 continue
             dtype = np.int8 if name == "tach" else np.float64
-            handle.create_dataset(name, data=np.asarray(values, dtype=dtype))
+            handle.create_dataset(
+                name, data=np.asarray(values, dtype=dtype), chunks=True, fletcher32=True
+            )
         handle.attrs["metadata"] = json.dumps(metadata)
 
 
@@ -277,6 +283,7 @@ def run(args: argparse.Namespace) -> int:
     from analysis.exchange import ExchangeRecord, write_exchange
     from analysis.measurement import MeasurementModel, has_measurement_causes
     from analysis.model import P, ParameterError
+    from analysis.output_paths import check_outputs
     from analysis.simulate import simulate
 
     suffix = args.out.suffix.lower()
@@ -284,6 +291,8 @@ def run(args: argparse.Namespace) -> int:
         raise CommandError(f"--out {args.out}: expected a .csv or .h5 file name")
     if not args.out.parent.exists():
         raise CommandError(f"--out {args.out}: folder {args.out.parent} does not exist")
+    outputs = [args.out] + ([args.out.with_suffix(".json")] if suffix == ".csv" else [])
+    check_outputs(outputs, overwrite=args.overwrite)
     for name in ("duration", "fs"):
         value = getattr(args, name)
         if not (math.isfinite(value) and value > 0):

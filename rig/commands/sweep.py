@@ -87,7 +87,6 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="steady-state data per step (default 5)",
     )
     plan.add_argument("--up-only", action="store_true", help="do not come back down")
-    parser.add_argument("--quiet", action="store_true", help="no progress lines")
     parser.set_defaults(func=run)
 
 

@@ -13,9 +13,9 @@ import pytest
 
 from analysis.extensions import CAUSES
 from analysis.hdf5_records import load_hdf5_steps
+from analysis.recording_file import open_recording
 from rig.cli import main
 from rig.config import load_config
-from rig.recording_reader import open_recording
 
 pytestmark = pytest.mark.slow
 

@@ -166,7 +166,7 @@ def draw_chaotic_case(seed: int, cause_name: str | None = None) -> HiddenCase:
 
 
 def _typical_penetration(rig: RigParameters, amplitude: float, omega: float) -> float:
-    """Largest penetration of a Hertz impact at the entry speed of the swing (MODEL.md 4)."""
+    """Largest penetration of a Hertz impact at the entry speed of the swing (docs/MODEL.md 4)."""
     m_eff = rig.m_kg * rig.L_m**2 / rig.l_m**2
     v = rig.l_m * omega * amplitude
     return (5 * m_eff * v**2 / (4 * rig.K_N_per_m1_5)) ** 0.4

@@ -1,5 +1,5 @@
-"""``impact-rig analyze`` end to end on files: JSON of MODEL.md section 6, Markdown + PNG report,
-clear errors on bad input."""
+"""``impact-rig analyze`` end to end on files: JSON of docs/MODEL.md section 6, Markdown +
+PNG report, clear errors on bad input."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""The paper's forced cases (MODEL.md section 4) judged from simulations of our model.
+"""The paper's forced cases (docs/MODEL.md section 4) judged from simulations of our model.
 
 Each run: 200 drive periods of transient, then 300 periods recorded with sensor noise
 added, judged as a measured record is.  The expected kinds are what the paper's own

@@ -6,11 +6,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from analysis.recording_file import open_recording
 from drivers.amplifier_registers import Fault, Holding
 from gui.app import MainWindow
 from gui.settings import AppSettings
 from gui.worker import LiveSession
-from rig.recording_reader import open_recording
 from tests.gui.conftest import run_events, wait_until
 
 FS_HZ = 2000.0

@@ -109,7 +109,7 @@ def test_impact_decay_with_length_and_damping_held_from_a_free_decay(decay_csv, 
     meta = ExchangeMeta("impact_decay", rig={"m_kg": 0.0326, "l_m": 0.05, "R_m": 0.0095,
                                              "g": 9.81})
     path, _ = write_exchange(tmp_path / "impacts.csv", ExchangeRecord(sim.t, angle, meta))
-    out = tmp_path / "impacts.json"
+    out = tmp_path / "impacts_params.json"  # impacts.json is the input's sidecar: refused
     assert main(["identify", str(path), "--free-decay", str(decay_csv), "--json", str(out)]) == 0
     report = json.loads(out.read_text())["parameters"]
     assert "ci95" not in report["L_m"]  # held from the free decay, not fitted

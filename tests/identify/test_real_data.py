@@ -1,4 +1,4 @@
-"""Identification of real measured free decays (shared/data/real/exchange, read-only).
+"""Identification of real measured free decays (excerpts shipped in tests/data/real_exchange).
 
 Expectations come from each pendulum's SOURCE.md and from physics, never from our
 own earlier output: a compound pendulum's effective length I/(m a) lies between
@@ -18,7 +18,7 @@ from analysis.identify import fit_free_decay
 from analysis.identify.free_decay import _period_factor
 from analysis.records import load_record
 
-REAL = Path(__file__).resolve().parents[2] / ".." / "shared" / "data" / "real" / "exchange"
+REAL = Path(__file__).resolve().parents[1] / "data" / "real_exchange"  # SOURCE.md there
 
 # (file, lower, upper bound of L_eff in m, from SOURCE.md)
 # - UW single pendulum: centre of mass at a1 = 0.148 m, so L_eff >= 0.148; its stated
@@ -33,9 +33,6 @@ CASES = [
     ("rotary_free_swing_3", 0.03, 0.137),
 ]
 
-pytestmark = pytest.mark.skipif(
-    not REAL.is_dir(), reason=f"real measurements not present at {REAL.resolve()}"
-)
 
 
 def _measured_period(t: np.ndarray, angle: np.ndarray, offset: float) -> tuple[float, float]:
@@ -86,5 +83,5 @@ def test_coulomb_friction_shows_as_damping_that_rises_at_small_amplitude():
     result = fit_free_decay(load_record(REAL / "uw_single_small_decay.csv"))
     rates = result.details["damping_by_amplitude"]
     assert rates["zeta_small_amplitude"] > 2.0 * rates["zeta_large_amplitude"]
-    assert result.details["rest_trim_s"] > 10.0  # it sticks after about 5.5 s of 23 s
+    assert result.details["rest_trim_s"] > 6.0  # it sticks after about 5.5 s of the 14 s
     assert any("Coulomb" in w for w in result.warnings)

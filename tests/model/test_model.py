@@ -1,4 +1,5 @@
-"""The model's parameters, nondimensional form, contact law and cause registry against MODEL.md."""
+"""The model's parameters, nondimensional form, contact law and cause registry against
+docs/MODEL.md."""
 
 import math
 
@@ -53,7 +54,7 @@ def test_nondimensional_round_trip():
 
 
 def test_nondimensional_groups_follow_eq_15_with_paper_numbers():
-    # MODEL.md section 4: eq. 15c with R = 19 mm (the diameter) gives the paper's gammas.
+    # docs/MODEL.md section 4: eq. 15c with R = 19 mm (the diameter) gives the paper's gammas.
     rig = RigParameters(R_m=0.019)
     for f_hz, gamma_paper in ((2.0, 1.888e4), (10.0, 755.5)):
         nd = to_nondimensional(rig, Drive(amplitude_m=0.001, frequency_hz=f_hz))
@@ -61,7 +62,7 @@ def test_nondimensional_groups_follow_eq_15_with_paper_numbers():
     nd10 = to_nondimensional(rig, Drive(amplitude_m=0.001, frequency_hz=10.0))
     assert nd10.eta == pytest.approx(0.232, rel=0.01)
     assert nd10.mu == pytest.approx(2.356, rel=0.01)
-    # ... and with the radius, the values MODEL.md quotes.
+    # ... and with the radius, the values docs/MODEL.md quotes.
     assert to_nondimensional(RigParameters(), Drive(0.001, 10.0)).gamma == pytest.approx(
         533.5, rel=0.01
     )
@@ -79,7 +80,7 @@ def test_paper_cases_are_named_and_keep_their_groups():
 
 
 def hertz_hunt_crossley(theta, theta_dot, rig: RigParameters):
-    """MODEL.md section 2 written out independently."""
+    """docs/MODEL.md section 2 written out independently."""
     delta = rig.l_m * (math.sin(theta) - math.sin(rig.theta_b_rad))
     if delta <= 0:
         return 0.0

@@ -38,8 +38,15 @@ def test_the_shipped_default_is_the_virtual_rig_with_the_paper_constants():
             "m_per_unit = 0.0098304",
             "m_per_unit = 0",
             "calibration.table.m_per_unit",
-            "a non-zero number",
+            "a number whose size is in [1e-12, 1]",
         ),
+        (
+            "gain_rad_per_v = 0.32768",
+            "gain_rad_per_v = 1e308",
+            "calibration.angle.gain_rad_per_v",
+            "a number whose size is in [1e-06, 100]",
+        ),
+        ("offset_v = 0.0", "offset_v = -1e300", "calibration.angle.offset_v", "in [-100, 100]"),
         (
             "measuring_range_m = [-0.05, 0.05]",
             "measuring_range_m = [0.05, -0.05]",

@@ -14,6 +14,7 @@ import h5py
 import numpy as np
 import pytest
 
+from analysis.recording_file import open_recording
 from drivers.interfaces import SampleBlock
 from rig.engine import AcquisitionEngine
 from rig.events import DriveSetting, StepMark
@@ -26,7 +27,7 @@ from rig.recorder import (
     RecordingMetadata,
     attach_recorder,
 )
-from rig.recording_reader import open_recording
+from rig.replay import iter_sample_blocks
 from tests.rig.cli_recording import start_forced_recording, wait_for_samples
 from tests.rig.streams import CounterStream, TachStream
 
@@ -130,7 +131,7 @@ def test_a_format_1_file_without_flags_reads_every_sample_as_good(tmp_path):
         np.testing.assert_array_equal(data.raw, np.arange(5_000))
         assert data.flags.dtype == np.uint8 and data.flags.shape == (5_000,)
         assert not data.flags.any()
-        blocks = list(rec.iter_sample_blocks("angle", max_samples=700))
+        blocks = list(iter_sample_blocks(rec, "angle", max_samples=700))
         assert all(block.flags.shape == (len(block),) for block in blocks)
         assert sum(len(block) for block in blocks) == 5_000
 

@@ -8,11 +8,11 @@ import time
 import numpy as np
 import pytest
 
+from analysis.recording_file import open_recording
 from drivers.interfaces import InputStream, PulseBlock, SampleBlock
 from rig.engine import AcquisitionEngine
 from rig.events import DriveSetting, Gap, StepMark
 from rig.recorder import Recorder, attach_recorder
-from rig.recording_reader import open_recording
 from rig.replay import Replay
 from tests.rig.streams import CounterStream, TachStream
 from tests.rig.test_recorder import META, SPECS

@@ -1,4 +1,4 @@
-"""The paper's numerical observations at its nondimensional parameters (MODEL.md section 4)."""
+"""The paper's numerical observations at its nondimensional parameters (docs/MODEL.md section 4)."""
 
 from __future__ import annotations
 
@@ -71,7 +71,7 @@ def test_case_i_settles_on_no_periodic_orbit():
 
 @pytest.mark.xfail(
     strict=True,
-    reason="at the paper's quoted beta = 0.114 the model of MODEL.md (and the paper's own "
+    reason="at the paper's quoted beta = 0.114 the model of docs/MODEL.md (and the paper's own "
     "small-angle eq. 14, integrated independently) sits in a period-3 window; chaos appears "
     "at beta = 0.118-0.120 (case i). See test_case_h_agrees_with_an_independent_integrator.",
 )

@@ -156,7 +156,7 @@ def test_barrier_stops_the_swing_only_while_it_is_in() -> None:
     rig.set_barrier(True)
     rig.release(-0.1)
     stopped = _angle_rad(settings, rig.generate(2000)["angle"])
-    # oracle: linearised impact (MODEL.md section 4) with the entry speed from energy
+    # oracle: linearised impact (docs/MODEL.md section 4) with the entry speed from energy
     rp = settings.model.rig
     speed = rp.l_m * math.sqrt(2 * rp.omega_rad_s**2 * (1 - math.cos(0.1)))
     m_eff = rp.m_kg * rp.L_m**2 / rp.l_m**2

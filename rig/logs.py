@@ -1,0 +1,55 @@
+"""Logging for the command line: standard ``logging`` on stderr at the level --verbose and
+--quiet choose, and a log file beside each recording with everything the run said."""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import sys
+from collections.abc import Iterator
+from pathlib import Path
+
+LOGGER_NAME = "impact_rig"
+CONSOLE_FORMAT = "%(message)s"
+FILE_FORMAT = "%(asctime)s %(levelname)s %(name)s: %(message)s"
+
+log = logging.getLogger(LOGGER_NAME)
+
+
+def configure(*, verbose: bool = False, quiet: bool = False) -> None:
+    """Send log records to stderr: warnings and errors by default, everything with
+    ``verbose`` (and tracebacks), errors only with ``quiet``."""
+    level = logging.DEBUG if verbose else logging.ERROR if quiet else logging.WARNING
+    console = logging.StreamHandler(sys.stderr)
+    console.setFormatter(logging.Formatter(CONSOLE_FORMAT))
+    console.setLevel(level)
+    root = logging.getLogger()
+    for handler in list(root.handlers):
+        if getattr(handler, "impact_rig_console", False):
+            root.removeHandler(handler)
+    console.impact_rig_console = True  # type: ignore[attr-defined]
+    root.addHandler(console)
+    root.setLevel(logging.DEBUG)
+    logging.getLogger("pymodbus").setLevel(logging.CRITICAL if not verbose else logging.WARNING)
+    logging.getLogger("matplotlib").setLevel(logging.WARNING)
+    logging.getLogger("numba").setLevel(logging.WARNING)
+
+
+def log_path_for(recording: str | Path) -> Path:
+    """The log file kept beside a recording: RUN.h5 -> RUN.log."""
+    return Path(recording).with_suffix(".log")
+
+
+@contextlib.contextmanager
+def log_file(path: Path) -> Iterator[Path]:
+    """Write every log record of the run (INFO and up) to ``path`` while the block runs."""
+    handler = logging.FileHandler(path, mode="w", encoding="utf-8")
+    handler.setFormatter(logging.Formatter(FILE_FORMAT))
+    handler.setLevel(logging.INFO)
+    root = logging.getLogger()
+    root.addHandler(handler)
+    try:
+        yield path
+    finally:
+        root.removeHandler(handler)
+        handler.close()
