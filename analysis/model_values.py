@@ -1,4 +1,4 @@
-"""A model from named parameter values (MODEL.md section 7 keys) and the causes switched on.
+"""A model from named parameter values (docs/MODEL.md section 7 keys) and the causes switched on.
 
 Fits work on a flat dict of values: the baseline's ``omega_rad_s``, ``zeta``,
 ``K_N_per_m1.5`` and ``mu0_s_per_m`` and each active cause's own parameters.  This module

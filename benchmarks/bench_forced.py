@@ -80,10 +80,11 @@ def main() -> int:
         rows.append(dict(truth=truth, found=found, seconds=elapsed, residual=residual,
                          regime=case.regime, period=case.period, right=right,
                          frequency=frequency, laser=case.measurement.laser))
-        print(f"[{i + 1}/{len(plan)}] {frequency:4.0f} Hz {'laser' if case.measurement.laser else 'no laser':8s} "
-              f"{truth:22s} -> {found:22s} {elapsed:6.1f} s  baseline {residual:7.3g} x noise  "
-              f"regime {case.regime}{'' if case.period in (None, 1) else ''} judged {judged[:40]!r}"
-              f" {'ok' if right else ('-' if right is None else 'WRONG')}", flush=True)
+        laser = "laser" if case.measurement.laser else "no laser"
+        verdict = "ok" if right else ("-" if right is None else "WRONG")
+        print(f"[{i + 1}/{len(plan)}] {frequency:4.0f} Hz {laser:8s} {truth:22s} -> "
+              f"{found:22s} {elapsed:6.1f} s  baseline {residual:7.3g} x noise  regime "
+              f"{case.regime} judged {judged[:40]!r} {verdict}", flush=True)
     summary(rows, args.duration)
     return 0
 

@@ -1,5 +1,5 @@
 """Discrepancy analysis: where the baseline model fails on a record, which named cause
-explains it, and how much the extended model gains (MODEL.md section 6)."""
+explains it, and how much the extended model gains (docs/MODEL.md section 6)."""
 
 from analysis.discrepancy.analyze import Analysis, AnalysisError, analyze_record
 from analysis.discrepancy.candidates import candidates_for, excluded_for

@@ -1,5 +1,5 @@
 """The discrepancy analysis of one record: baseline fit, where it fails, every candidate cause
-fitted as an extension, the choice, and the report of MODEL.md section 6.
+fitted as an extension, the choice, and the report of docs/MODEL.md section 6.
 
 Forced records go to :mod:`analysis.discrepancy.forced` (identification from the record
 alone, multiple shooting, forecasts or invariant statistics).  Decays are fitted point by

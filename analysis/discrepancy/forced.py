@@ -1,7 +1,7 @@
 """The discrepancy analysis of a forced record, on its own.
 
 The record is identified first (:mod:`analysis.identify.forced`: equation-error start,
-multiple shooting).  The baseline model of MODEL.md section 2 (barrier at 0, sensor zero
+multiple shooting).  The baseline model of docs/MODEL.md section 2 (barrier at 0, sensor zero
 at the hanging position, the stated table amplitude as a pure sine at the measured
 frequency and phase) is then fitted by multiple shooting over the whole record, and so is
 every candidate cause, each starting from the baseline's solution and from what the
@@ -73,6 +73,7 @@ BASELINE_ITERATIONS = 25
 SCREEN_ITERATIONS = 25  # every candidate, over short segments, from the cold start
 REFINE_ITERATIONS = 25  # the promising ones: to convergence
 REFINED = 4  # candidates refined beyond the screening (those that gained), best first
+SEED_RMS = 3.0  # a full fit within this many noise levels lends its segment states
 
 Progress = Callable[[str], None]
 
@@ -226,15 +227,24 @@ def screen_cause(
 
 
 def fit_cause(
-    data: ForcedData, cause_name: str, screened: ShootingFit, threads: int | None,
+    data: ForcedData, cause_name: str, screened: ShootingFit, lay: Layouts,
+    threads: int | None, seed: ShootingFit | None = None,
 ) -> ShootingFit:
-    """A cause fitted over the whole record from its screening fit's values (states drawn
-    onto the data over half-length segments first, as the identification does)."""
+    """A cause fitted over the whole record from its screening fit's values.  Its segment
+    states come from ``seed`` (a full-layout fit of another model that fits the record
+    well, its states read through this cause's sensor), or else are drawn onto the data
+    over half-length segments first, as the identification does."""
     model = ForcedModel(data, () if cause_name == NONE else (cause_name,))
     scale = record_scale(data, screened.values)
     free = [replace(p, start=screened.values[p.name]) for p in
             candidate_parameters(data, cause_name, screened.values, scale, screened.values)]
-    full, _ = fit_over_record(model, free, {}, threads=threads,
+    start_from = None
+    if seed is not None:
+        measured = seed.prediction[lay.full.start]
+        states = true_angle_states(np.column_stack([measured, seed.states[:, 1]]), cause_name,
+                                   screened.values)
+        start_from = (replace(seed, states=states), lay.full)
+    full, _ = fit_over_record(model, free, {}, threads=threads, start_from=start_from,
                               max_iterations=REFINE_ITERATIONS)
     return full
 
@@ -272,29 +282,50 @@ def model_invariants_distance(
     return invariant_distance(measured, invariants(t, theta, data.drive.frequency_hz, phase))
 
 
+def forecast_z(base: ShootingFit, candidate: ShootingFit, train: Segments) -> float | None:
+    """The drop of the mean-square forecast error from baseline to candidate, in standard
+    errors of its mean over the held-out stretches (a paired test: the same noise enters
+    both, so small real gains show)."""
+    gains = []
+    for a, b in zip(train.fit_stop, train.stop, strict=True):
+        rb, rc = base.forecast_residual[a:b], candidate.forecast_residual[a:b]
+        both = np.isfinite(rb) & np.isfinite(rc)
+        if np.count_nonzero(both) >= 2:
+            gains.append(float(np.mean(rb[both] ** 2) - np.mean(rc[both] ** 2)))
+    if len(gains) < 3:
+        return None
+    g = np.asarray(gains)
+    spread = float(np.std(g, ddof=1)) / math.sqrt(g.size)
+    if not spread > 0:
+        return math.inf if g.mean() > 0 else -math.inf
+    return float(g.mean() / spread)
+
+
 def verdict_of(
-    data: ForcedData, candidate: ModelFits, base: ModelFits,
+    data: ForcedData, candidate: ModelFits, base: ModelFits, lay: Layouts,
     distances: tuple[float | None, float | None] = (None, None),
+    not_judged: str | None = None,
 ) -> Verdict:
-    """Both judges' view of a candidate against the baseline (a candidate without training
-    fit has no forecast: it did not pass the information criterion)."""
-    held_base = base.train.forecast_rms if base.train is not None else math.nan
-    held_ext = candidate.train.forecast_rms if candidate.train is not None else math.nan
-    n_held = int(np.count_nonzero(np.isfinite(base.train.forecast_residual))) \
-        if base.train is not None else 0
+    """Both judges' view of a candidate against the baseline (without training fits, when
+    it did not pass the information criterion or a better cause was accepted first, it has
+    no forecast)."""
+    judged = candidate.train is not None and base.train is not None
     return Verdict(
         cause=candidate.cause,
         information_criterion_delta=information_criterion_delta(
             as_fit_result(base.full, NONE), as_fit_result(candidate.full, candidate.cause),
             data.noise_rad),
-        heldout_rms_baseline=held_base,
-        heldout_rms_extended=held_ext,
+        heldout_rms_baseline=base.train.forecast_rms if base.train is not None else math.nan,
+        heldout_rms_extended=candidate.train.forecast_rms if judged else math.nan,
         rms_baseline=base.full.rms,
         rms_extended=candidate.full.rms,
         invariant_distance_baseline=distances[0],
         invariant_distance_extended=distances[1],
         noise_rad=data.noise_rad,
-        n_heldout=n_held,
+        n_heldout=int(np.count_nonzero(np.isfinite(base.train.forecast_residual)))
+        if base.train is not None else 0,
+        forecast_z=forecast_z(base.train, candidate.train, lay.train) if judged else None,
+        not_judged=not_judged,
     )
 
 
@@ -345,38 +376,56 @@ def analyze_forced_fits(
     say("screened: " + ", ".join(f"{n} {bic[n]:.3g}" for n in sorted(bic, key=lambda n: -bic[n])))
     timings["screening"] = time.perf_counter() - clock - timings["identification"]
     say("fitting the baseline model over the record")
-    base_full = fit_cause(data, NONE, screened[NONE], threads)
+    base_full = fit_cause(data, NONE, screened[NONE], lay, threads)
     base = ModelFits(NONE, base_full)
     say(f"baseline rms {base_full.rms:.3g} rad ({base_full.rms / data.noise_rad:.3g} x noise)")
     ranked = sorted(names, key=lambda n: -bic[n])
     fits: dict[str, ShootingFit] = {}
     for name in [n for n in ranked if bic[n] > 0.0][:REFINED]:
-        fits[name] = fit_cause(data, name, screened[name], threads)
+        # the best full fit so far lends its states when it fits the record closely
+        best = min([base_full, *fits.values()], key=lambda f: f.rms)
+        seed = best if best.rms < SEED_RMS * data.noise_rad else None
+        fits[name] = fit_cause(data, name, screened[name], lay, threads, seed)
         bic[name] = _bic(data, base, fits[name])
         say(f"  {name} over the record: BIC gain {bic[name]:.3g}")
     for name in names:
         if name not in fits:  # judged on its screening: it did not come close
             bic[name] = min(bic[name], BIC_MARGIN)
-    passing = [n for n in names if bic[n] > BIC_MARGIN]
+    # The judges, best information criterion first: forecasts over the training stretches
+    # (and, on a chaotic record, the invariant statistics of the model's own long run); the
+    # first cause they accept is the finding, and the rest need no training fits.
+    passing = sorted((n for n in names if bic[n] > BIC_MARGIN), key=lambda n: -bic[n])
     measured = base_distance = None
-    if passing and chaotic:
-        measured = invariants(data.t, data.y, data.drive.frequency_hz, data.drive.phase0_rad)
-        base_distance = model_invariants_distance(data, measured, NONE, base_full)
-    elif passing:
+    if passing:
         base = ModelFits(NONE, base_full, refit(data, NONE, base_full, lay, threads,
                                                 heldout_s=HELDOUT_S))
-    outcomes = []
-    for name in names:
-        model_fits = ModelFits(name, fits.get(name, screened[name]))
+        if chaotic:
+            measured = invariants(data.t, data.y, data.drive.frequency_hz,
+                                  data.drive.phase0_rad)
+            base_distance = model_invariants_distance(data, measured, NONE, base_full)
+    judged: dict[str, Verdict] = {}
+    trains: dict[str, ShootingFit] = {}
+    accepted = None
+    for name in passing:
+        if accepted is not None:
+            judged[name] = verdict_of(
+                data, ModelFits(name, fits[name]), base, lay,
+                not_judged=f"not judged further: {accepted} scores higher and earns its place")
+            continue
         distances: tuple[float | None, float | None] = (None, None)
-        if name in passing and chaotic:
+        if chaotic:
             distances = (base_distance,
                          model_invariants_distance(data, measured, name, fits[name]))
-        elif name in passing:
-            model_fits = replace(model_fits, train=refit(data, name, fits[name], lay, threads,
-                                                         heldout_s=HELDOUT_S))
-        verdict = verdict_of(data, model_fits, base, distances) if name in fits else \
-            verdict_of(data, model_fits, base_short, distances)
+        trains[name] = refit(data, name, fits[name], lay, threads, heldout_s=HELDOUT_S)
+        judged[name] = verdict_of(data, ModelFits(name, fits[name], trains[name]), base, lay,
+                                  distances)
+        if judged[name].earns_keep:
+            accepted = name
+    outcomes = []
+    for name in names:
+        model_fits = ModelFits(name, fits.get(name, screened[name]), trains.get(name))
+        verdict = judged.get(name) or verdict_of(
+            data, model_fits, base if name in fits else base_short, lay)
         say(f"  {name}: {verdict.why}")
         outcomes.append((model_fits, verdict))
     timings["fits"] = time.perf_counter() - clock - sum(timings.values())

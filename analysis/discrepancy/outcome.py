@@ -1,5 +1,5 @@
 """What a discrepancy analysis returns: the candidates' fits and verdicts, the choice, and the
-report of MODEL.md section 6 (the same for every kind of experiment)."""
+report of docs/MODEL.md section 6 (the same for every kind of experiment)."""
 
 from __future__ import annotations
 
@@ -91,7 +91,7 @@ class Analysis:
         return sorted(self.candidates, key=lambda c: -c.verdict.information_criterion_delta)
 
     def as_json(self) -> dict[str, Any]:
-        """The report of MODEL.md section 6, parameters keyed as section 7."""
+        """The report of docs/MODEL.md section 6, parameters keyed as section 7."""
         rig = self.data.rig
         best = self.chosen_outcome
         extended = best.full if best is not None else self.baseline
@@ -174,7 +174,7 @@ def cause_parameters(result: FitResult) -> dict[str, Any]:
 
 
 def report_parameters(result: FitResult, rig) -> dict[str, Any]:
-    """All fitted parameters under MODEL.md section 7 keys, with derived L and E."""
+    """All fitted parameters under docs/MODEL.md section 7 keys, with derived L and E."""
     out: dict[str, Any] = {}
     g = rig.g_m_s2
     est = result.estimates

@@ -88,7 +88,8 @@ def restitution_samples(
 
 
 def restitution_from_hunt_crossley(mu0_s_per_m: float, l_m: float, speed_rad_s: float) -> float:
-    """Start value: e = 1 - (2/3) mu0 v at the contact-point speed v = l theta' (MODEL.md 4)."""
+    """Start value: e = 1 - (2/3) mu0 v at the contact-point speed v = l theta'
+    (docs/MODEL.md section 4)."""
     return float(min(max(1.0 - 2.0 / 3.0 * mu0_s_per_m * l_m * abs(speed_rad_s), 0.05), 0.99))
 
 

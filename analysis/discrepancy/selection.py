@@ -24,6 +24,7 @@ HELDOUT_RATIO = 0.95  # the extension must predict the unseen part at least 5 % 
 HELDOUT_EXCESS_RATIO = 0.9  # ... or shrink the error above the noise by 10 %, significantly
 HELDOUT_SIGMAS = 3.0
 INVARIANT_RATIO = 0.7  # chaotic records: invariants at least 30 % closer to the data's
+FORECAST_Z = 3.0  # paired forecast test: the error drop in standard errors, stretch by stretch
 CORRELATION_CUTOFF = 0.05
 
 
@@ -65,6 +66,10 @@ class Verdict:
     invariant_distance_extended: float | None = None
     noise_rad: float = 0.0
     n_heldout: int = 0
+    # forced records: the drop of the mean-square forecast error, in its standard errors,
+    # from the held-out stretches taken one by one (paired: both models see the same noise)
+    forecast_z: float | None = None
+    not_judged: str | None = None  # why the forecast judge was not run (a better cause won)
 
     @property
     def heldout_ratio(self) -> float:
@@ -85,13 +90,17 @@ class Verdict:
     def heldout_helps(self) -> bool:
         """The held-out judge: a clearly smaller prediction error on the unseen part.
 
-        Either the error drops by HELDOUT_RATIO, or - when an effect fades with the swing
-        and the unseen part is close to the noise - its excess over the noise drops by
-        HELDOUT_EXCESS_RATIO and the mean-square gain is well beyond the scatter a finite
-        held-out sample allows (HELDOUT_SIGMAS standard errors of a noise variance).
+        Either the error drops by HELDOUT_RATIO, or - when an effect is small against the
+        noise - the drop is significant: on forced records, by a paired test over the
+        held-out stretches (FORECAST_Z standard errors); on decays, whose one held-out part
+        cannot be split so, when its excess over the noise drops by HELDOUT_EXCESS_RATIO and
+        the mean-square gain is well beyond the scatter a finite held-out sample allows
+        (HELDOUT_SIGMAS standard errors of a noise variance).
         """
         if self.heldout_ratio < HELDOUT_RATIO:
             return True
+        if self.forecast_z is not None:
+            return self.forecast_z > FORECAST_Z
         if self.n_heldout <= 0 or not self.noise_rad > 0:
             return False
         gain = self.heldout_rms_baseline**2 - self.heldout_rms_extended**2
@@ -109,18 +118,24 @@ class Verdict:
 
     @property
     def earns_keep(self) -> bool:
-        """True when both judges say the extension helps by a clear margin (for a chaotic
-        record the second judge is the invariant statistics, not the held-out points)."""
+        """True when both judges say the extension helps by a clear margin.  On a chaotic
+        record the invariant statistics join them: alone when there are no forecasts (a
+        ratio under INVARIANT_RATIO), or as a veto of forecasts whose model's long run is
+        no closer to the record's statistics than the baseline's."""
         if self.information_criterion_delta <= BIC_MARGIN:
             return False
         ratio = self.invariant_ratio
-        if ratio is not None:
+        if ratio is not None and self.forecast_z is None:
             return ratio < INVARIANT_RATIO
+        if ratio is not None and ratio >= 1.0:
+            return False  # forecasts better, but its own long run further from the record's
         return self.heldout_helps
 
     @property
     def why(self) -> str:
         """One line on the verdict."""
+        if self.not_judged:
+            return f"BIC gain {self.information_criterion_delta:.3g}; {self.not_judged}"
         ic = self.information_criterion_delta
         ratio = self.heldout_ratio
         parts = [
@@ -139,14 +154,15 @@ class Verdict:
 def choose(verdicts: list[Verdict]) -> Verdict | None:
     """The best-scoring candidate that both judges accept, or None (``none``).
 
-    On a chaotic record the second judge is one realization's invariant statistics: noisy
-    enough to veto the best-fitting candidate, not to promote a worse fit over it, so
-    there a veto of the best fit means ``none``.
+    When the second judge is one realization's invariant statistics alone (a chaotic
+    record without forecasts), it is noisy enough to veto the best-fitting candidate, not
+    to promote a worse fit over it, so there a veto of the best fit means ``none``.
     """
     for verdict in sorted(verdicts, key=lambda v: -v.information_criterion_delta):
         if verdict.earns_keep:
             return verdict
-        if verdict.invariant_ratio is not None and verdict.information_criterion_delta > BIC_MARGIN:
+        if (verdict.invariant_ratio is not None and verdict.forecast_z is None
+                and verdict.information_criterion_delta > BIC_MARGIN):
             return None
     return None
 

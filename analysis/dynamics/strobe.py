@@ -1,7 +1,7 @@
 """Stroboscopic sampling of a forced record, locked to its drive: the strobe clock and the points.
 
 The clock t_k = t0 + k T is fitted to the tachometer pulses (which mark drive phase 0,
-MODEL.md section 6) so that a missing, doubled or one-sample-late pulse moves no
+docs/MODEL.md section 6) so that a missing, doubled or one-sample-late pulse moves no
 strobe instant; without a tach it follows the stated frequency and phase.  Each
 period gives one point: the angle at ``phases_per_period`` equally spaced drive
 phases, each from a local polynomial fit over a few samples (less noise than one

@@ -1,7 +1,7 @@
 """The drive of a forced record, measured: frequency and phase from the tach, amplitude, phase
 and second harmonic from the table channel (the laser), compared with the stated drive.
 
-MODEL.md section 6: the tach pulse marks drive phase 0, x_t = A sin(Omega t) there; the
+docs/MODEL.md section 6: the tach pulse marks drive phase 0, x_t = A sin(Omega t) there; the
 drive clock fitted to the pulses (:func:`analysis.dynamics.strobe.clock_from_tach`) gives
 the frequency and the phase, to far better than a sample.
 
@@ -149,12 +149,12 @@ def _stated(record: Record) -> tuple[float, float]:
     if not f or not (float(f) > 0):
         raise IdentificationError(
             f"{record.source or 'record'}: a forced record needs drive.frequency_hz > 0 in its "
-            "metadata (MODEL.md section 5)"
+            "metadata (docs/MODEL.md section 5)"
         )
     if not a or not (float(a) > 0):
         raise IdentificationError(
             f"{record.source or 'record'}: a forced record needs drive.amplitude_m > 0 in its "
-            "metadata (MODEL.md section 5)"
+            "metadata (docs/MODEL.md section 5)"
         )
     return float(f), float(a)
 
@@ -281,7 +281,7 @@ def fit_drive(record: Record, *, estimate_frequency: bool = False) -> Identifica
                                "stated_frequency_hz": float(stated)}
     tach = record.tach_indices[record.tach_indices < record.time_s.size]
     if tach.size:
-        # MODEL.md: the tach pulse marks drive phase 0, so the table's phase there should be 0.
+        # docs/MODEL.md: the tach pulse marks drive phase 0, so the table's phase there should be 0.
         at_tach = np.angle(np.exp(1j * (omega * (record.time_s[tach] - record.time_s[0])
                                         + table.phase_rad.value)))
         details["table_phase_at_tach_rad"] = float(np.angle(np.mean(np.exp(1j * at_tach))))

@@ -2,7 +2,7 @@
 linear in its parameters, so a regression of the smoothed angle's second derivative on the
 model's terms gives them without simulating.
 
-In flight (MODEL.md section 2, measured angle y = theta + offset):
+In flight (docs/MODEL.md section 2, measured angle y = theta + offset):
 
     theta'' = -2 zeta omega theta' - omega^2 [sin(theta) + (x_t''/g) cos(theta)]
 

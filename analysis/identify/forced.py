@@ -12,7 +12,7 @@ sensor offset, and the table amplitude when no table channel measured it.
    linked segments of a few drive periods.
 
 The barrier position and the sensor zero are the parameters of the named causes
-``barrier_offset`` and ``sensor_offset`` (MODEL.md section 6), and an unmeasured table
+``barrier_offset`` and ``sensor_offset`` (docs/MODEL.md section 6), and an unmeasured table
 amplitude is ``excitation_amplitude``'s: the fit switches those causes on, so the model is
 built by the one mechanism every fit uses (:mod:`analysis.model_values`).
 """
@@ -179,7 +179,7 @@ def impact_speed(data: ForcedData, level: float) -> float:
 
 
 def hertz_penetration_rad(rig: RigParameters, omega: float, K: float, speed: float) -> float:
-    """Largest penetration of a Hertz impact at angular speed ``speed`` (MODEL.md section 4
+    """Largest penetration of a Hertz impact at angular speed ``speed`` (docs/MODEL.md section 4
     oracle), as an angle."""
     L = rig.g_m_s2 / omega**2
     m_eff = rig.m_kg * L**2 / rig.l_m**2
@@ -244,14 +244,16 @@ def fit_over_record(
     half = record_segments(data, 0.5 * SEGMENT_S)
     say(f"multiple shooting over the record in {half.count} linked segments")
     fit_half, _ = fit_model(model, half, free, fixed,
-                            smoothed_states(data, half.start, offset), threads=threads)
+                            smoothed_states(data, half.start, offset), threads=threads,
+                            max_iterations=max_iterations)
     say(f"  rms {fit_half.rms / data.noise_rad:.3g} x noise after {fit_half.iterations} "
         "iterations")
     values = fit_half.values
     free = [replace(p, start=values[p.name]) for p in free]
     states = inherited_states(segments, half, fit_half.states, smooth)
     say(f"multiple shooting over the record in {segments.count} linked segments")
-    fit, _ = fit_model(model, segments, free, fixed, states, warm_states=False, threads=threads)
+    fit, _ = fit_model(model, segments, free, fixed, states, warm_states=False, threads=threads,
+                       max_iterations=max_iterations)
     return fit, segments
 
 
@@ -394,7 +396,7 @@ def fit_forced(
 
 
 def identification_result(found: ForcedIdentification, experiment: str) -> IdentificationResult:
-    """The report view of a forced identification (MODEL.md section 7 keys)."""
+    """The report view of a forced identification (docs/MODEL.md section 7 keys)."""
     data = found.data
     fit = found.fit
     est = dict(fit.estimates)

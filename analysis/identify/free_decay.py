@@ -1,6 +1,6 @@
 """Free decay without barrier: effective length L = g / omega^2, damping ratio zeta, initial angle.
 
-Small swings are fitted with the averaging solution of MODEL.md section 4 (a closed
+Small swings are fitted with the averaging solution of docs/MODEL.md section 4 (a closed
 form, fast); larger swings, where that solution's neglected terms exceed what the
 data resolve, by simulating the full pendulum equation.  The switch is at
 ``AVERAGING_MAX_AMPLITUDE_RAD`` = 0.2 rad.  The averaging solution neglects
@@ -42,7 +42,7 @@ METHODS = ("auto", "averaging", "simulation")
 def averaging_solution(
     t: np.ndarray, amplitude: float, phase: float, zeta: float, omega: float, offset: float = 0.0
 ) -> np.ndarray:
-    """theta(t) of MODEL.md section 4 plus a sensor offset (softening pendulum, small swings).
+    """theta(t) of docs/MODEL.md section 4 plus a sensor offset (softening pendulum, small swings).
 
     The carrier runs at the damped frequency omega sqrt(1 - zeta^2): the averaging
     solution is first order in zeta, and the second-order shift (4e-4 relative at

@@ -3,7 +3,7 @@
 A fast first estimate comes from the impacts themselves: the free flight between
 impacts (fitted as a sinusoid about the sensor zero) gives, at the barrier angle,
 the entry and exit speeds and the contact time; restitution e = 1 - (2/3) mu0 v
-gives mu0 and t_c = 3.2181 (m_eff^2 / (K^2 v))^(1/5) gives K (MODEL.md section 4).
+gives mu0 and t_c = 3.2181 (m_eff^2 / (K^2 v))^(1/5) gives K (docs/MODEL.md section 4).
 The final estimate simulates the whole record with the project's simulator and
 fits it by least squares; L and zeta are held when known from a free decay.
 """
@@ -56,7 +56,7 @@ def impact_events(
     (there theta' = 0, so theta'' = -omega^2 sin(theta - offset) whatever the damping);
     the free flight between impacts is then a sinusoid about that zero, and theta_b
     is the barrier angle at which the contact times and entry speeds predict the
-    observed peak penetrations (t_c and delta_max of the Hertz impact, MODEL.md).
+    observed peak penetrations (t_c and delta_max of the Hertz impact, docs/MODEL.md).
     """
     t = signal.time_s
     good = signal.valid

@@ -30,7 +30,8 @@ class Estimate:
         return self.ci95 is not None and self.ci95[0] <= value <= self.ci95[1]
 
     def as_json(self) -> dict[str, Any]:
-        """``{"value": v, "ci95": [lo, hi]}`` (MODEL.md section 7); ci95 omitted when unknown."""
+        """``{"value": v, "ci95": [lo, hi]}`` (docs/MODEL.md section 7); ci95 omitted when
+        unknown."""
         out: dict[str, Any] = {"value": float(self.value)}
         if self.ci95 is not None:
             out["ci95"] = [float(self.ci95[0]), float(self.ci95[1])]
@@ -70,7 +71,8 @@ class FitQuality:
 
 @dataclass(frozen=True)
 class IdentificationResult:
-    """Identified parameters of one experiment (MODEL.md section 7 keys) and how they were found."""
+    """Identified parameters of one experiment (docs/MODEL.md section 7 keys) and how they were
+    found."""
 
     experiment: str
     method: str

@@ -38,6 +38,8 @@ ATOL = 1e-10
 MAX_ITERATIONS = 40
 MAX_STEPS_PER_SEGMENT = 20_000  # a few hundred suffice; a trial needing more fails
 COST_TOLERANCE = 0.05  # a step gaining less chi^2 / 2 than this changes no judgement
+# ... nor does a relative gain this small of a model that misses the record by far
+RELATIVE_TOLERANCE = 1e-4
 FAILED_RESIDUAL = 1e3  # in noise units, for samples a stopped run did not reach
 CORRELATION_CUTOFF = 0.05
 
@@ -392,11 +394,12 @@ class ShootingProblem:
                 message = "no step lowers the cost"
                 success = True
                 break
-            if gain <= COST_TOLERANCE and (lam < 1e-2 or small_before):
+            small = gain <= max(COST_TOLERANCE, RELATIVE_TOLERANCE * cost)
+            if small and (lam < 1e-2 or small_before):
                 message = "cost converged"
                 success = True
                 break
-            small_before = gain <= COST_TOLERANCE
+            small_before = small
         return self._result(u, s, r, theta, ends, hs, success, message, iterations)
 
     def _bounds(self) -> tuple[np.ndarray, np.ndarray]:

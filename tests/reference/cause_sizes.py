@@ -1,7 +1,7 @@
-"""How large each named cause of MODEL.md section 6 is drawn in a forced record: a size a
+"""How large each named cause of docs/MODEL.md section 6 is drawn in a forced record: a size a
 real rig can have, scaled to the response it acts on so that it shows above the noise.
 
-Parameter names and units are those of MODEL.md sections 6 and 7.
+Parameter names and units are those of docs/MODEL.md sections 6 and 7.
 """
 
 from __future__ import annotations
@@ -52,7 +52,7 @@ def draw_cause_values(
     noise_rad: float,
     gravity_torque_N_m: float,
 ) -> dict[str, float]:
-    """The parameters of cause ``name`` (MODEL.md keys), drawn from ``rng``."""
+    """The parameters of cause ``name`` (docs/MODEL.md keys), drawn from ``rng``."""
     viscous = 2.0 * zeta * omega_rad_s  # 1/s, the baseline's damping coefficient of theta'
     if name == "coulomb_friction":
         # dry friction dissipating 0.5-2 times the viscous damping's energy per cycle:
@@ -107,6 +107,6 @@ def draw_cause_values(
 def typical_penetration_m(
     speed_m_s: float, *, m_kg: float, l_m: float, L_m: float, K_N_per_m1_5: float
 ) -> float:
-    """Deepest penetration of a Hertz impact at ``speed_m_s`` (MODEL.md section 4)."""
+    """Deepest penetration of a Hertz impact at ``speed_m_s`` (docs/MODEL.md section 4)."""
     m_eff = m_kg * L_m**2 / l_m**2
     return (5.0 * m_eff * speed_m_s**2 / (4.0 * K_N_per_m1_5)) ** 0.4

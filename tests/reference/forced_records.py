@@ -51,7 +51,7 @@ PILOT_S = 10.0  # baseline run that sizes a cause to the response it acts on
 
 @dataclass(frozen=True)
 class RigTruth:
-    """The rig's true constants (MODEL.md section 3 names)."""
+    """The rig's true constants (docs/MODEL.md section 3 names)."""
 
     m_kg: float
     l_m: float
@@ -116,7 +116,7 @@ class TrueMotion:
 class ForcedCase:
     """Everything drawn for one forced record: the truth the analysis must find.
 
-    ``causes`` maps each named cause at work (MODEL.md section 6) to its parameters;
+    ``causes`` maps each named cause at work (docs/MODEL.md section 6) to its parameters;
     ``attempt`` is the sub-seed that met a requested regime (0: the seed itself).
     ``regime_truth.settling`` tells how settled a periodic record's start still is;
     ``motion`` keeps the noiseless run the regime was judged on (not compared).

@@ -1,4 +1,4 @@
-"""Reference simulator of the impact pendulum, written from MODEL.md alone on scipy's DOP853.
+"""Reference simulator of the impact pendulum, written from docs/MODEL.md alone on scipy's DOP853.
 
 An oracle for tests and benchmarks: it shares no code with the project's integrator
 (``analysis.simulate``) or its virtual rig, so an error in either cannot cancel against
@@ -32,7 +32,7 @@ class OverTheTopError(ValueError):
 
 @dataclass(frozen=True)
 class Pendulum:
-    """The physical truth of MODEL.md section 2 with the dynamics causes of section 6.
+    """The physical truth of docs/MODEL.md section 2 with the dynamics causes of section 6.
 
     ``K_n`` is the contact stiffness in N/m^n (Hertz: n = 1.5, K = (4/3) E sqrt(R));
     ``c_N_s_per_m`` adds Kelvin-Voigt contact damping, ``Tc_N_m`` pivot dry friction with

@@ -1,4 +1,4 @@
-"""The reference simulator against the analytic oracles of MODEL.md section 4 and the
+"""The reference simulator against the analytic oracles of docs/MODEL.md section 4 and the
 exact laws of its non-smooth terms (Hertz impact, Coulomb decay, stick and slip, clamp)."""
 
 from __future__ import annotations
@@ -201,7 +201,7 @@ def test_bad_input_is_named():
      (2.0, 0.375, "contact_damping_law", {"c_N_s_per_m": 2.0})],
 )
 def test_agrees_with_the_project_integrator(frequency_hz, beta, cause, values):
-    """Two independent implementations of MODEL.md: a test of both."""
+    """Two independent implementations of docs/MODEL.md: a test of both."""
     from analysis.model import Drive, Model, RigParameters
     from analysis.simulate import simulate
 
