@@ -16,7 +16,8 @@ from typing import Any
 
 import numpy as np
 
-EXPERIMENTS = ("free_decay", "impact_decay", "forced")
+from analysis.experiments import NAMES, experiment_kind
+
 REQUIRED_COLUMNS = ("time_s", "angle_rad")
 OPTIONAL_COLUMNS = ("table_m", "tach")
 RIG_KEYS = ("m_kg", "l_m", "R_m", "g")
@@ -99,9 +100,9 @@ def meta_from_json(raw: Any, path: str | Path) -> ExchangeMeta:
     if not isinstance(raw, dict):
         raise ExchangeFormatError(f"{path}: expected a JSON object at the top level")
     experiment = raw.get("experiment")
-    if experiment not in EXPERIMENTS:
+    if experiment not in NAMES:
         raise ExchangeFormatError(
-            f"{path}: 'experiment' is {experiment!r}; expected one of {', '.join(EXPERIMENTS)}"
+            f"{path}: 'experiment' is {experiment!r}; expected one of {', '.join(NAMES)}"
         )
     rig_raw = raw.get("rig") or {}
     if not isinstance(rig_raw, dict):
@@ -115,7 +116,7 @@ def meta_from_json(raw: Any, path: str | Path) -> ExchangeMeta:
             key: _optional_positive(path, f"drive.{key}", value, allow_zero=True)
             for key, value in drive.items()
         }
-    if experiment == "forced":
+    if experiment_kind(experiment).driven:
         for key in ("frequency_hz",):
             if not drive or drive.get(key) is None:
                 raise ExchangeFormatError(

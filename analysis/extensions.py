@@ -51,6 +51,9 @@ class Cause:
     doc: str
     dynamics: DynamicsHook | None = None
     measurement: MeasurementHook | None = None
+    # what a record needs for this cause to show in it (analysis.experiments: "barrier",
+    # "drive", "harmonics"); the experiment kind says why it cannot where one is missing
+    needs: frozenset[str] = frozenset()
 
     def values(self, given: Mapping[str, float]) -> dict[str, float]:
         """Complete, validated parameter values (defaults filled in)."""
@@ -211,6 +214,7 @@ register(
         (ParameterSpec("theta_b_rad", 0.0, -0.5, 0.5, "barrier surface angle, rad"),),
         "Barrier surface not at theta = 0: contact while theta > theta_b.",
         dynamics=_barrier_offset,
+        needs=frozenset({"barrier"}),
     )
 )
 register(
@@ -223,6 +227,7 @@ register(
         ),
         "Force-penetration law K_n delta^n instead of Hertz's delta^(3/2).",
         dynamics=_contact_exponent,
+        needs=frozenset({"barrier"}),
     )
 )
 register(
@@ -232,6 +237,7 @@ register(
         (ParameterSpec("c_N_s_per_m", 0.0, 0.0, 1.0e4, "Kelvin-Voigt contact damping, N s/m"),),
         "Kelvin-Voigt contact dissipation K delta^(3/2) + c deltadot instead of Hunt-Crossley.",
         dynamics=_kelvin_voigt,
+        needs=frozenset({"barrier"}),
     )
 )
 register(
@@ -244,6 +250,7 @@ register(
         ),
         "Table motion with a second harmonic: A h2 sin(2 Omega t + phi2).",
         dynamics=_distortion,
+        needs=frozenset({"drive"}),
     )
 )
 register(
@@ -253,6 +260,7 @@ register(
         (ParameterSpec("eps", 0.0, -0.9, 9.0, "relative error of the stated amplitude"),),
         "True table amplitude A (1 + eps).",
         dynamics=_amplitude,
+        needs=frozenset({"drive"}),
     )
 )
 register(
@@ -280,5 +288,6 @@ register(
         (ParameterSpec("tau_s", 0.0, 0.0, 1.0, "first-order low-pass time constant, s"),),
         "Angle channel low-pass filtered with time constant tau.",
         measurement=_lag,
+        needs=frozenset({"harmonics"}),
     )
 )

@@ -17,7 +17,8 @@ from types import MappingProxyType
 
 import numpy as np
 
-from analysis.exchange import EXPERIMENTS, read_exchange
+from analysis.exchange import read_exchange
+from analysis.experiments import NAMES, ExperimentKind, experiment_kind
 from analysis.model import G_STANDARD, Drive, RigParameters
 
 
@@ -52,10 +53,10 @@ class Record:
                 f"{self.source or 'record'}: time_s and angle_rad must be 1-D of equal length, "
                 f"got shapes {time_s.shape} and {angle.shape}"
             )
-        if self.experiment not in EXPERIMENTS:
+        if self.experiment not in NAMES:
             raise RecordFormatError(
                 f"{self.source or 'record'}: experiment {self.experiment!r}; expected one of "
-                f"{', '.join(EXPERIMENTS)}"
+                f"{', '.join(NAMES)}"
             )
         object.__setattr__(self, "time_s", time_s)
         object.__setattr__(self, "angle_rad", angle)
@@ -65,6 +66,11 @@ class Record:
         if self.table_m is not None:
             object.__setattr__(self, "table_m", np.asarray(self.table_m, dtype=float))
         object.__setattr__(self, "tach_indices", np.asarray(self.tach_indices, dtype=np.int64))
+
+    @property
+    def kind(self) -> ExperimentKind:
+        """The kind of experiment (its facts: barrier, drive, what it determines)."""
+        return experiment_kind(self.experiment)
 
     @property
     def sample_rate_hz(self) -> float:

@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 
 import analysis.hdf5_records  # noqa: F401  (registers the .h5 loader with load_record)
+from analysis.experiments import FREE_DECAY
 from analysis.identify import IdentificationResult, fit_drive, fit_free_decay, fit_impact_decay
 from analysis.identify.free_decay import averaging_solution, simulated_free_decay
 from analysis.model import Drive, Model
@@ -58,11 +59,11 @@ def identify_recording(path: str | Path, experiment: str | None = None) -> Model
             notes=record.notes,
         )
     t = record.time_s - record.time_s[0]
-    if record.experiment == "free_decay":
+    if record.kind is FREE_DECAY:
         result = fit_free_decay(record)
         model_t, model = _free_decay_response(record, t, result)
         return ModelOverlay(str(path), "angle", t, record.angle_rad, model_t, model, result)
-    if record.experiment == "impact_decay":
+    if not record.kind.driven:
         result = fit_impact_decay(record)
         model_t, model = _impact_decay_response(record, t, result)
         return ModelOverlay(str(path), "angle", t, record.angle_rad, model_t, model, result)

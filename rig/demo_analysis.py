@@ -15,6 +15,7 @@ from typing import Any
 
 import numpy as np
 
+from analysis.experiments import FREE_DECAY, IMPACT_DECAY
 from rig.demo import ANALYSIS, NONE, DemoError, DemoSettings, Progress, indented
 from rig.demo_report import write_json
 
@@ -144,18 +145,15 @@ def analyse_discrepancies(
         notes.append(f"the discrepancy analysis is not available in this installation ({error})")
         say(f"  skipped: {notes[-1]}")
         return {}
-    chosen = {
-        "free_decay": records["free_decay"],
-        "impact_decay": records["impact_decay"],
-    }
+    chosen = {kind.name: records[kind.name] for kind in (FREE_DECAY, IMPACT_DECAY)}
     steps = records["sweep_steps"]
     if steps and settings.analyze_forced_step:
         chosen["forced_step"] = _forced_step_to_analyse(steps, regimes)
     findings: dict[str, dict[str, Any]] = {}
     for name, record in chosen.items():
         causes = None
-        found = findings.get("free_decay", {}).get("cause", NONE)
-        if name == "impact_decay" and settings.carry_free_decay_finding and found != NONE:
+        found = findings.get(FREE_DECAY.name, {}).get("cause", NONE)
+        if name == IMPACT_DECAY.name and settings.carry_free_decay_finding and found != NONE:
             causes = [found]
             notes.append(
                 f"quick demo: the impact decay was checked for {found} only (what the free "
@@ -183,8 +181,8 @@ FORCED_PRIORS = ("omega_rad_s", "zeta", "K_N_per_m1.5", "mu0_s_per_m")
 
 
 def _forced_step_to_analyse(steps: list[Any], regimes: list[dict[str, Any]]):
-    """A settled periodic step (a forced record is fitted point by point): the lowest period,
-    then the smallest drive, preferring the way down (longer settled); else the first step."""
+    """A settled periodic step: the lowest period, then the smallest drive, preferring the way
+    down (longer settled); else the first step."""
     periodic = [
         (r["period"], r["direction"] != "down", r["beta"], r["step"])
         for r in regimes
@@ -283,11 +281,11 @@ def explained_parameters(
 
     out = {key: dict(value) for key, value in baseline.items()}
     sources = {
-        "free_decay": ("L_m", "omega_rad_s", "zeta"),
-        "impact_decay": ("K_N_per_m1.5", "E_Pa", "mu0_s_per_m", "theta_b_rad"),
+        FREE_DECAY.name: ("L_m", "omega_rad_s", "zeta"),
+        IMPACT_DECAY.name: ("K_N_per_m1.5", "E_Pa", "mu0_s_per_m", "theta_b_rad"),
     }
     causes: dict[str, dict[str, float]] = {}
-    for name in ("impact_decay", "free_decay"):
+    for name in (IMPACT_DECAY.name, FREE_DECAY.name):
         report = findings.get(name)
         if not report:
             continue

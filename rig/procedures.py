@@ -19,6 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
+from analysis.experiments import FORCED, experiment_kind
 from analysis.provenance import invocation_operator, provenance
 from drivers.interfaces import DeviceError, SampleBlock
 from rig.devices import ANGLE, TABLE, TACH, RigDevices
@@ -357,10 +358,11 @@ def record_decay(
 ) -> ProcedureResult:
     """Free decay (barrier removed) or impact decay (barrier in): wait for the release with a
     pre-trigger buffer, then record until the amplitude falls below ``stop_below_rad``."""
-    if plan.experiment not in ("free_decay", "impact_decay"):
+    kind = experiment_kind(plan.experiment)
+    if kind.driven:
         raise ValueError(f"experiment {plan.experiment!r}; expected free_decay or impact_decay")
     progress = progress or (lambda text: None)
-    devices.set_barrier(plan.experiment == "impact_decay")
+    devices.set_barrier(kind.barrier)
     meta = base_metadata(devices, plan.experiment, notes, None, asdict(plan))
     session = ProcedureSession(
         devices,
@@ -479,7 +481,7 @@ def run_sweep(
         limits.check("amplitude_m", amplitude_m, 0.0, limits.max_amplitude_m, "m")
     first = plan.steps()[0]
     drive = {"frequency_hz": first[1], "amplitude_m": first[2]}
-    meta = base_metadata(devices, "forced", notes, drive, asdict(plan))
+    meta = base_metadata(devices, FORCED.name, notes, drive, asdict(plan))
     session = ProcedureSession(
         devices, path, meta, overwrite=overwrite, progress=progress, compression=compression
     )
@@ -537,4 +539,4 @@ def run_sweep(
                 )
             )
             done += 1
-    return session.result("forced", steps=done)
+    return session.result(FORCED.name, steps=done)

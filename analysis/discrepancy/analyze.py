@@ -55,17 +55,18 @@ def prepare_data(record: Record) -> tuple[FitData, list[str]]:
     decimated to at most MAX_FIT_SAMPLES samples, noise level from the full-rate data."""
     notes: list[str] = []
     experiment = record.experiment
+    kind = record.kind
     signal = prepare(record.time_s, record.angle_rad, detect_release=True)
     t, y, valid, noise = signal.time_s, signal.angle_rad, signal.valid, signal.noise_rad
     notes.extend(signal.notes)
-    limit = MAX_FIT_SAMPLES if experiment == "free_decay" else MAX_FIT_SAMPLES_WITH_CONTACT
+    limit = MAX_FIT_SAMPLES_WITH_CONTACT if kind.barrier else MAX_FIT_SAMPLES
     stride = max(1, math.ceil(t.size / limit))
     if stride > 1:
         notes.append(f"fitted on every {stride}th sample ({t.size} -> {-(-t.size // stride)})")
     t, y, valid = t[::stride], y[::stride], valid[::stride].copy()
     data = FitData(
         experiment=experiment, t=t - t[0], y=y, valid=valid, noise_rad=float(noise),
-        rig=record.rig_parameters(), drive=Drive(), barrier=experiment != "free_decay",
+        rig=record.rig_parameters(), drive=Drive(), barrier=kind.barrier,
     )
     return data, notes
 
@@ -77,7 +78,7 @@ def baseline_start(
     values of parameters the baseline holds (sensor zero, barrier position), which start
     the candidates that free them."""
     notes: list[str] = []
-    if data.experiment == "free_decay":
+    if not data.barrier:
         result = fit_free_decay(record)
         hints = {"offset_rad": result["offset_rad"].value}
         fitted = result.details["fitted"]
@@ -91,7 +92,7 @@ def baseline_start(
             "theta0_rad": result["theta0_rad"].value, "theta_dot0_rad_s": theta_dot0,
             "omega_rad_s": omega, "zeta": zeta,
         }, hints, notes
-    if data.experiment == "impact_decay":
+    if data.barrier:
         try:
             result = fit_impact_decay(record)
         except (OverflowError, FloatingPointError) as error:
@@ -246,7 +247,7 @@ def analyze_record(
     processes fit a decay's candidates (a forced record's fits use that many threads).
     """
     workers = workers if workers is not None else min(2, os.cpu_count() or 1)
-    if record.experiment == "forced":
+    if record.kind.driven:
         return analyze_forced(record, priors=priors, causes=causes, progress=progress,
                               threads=workers)
     return analyze_decay(record, workers=workers, progress=progress, causes=causes)
@@ -330,7 +331,7 @@ def analyze_decay(
         excluded=excluded_for(data.experiment), chosen=chosen, localization=localization,
         timings=timings, notes=notes,
     )
-    if data.experiment == "impact_decay":
+    if data.barrier:
         say("constant coefficient of restitution against Hunt-Crossley")
         analysis.restitution = compare_restitution(data, n_train, baseline, baseline_heldout,
                                                    base_sim)

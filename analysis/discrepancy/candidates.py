@@ -1,42 +1,19 @@
-"""Which named causes can show in which kind of experiment, and how a fit of each one starts.
+"""Which named causes are candidates on a record, and how a fit of each one starts.
 
 The fitter is one general mechanism over the registry ``analysis.extensions.CAUSES``;
-this module only declares facts about the causes: the experiments where a cause
-leaves a trace in the angle record (and, where it cannot, why not), the baseline
-parameters whose role a cause's parameters take over, and each parameter's
-finite-difference step and start value, scaled to the record at hand.
+a cause can show in a kind of experiment when the kind provides what the cause needs
+(:mod:`analysis.experiments`).  This module declares the rest: the baseline parameters
+whose role a cause's parameters take over, and each parameter's finite-difference step
+and start value, scaled to the record at hand.
 """
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 
+from analysis.experiments import experiment_kind
 from analysis.extensions import CAUSES, Cause
-
-EXPERIMENTS = ("free_decay", "impact_decay", "forced")
-
-NO_BARRIER = "a free decay has no barrier, so a contact law or barrier position cannot show"
-NO_DRIVE = "the table does not move in a decay, so the excitation cannot show"
-LAG_IS_PHASE = (
-    "a damped sinusoid passed through a first-order lag is again a damped sinusoid: the lag "
-    "only shifts its phase and scales it, which the initial state absorbs"
-)
-
-# cause -> experiment -> None (can show) or the reason it cannot
-VISIBILITY: dict[str, dict[str, str | None]] = {
-    "coulomb_friction": {"free_decay": None, "impact_decay": None, "forced": None},
-    "quadratic_drag": {"free_decay": None, "impact_decay": None, "forced": None},
-    "barrier_offset": {"free_decay": NO_BARRIER, "impact_decay": None, "forced": None},
-    "contact_exponent": {"free_decay": NO_BARRIER, "impact_decay": None, "forced": None},
-    "contact_damping_law": {"free_decay": NO_BARRIER, "impact_decay": None, "forced": None},
-    "sensor_offset": {"free_decay": None, "impact_decay": None, "forced": None},
-    "sensor_nonlinearity": {"free_decay": None, "impact_decay": None, "forced": None},
-    "sensor_lag": {"free_decay": LAG_IS_PHASE, "impact_decay": None, "forced": None},
-    "excitation_distortion": {"free_decay": NO_DRIVE, "impact_decay": NO_DRIVE, "forced": None},
-    "excitation_amplitude": {"free_decay": NO_DRIVE, "impact_decay": NO_DRIVE, "forced": None},
-}
 
 # Baseline parameters a cause makes redundant: its own parameters play their part.
 REPLACES: dict[str, tuple[str, ...]] = {
@@ -146,22 +123,17 @@ def plan_for(cause: Cause, scale: RecordScale) -> dict[str, ParameterPlan]:
 
 
 def candidates_for(experiment: str) -> list[Cause]:
-    """The registered causes that can show in ``experiment`` (undeclared causes: all kinds)."""
-    if experiment not in EXPERIMENTS:
-        raise ValueError(f"experiment {experiment!r}; expected one of {EXPERIMENTS}")
-    return [c for c in CAUSES.values() if VISIBILITY.get(c.name, {}).get(experiment) is None]
+    """The registered causes that can show in a record of ``experiment``."""
+    kind = experiment_kind(experiment)
+    return [c for c in CAUSES.values() if kind.hidden_reason(c.needs) is None]
 
 
 def excluded_for(experiment: str) -> dict[str, str]:
-    """Causes that cannot show in ``experiment``, each with the reason."""
+    """Causes that cannot show in a record of ``experiment``, each with the reason."""
+    kind = experiment_kind(experiment)
     out = {}
-    for name in CAUSES:
-        reason = VISIBILITY.get(name, {}).get(experiment)
+    for c in CAUSES.values():
+        reason = kind.hidden_reason(c.needs)
         if reason is not None:
-            out[name] = reason
+            out[c.name] = reason
     return out
-
-
-def is_log_range(lower: float, upper: float) -> bool:
-    """True for strictly positive ranges spanning decades (fitted on a log scale)."""
-    return lower > 0 and upper / lower > 1e3 and math.isfinite(upper)

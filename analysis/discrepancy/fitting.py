@@ -22,7 +22,8 @@ from analysis.discrepancy.candidates import REPLACES, ParameterPlan, RecordScale
 from analysis.extensions import NONE, cause
 from analysis.identify.intervals import Z95, sandwich_covariance
 from analysis.identify.result import Estimate
-from analysis.model import Drive, Model, P, RigParameters
+from analysis.model import Drive, Model, RigParameters
+from analysis.model_values import measured_angle, model_from_values, packed_from_values
 from analysis.simulate import SimulationResult, simulate_packed
 
 RTOL = 1e-8
@@ -30,15 +31,9 @@ ATOL = 1e-10
 MAX_ITERATIONS = 25
 START_INSIDE = 10.0  # steps between a start value and a bound
 
-BASELINE_PARAMETERS: dict[str, tuple[str, ...]] = {
-    "free_decay": ("theta0_rad", "theta_dot0_rad_s", "omega_rad_s", "zeta"),
-    "impact_decay": (
-        "theta0_rad", "theta_dot0_rad_s", "omega_rad_s", "zeta", "K_N_per_m1.5", "mu0_s_per_m",
-    ),
-    "forced": (
-        "theta0_rad", "theta_dot0_rad_s", "omega_rad_s", "zeta", "K_N_per_m1.5", "mu0_s_per_m",
-    ),
-}
+# the baseline parameters a decay fit adjusts; the contact's only with the barrier in
+SWING_PARAMETERS = ("theta0_rad", "theta_dot0_rad_s", "omega_rad_s", "zeta")
+CONTACT_PARAMETERS = ("K_N_per_m1.5", "mu0_s_per_m")
 POSITIVE = {"omega_rad_s", "K_N_per_m1.5"}  # fitted on a log scale
 BOUNDS = {
     "theta0_rad": (-math.pi, math.pi),  # large free swings start beyond the horizontal
@@ -112,21 +107,7 @@ class FitResult:
 
 def build_model(data: FitData, cause_name: str, values: Mapping[str, float]) -> Model:
     """The model of the given baseline values, extended by the cause (``none``: baseline)."""
-    omega = values["omega_rad_s"]
-    rig = data.rig.with_values(
-        L_m=data.rig.g_m_s2 / omega**2,
-        zeta=values["zeta"],
-        mu0_s_per_m=values.get("mu0_s_per_m", 0.0),
-    )
-    if "K_N_per_m1.5" in values:
-        rig = rig.with_stiffness(values["K_N_per_m1.5"])
-    model = Model(rig=rig, drive=data.drive, barrier=data.barrier)
-    if cause_name != NONE:
-        c = cause(cause_name)
-        model = model.with_extension(
-            cause_name, **{s.name: values[s.name] for s in c.parameters if s.name in values}
-        )
-    return model
+    return model_from_values(data.rig, data.drive, data.barrier, values, (cause_name,))
 
 
 def predict(
@@ -134,9 +115,8 @@ def predict(
 ) -> tuple[np.ndarray, SimulationResult]:
     """The angle the sensor would report under the model, at the record's sample times."""
     n = data.t.size if n is None else n
-    model = build_model(data, cause_name, values)
-    p = model.pack()
-    p[P.PHASE0] = data.phase0_rad
+    p = packed_from_values(data.rig, data.drive, data.barrier, values, (cause_name,),
+                           data.phase0_rad)
     sim = simulate_packed(
         p, values["theta0_rad"], values["theta_dot0_rad_s"], n * data.dt, 1.0 / data.dt,
         poincare_phase=None, rtol=RTOL, atol=ATOL,
@@ -147,13 +127,7 @@ def predict(
         # a large residual and steps back instead of failing.
         last = theta[-1] if theta.size else values["theta0_rad"]
         theta = np.concatenate([theta, np.full(n - theta.size, last)])
-    if cause_name != NONE:
-        c = cause(cause_name)
-        if c.measurement is not None:
-            t = np.arange(n) * data.dt
-            own = {s.name: values[s.name] for s in c.parameters}
-            theta = c.measurement(t, theta, c.values(own))
-    return theta, sim
+    return measured_angle((cause_name,), values, np.arange(n) * data.dt, theta), sim
 
 
 def free_parameters(
@@ -162,7 +136,7 @@ def free_parameters(
     """name -> (start value, plan, lower, upper) of every parameter the fit adjusts."""
     replaced = REPLACES.get(cause_name, ())
     out: dict[str, tuple[float, ParameterPlan, float, float]] = {}
-    for name in BASELINE_PARAMETERS[data.experiment]:
+    for name in SWING_PARAMETERS + (CONTACT_PARAMETERS if data.barrier else ()):
         if name in replaced:
             continue
         value = start[name]

@@ -44,6 +44,7 @@ from analysis.discrepancy.selection import (
 )
 from analysis.dynamics.measured_regime import judge_record_regime
 from analysis.dynamics.regime import Regime
+from analysis.experiments import FORCED
 from analysis.extensions import NONE, cause
 from analysis.identify.forced import (
     BASELINE_PLANS,
@@ -51,6 +52,7 @@ from analysis.identify.forced import (
     ForcedData,
     ForcedIdentification,
     ForcedModel,
+    clock_parameter,
     fit_model,
     fit_over_record,
     forced_data,
@@ -106,7 +108,7 @@ def layouts(data: ForcedData) -> Layouts:
 def fit_data_view(data: ForcedData) -> FitData:
     """The forced record as the shared report and localisation code sees a record."""
     return FitData(
-        experiment="forced", t=data.t, y=data.y, valid=data.valid, noise_rad=data.noise_rad,
+        experiment=FORCED.name, t=data.t, y=data.y, valid=data.valid, noise_rad=data.noise_rad,
         rig=data.rig, drive=data.drive.model_drive(), barrier=True,
         phase0_rad=data.drive.phase0_rad,
     )
@@ -170,9 +172,11 @@ def candidate_parameters(
 ) -> list[FreeParameter]:
     """Free parameters of the baseline extended by ``cause_name``."""
     extra = []
-    if not data.drive.phase_known:
-        extra.append(FreeParameter("drive_phase_rad", start["drive_phase_rad"], 1e-5, False,
-                                   -2 * math.pi, 2 * math.pi))
+    if not data.drive.timing_known:
+        extra.append(clock_parameter(start["drive_frequency_hz"]))
+        phase = start["drive_phase_rad"]
+        extra.append(FreeParameter("drive_phase_rad", phase, 1e-5, False, phase - math.pi,
+                                   phase + math.pi))
     if cause_name != NONE:
         c = cause(cause_name)
         plans = plan_for(c, scale)
@@ -217,8 +221,9 @@ def screen_cause(
     own free barrier, sensor zero and phase made for an effect it lacks.)"""
     model = ForcedModel(data, () if cause_name == NONE else (cause_name,))
     start = {k: v for k, v in ident.start.items() if k in BASELINE_PLANS}
-    if not data.drive.phase_known:
+    if not data.drive.timing_known:
         start["drive_phase_rad"] = ident.start["drive_phase_rad"]
+        start["drive_frequency_hz"] = ident.start["drive_frequency_hz"]
     free = candidate_parameters(data, cause_name, start, scale, hints)
     states = smoothed_states(data, ident.short.start, 0.0)
     fit, _ = fit_model(model, ident.short, free, {}, states, threads=threads,
@@ -271,7 +276,8 @@ def model_invariants_distance(
     causes = () if cause_name == NONE else (cause_name,)
     values = fit.values
     phase = values.get("drive_phase_rad", data.drive.phase0_rad)
-    p = packed_from_values(data.rig, data.drive.model_drive(), True, values, causes, phase)
+    drive = data.drive.model_drive(values.get("drive_frequency_hz"))
+    p = packed_from_values(data.rig, drive, True, values, causes, phase)
     n = MODEL_INVARIANT_SPAN * data.t.size
     sim = simulate_packed(p, float(fit.states[0, 0]), float(fit.states[0, 1]), n * data.dt,
                           1.0 / data.dt, poincare_phase=None, rtol=1e-8, atol=1e-10)
@@ -365,7 +371,7 @@ def analyze_forced_fits(
     lay = layouts(data)
     start = {k: ident.values[k] for k in BASELINE_PLANS}
     hints = cause_hints(ident)
-    names = [c.name for c in candidates_for("forced")]
+    names = [c.name for c in candidates_for(FORCED.name)]
     if causes is not None:
         names = [n for n in names if n in causes]
     scale = record_scale(data, start)
@@ -515,7 +521,7 @@ def analyze_forced(
         record=record, data=view, n_train=view.t.size,
         baseline_train=as_fit_result(base.train if base.train is not None else base.full, NONE),
         baseline=baseline, baseline_prediction=base.full.prediction, candidates=candidates,
-        excluded=excluded_for("forced"), chosen=chosen, localization=localization,
+        excluded=excluded_for(FORCED.name), chosen=chosen, localization=localization,
         zero_one_k=regime.evidence.get("K"), chaotic=chaotic, timings=timings, notes=notes,
         regime=regime_summary(regime), drive=data.drive.as_json(),
         baseline_heldout_rms=base.train.forecast_rms if base.train is not None else None,

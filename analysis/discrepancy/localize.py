@@ -156,7 +156,7 @@ def localize(
         )
     else:
         words.append(f"the baseline leaves {rms:.2g} rad rms, {ratio:.3g} x the noise")
-        if shape and data.experiment == "free_decay":
+        if shape and not data.barrier:
             lin, ex = shape["linear_fit_rms"], shape["exponential_fit_rms"]
             early, late = shape["decay_rate_early_per_s"], shape["decay_rate_late_per_s"]
             if lin < 0.7 * ex and late > 1.3 * early:

@@ -112,10 +112,20 @@ class MeasuredDrive:
         """False when neither tach nor table tells the phase (the fit must find it)."""
         return self.phase_source != "unknown"
 
-    def model_drive(self) -> Drive:
+    @property
+    def timing_known(self) -> bool:
+        """True when the table channel times the drive: its thousands of samples place the
+        phase and frequency far better than the angle's fit needs.  A tach alone does not:
+        pulses quantised to a sample leave the frequency a few parts in 1e6 off and the
+        phase a milliradian or so, which over a minute at 10 Hz moves the response by more
+        than a quiet sensor's noise, so the fits refine both from the angle itself."""
+        return self.table is not None
+
+    def model_drive(self, frequency_hz: float | None = None) -> Drive:
         """The baseline model's drive: the stated amplitude, a pure sine, at the measured
-        frequency (its phase goes into the packed vector as PHASE0)."""
-        return Drive(amplitude_m=self.stated_amplitude_m, frequency_hz=self.frequency_hz)
+        frequency (or the one given; its phase goes into the packed vector as PHASE0)."""
+        return Drive(amplitude_m=self.stated_amplitude_m,
+                     frequency_hz=self.frequency_hz if frequency_hz is None else frequency_hz)
 
     def as_json(self) -> dict[str, Any]:
         """The measured drive against the stated one, for reports."""
@@ -186,10 +196,11 @@ def measure_drive(record: Record) -> MeasuredDrive:
     table = None
     phase, phase_source = 0.0, "unknown"
     if _has_table(record):
-        omega = 2.0 * math.pi * frequency
-        if clock is None:
-            omega = _refine_frequency(t, np.asarray(record.table_m, dtype=float), omega)
-            frequency, source = omega / (2.0 * math.pi), "table"
+        # the table's samples time the drive better than the tach's pulses (see timing_known)
+        omega = _refine_frequency(t, np.asarray(record.table_m, dtype=float),
+                                  2.0 * math.pi * frequency,
+                                  span=2e-4 if clock is not None else 2e-2)
+        frequency, source = omega / (2.0 * math.pi), "table"
         table = fit_table(t, np.asarray(record.table_m, dtype=float), omega)
         phase, phase_source = table.phase_rad.value, "table"
         eps = table.amplitude_m.value / a_stated - 1.0
@@ -219,8 +230,9 @@ def measure_drive(record: Record) -> MeasuredDrive:
     )
 
 
-def _refine_frequency(t: np.ndarray, x: np.ndarray, omega: float) -> float:
-    """The angular frequency within 2 % of ``omega`` that best fits the table channel."""
+def _refine_frequency(t: np.ndarray, x: np.ndarray, omega: float, span: float = 2e-2) -> float:
+    """The angular frequency within ``span`` (relative) of ``omega`` that best fits the table
+    channel."""
     good = np.isfinite(x)
     tt, xx = t[good], x[good]
 
@@ -229,8 +241,8 @@ def _refine_frequency(t: np.ndarray, x: np.ndarray, omega: float) -> float:
         coef, *_ = np.linalg.lstsq(basis, xx, rcond=None)
         return float(np.sum((basis @ coef - xx) ** 2))
 
-    found = minimize_scalar(misfit, bounds=(0.98 * omega, 1.02 * omega), method="bounded",
-                            options={"xatol": 1e-9 * omega})
+    found = minimize_scalar(misfit, bounds=((1 - span) * omega, (1 + span) * omega),
+                            method="bounded", options={"xatol": 1e-10 * omega})
     return float(found.x)
 
 

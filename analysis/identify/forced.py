@@ -91,7 +91,7 @@ class ForcedData:
 
 def forced_data(record: Record) -> ForcedData:
     """Bad samples out, noise from the data, the drive measured."""
-    if record.experiment != "forced":
+    if not record.kind.driven:
         raise IdentificationError(f"{record.source or 'record'}: a {record.experiment} record, "
                                   "not a forced one")
     t = record.time_s - record.time_s[0]
@@ -120,8 +120,8 @@ class ForcedModel:
         """The packed vector for the integrator."""
         d = self.data
         phase = values.get("drive_phase_rad", d.drive.phase0_rad)
-        return packed_from_values(d.rig, d.drive.model_drive(), True, values, self.causes,
-                                  phase)
+        drive = d.drive.model_drive(values.get("drive_frequency_hz"))
+        return packed_from_values(d.rig, drive, True, values, self.causes, phase)
 
     def measure(self, values: Mapping[str, float], t: np.ndarray, theta: np.ndarray,
                 theta_dot0: float | None = None) -> np.ndarray:
@@ -257,6 +257,12 @@ def fit_over_record(
     return fit, segments
 
 
+def clock_parameter(frequency_hz: float) -> FreeParameter:
+    """The drive frequency as a fitted parameter (records without tach or table channel)."""
+    return FreeParameter("drive_frequency_hz", frequency_hz, 1e-8, True, 0.99 * frequency_hz,
+                         1.01 * frequency_hz)
+
+
 def free_parameters(
     names: Sequence[str], start: Mapping[str, float], extra: Sequence[FreeParameter] = ()
 ) -> list[FreeParameter]:
@@ -362,8 +368,13 @@ def identify_forced(
     start["drive_phase_rad"] = phase
     extra.append(FreeParameter("drive_phase_rad", phase, 1e-5, False, phase - math.pi,
                                phase + math.pi))
+    if not drive.timing_known:
+        # without the table channel the drive's frequency is the tach's (a few parts in 1e6
+        # off) or the stated one (parts in 1e4): the fit refines it from the angle
+        start["drive_frequency_hz"] = drive.frequency_hz
+        extra.append(clock_parameter(drive.frequency_hz))
     if not drive.phase_known:
-        notes.append("drive phase fitted (neither tach nor table channel)")
+        notes.append("drive frequency and phase fitted (neither tach nor table channel)")
     model = ForcedModel(data, tuple(causes))
     free = free_parameters(list(BASELINE_PLANS), start, extra)
     short = short_segments(data)
@@ -425,7 +436,7 @@ def identification_result(found: ForcedIdentification, experiment: str) -> Ident
         parameters["amplitude_m"] = drive.table.amplitude_m
     if "drive_phase_rad" in est:
         parameters["drive_phase_rad"] = est["drive_phase_rad"]
-    parameters["frequency_hz"] = Estimate(drive.frequency_hz)
+    parameters["frequency_hz"] = est.get("drive_frequency_hz", Estimate(drive.frequency_hz))
     quality = FitQuality(
         rms_residual_rad=fit.rms, noise_rad=data.noise_rad, n_samples=fit.n,
         n_excluded=int(data.valid.size - data.n_valid), variance_inflation=1.0,

@@ -19,6 +19,7 @@ from collections.abc import Callable, Sequence
 import numpy as np
 from scipy.optimize import least_squares
 
+from analysis.experiments import FREE_DECAY
 from analysis.identify.intervals import Z95, Covariance, sandwich_covariance
 from analysis.identify.preprocess import PreparedSignal, prepare
 from analysis.identify.result import Estimate, FitQuality, IdentificationError, IdentificationResult
@@ -362,7 +363,7 @@ def pool_free_decays(results: Sequence[IdentificationResult]) -> IdentificationR
                 f"{birge:.3g}); interval widened accordingly"
             )
     return IdentificationResult(
-        experiment="free_decay",
+        experiment=FREE_DECAY.name,
         method=f"inverse-variance pooling of {len(results)} free-decay fits",
         parameters=pooled,
         quality=worst.quality,

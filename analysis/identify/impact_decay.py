@@ -16,6 +16,7 @@ from collections.abc import Mapping
 import numpy as np
 from scipy.optimize import minimize_scalar
 
+from analysis.experiments import FREE_DECAY
 from analysis.identify.free_decay import SIMULATION_DIFF_STEP, _robust_fit, fit_free_decay
 from analysis.identify.preprocess import PreparedSignal, prepare
 from analysis.identify.result import Estimate, IdentificationError, IdentificationResult
@@ -311,7 +312,7 @@ def _refuse_free_decay(record: Record, signal: PreparedSignal) -> None:
     """Raise when the start of the record is explained by a free swing: no impacts happened."""
     fs = record.sample_rate_hz
     head = slice(signal.start_index, min(signal.stop_index, signal.start_index + int(3.0 * fs)))
-    probe = Record(record.time_s[head], record.angle_rad[head], "free_decay", rig=record.rig)
+    probe = Record(record.time_s[head], record.angle_rad[head], FREE_DECAY.name, rig=record.rig)
     try:
         free = fit_free_decay(probe, detect_release=False)
     except IdentificationError:

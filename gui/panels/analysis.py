@@ -19,12 +19,13 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
+from analysis.experiments import NAMES
 from gui.decimate import min_max_decimate
 
 if TYPE_CHECKING:
     from gui.model_overlay import ModelOverlay
 
-EXPERIMENTS = ("as recorded", "free_decay", "impact_decay", "forced")
+EXPERIMENTS = ("as recorded", *NAMES)
 
 
 class AnalysisPanel(QWidget):

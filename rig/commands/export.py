@@ -64,7 +64,7 @@ def to_exchange(record):
     from analysis.exchange import RIG_KEYS, ExchangeMeta, ExchangeRecord
 
     tach = None
-    if record.tach_indices.size or record.experiment == "forced":
+    if record.tach_indices.size or record.kind.driven:
         tach = np.zeros(record.time_s.size, dtype=np.int64)
         tach[record.tach_indices] = 1
     from analysis.provenance import provenance

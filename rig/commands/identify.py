@@ -23,8 +23,12 @@ The experiment named in the metadata decides the fit:
                 averaging solution up to 0.2 rad amplitude, full simulation beyond
   impact_decay  K (and E for the rig's R), mu0, theta_b by simulating the record;
                 L and zeta held with --hold or --free-decay, else fitted too
-  forced        drive amplitude and phase from the table channel (checked against the
-                tach pulses); model parameters held with --hold / --free-decay
+  forced        everything the record determines on its own: L, zeta, K (and E), mu0,
+                the barrier position and sensor zero, the drive's frequency and phase
+                (tach) and amplitude (table channel, else fitted); start values by
+                equation error in free flight, then multiple shooting over the record.
+                --hold and --free-decay values only start the fit (priors), they are
+                not held
 
 Bad samples (NaN, spikes), a start before the release and a tail at rest are found
 and reported. A poor fit is reported as such, not hidden.
@@ -58,13 +62,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument(
         "--hold",
         default="",
-        help="impact decay / forced: hold parameters, e.g. L_m=0.046,zeta=0.007",
+        help="impact decay: hold parameters, e.g. L_m=0.046,zeta=0.007 (forced: start values)",
     )
     parser.add_argument(
         "--free-decay",
         type=Path,
         dest="free_decay",
-        help="impact decay / forced: take L and zeta from this free-decay record (CSV or HDF5)",
+        help="impact decay: take L and zeta from this free-decay record (CSV or HDF5); "
+        "forced: start from them",
     )
     parser.set_defaults(func=run)
 
@@ -84,6 +89,7 @@ def _parse_hold(text: str) -> dict[str, float]:
 
 def run(args: argparse.Namespace) -> int:
     """Load the record, run the fit its experiment calls for, print and save the report."""
+    from analysis.experiments import FREE_DECAY
     from analysis.identify import IdentificationError, fit_free_decay, pool_free_decays
     from analysis.output_paths import check_outputs, record_inputs
     from analysis.provenance import provenance
@@ -99,7 +105,7 @@ def run(args: argparse.Namespace) -> int:
         records = [load_record(path, args.meta) for path in args.files]
         if len(records) > 1:
             kinds = {r.experiment for r in records}
-            if kinds != {"free_decay"}:
+            if kinds != {FREE_DECAY.name}:
                 raise CommandError(
                     f"several files can only be pooled as free decays; got {sorted(kinds)}"
                 )
@@ -132,10 +138,12 @@ def run(args: argparse.Namespace) -> int:
 
 def _identify_one(args: argparse.Namespace, record: Record) -> IdentificationResult:
     """The fit that the record's experiment calls for."""
+    import math
+
+    from analysis.experiments import FREE_DECAY
     from analysis.identify import (
-        Estimate,
         IdentificationError,
-        fit_drive,
+        fit_forced,
         fit_free_decay,
         fit_impact_decay,
     )
@@ -143,12 +151,13 @@ def _identify_one(args: argparse.Namespace, record: Record) -> IdentificationRes
 
     print(f"identifying {record.source} ({record.experiment}, {record.time_s.size} samples)...",
           file=sys.stderr)
-    if record.experiment == "free_decay":
+    kind = record.kind
+    if kind is FREE_DECAY:
         return fit_free_decay(record)
     hold = _parse_hold(args.hold)
     if args.free_decay:
         decay_record = load_record(args.free_decay)
-        if decay_record.experiment != "free_decay":
+        if decay_record.kind is not FREE_DECAY:
             raise CommandError(
                 f"--free-decay {args.free_decay}: its experiment is {decay_record.experiment}, "
                 "not free_decay"
@@ -161,10 +170,14 @@ def _identify_one(args: argparse.Namespace, record: Record) -> IdentificationRes
             ) from None
         hold.setdefault("L_m", decay["L_m"].value)
         hold.setdefault("zeta", decay["zeta"].value)
-    if record.experiment == "impact_decay":
+    if not kind.driven:
         return fit_impact_decay(record, hold=hold)
-    result = fit_drive(record)
-    # The model of a forced run is held from the decay fits; report what was held.
-    for key, value in hold.items():
-        result.parameters.setdefault(key, Estimate(value))
-    return result
+    unknown = sorted(set(hold) - {"L_m", "zeta", "K_N_per_m1.5", "mu0_s_per_m"})
+    if unknown:
+        raise CommandError(f"--hold: {unknown} cannot start a forced fit; use L_m, zeta, "
+                           "K_N_per_m1.5 or mu0_s_per_m")
+    priors = {k: v for k, v in hold.items() if k != "L_m"}
+    if "L_m" in hold:
+        priors["omega_rad_s"] = math.sqrt(record.gravity_m_s2 / hold["L_m"])
+    return fit_forced(record, priors=priors,
+                      progress=lambda text: print(f"  {text}", file=sys.stderr))

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 
+from analysis.experiments import NAMES
 from rig.cli import CommandError
 from rig.commands.rig_options import (
     ProgressLine,
@@ -16,7 +17,6 @@ from rig.commands.rig_options import (
     run_procedure,
 )
 
-EXPERIMENTS = ("free_decay", "impact_decay", "forced")
 IMPACT_DECAY_FS_HZ = 20_000.0
 
 DESCRIPTION = """\
@@ -59,7 +59,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     add_rig_options(parser)
     run_group = parser.add_argument_group("experiment")
-    run_group.add_argument("--experiment", choices=EXPERIMENTS, help="what to run (see above)")
+    run_group.add_argument("--experiment", choices=NAMES, help="what to run (see above)")
     run_group.add_argument(
         "--duration",
         type=float,
@@ -109,16 +109,18 @@ def run(args: argparse.Namespace) -> int:
     import math
     from functools import partial
 
+    from analysis.experiments import FORCED, FREE_DECAY, IMPACT_DECAY, experiment_kind
     from rig.procedures import DecayPlan, TimedPlan, record_decay, record_timed
 
-    experiment = args.experiment or ("forced" if args.drive_hz is not None else "free_decay")
+    experiment = args.experiment or (FORCED if args.drive_hz is not None else FREE_DECAY).name
+    kind = experiment_kind(experiment)
     if args.duration is None or not args.duration > 0:
         raise CommandError(f"--duration is {args.duration}; expected a positive number of seconds")
     for option, seconds in (("--settle", args.settle), ("--pretrigger", args.pretrigger)):
         if not (math.isfinite(seconds) and seconds >= 0):
             raise CommandError(f"{option} is {seconds}; expected a number of seconds >= 0")
     config = load_rig_config(args)
-    if experiment == "forced":
+    if kind.driven:
         if args.drive_hz is None or (args.beta is None and args.amplitude_mm is None):
             raise CommandError("a forced recording needs --drive-hz and --beta (or --amplitude-mm)")
         amplitude_m = (
@@ -149,7 +151,7 @@ def run(args: argparse.Namespace) -> int:
         )
         procedure = record_decay
     fs = args.fs
-    if fs is None and experiment == "impact_decay":
+    if fs is None and kind is IMPACT_DECAY:
         fs = IMPACT_DECAY_FS_HZ
     path = check_output(args)
     run_plan = partial(

@@ -21,9 +21,9 @@ import time
 from pathlib import Path
 from typing import Any
 
+from analysis.experiments import FORCED, IMPACT_DECAY, NAMES, experiment_kind
 from rig.cli import CommandError
 
-EXPERIMENTS = ("free_decay", "impact_decay", "forced")
 DRIVE_PARAMETERS = {
     "f_drive_hz": "drive frequency [Hz]",
     "A_m": "table displacement amplitude [m]",
@@ -84,7 +84,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     parser.add_argument(
         "--experiment",
-        choices=EXPERIMENTS,
+        choices=NAMES,
         help="free_decay, impact_decay or forced (default: forced with --case or drive "
         "parameters, else impact_decay)",
     )
@@ -190,10 +190,11 @@ def build_model(
             raise CommandError(f"unknown cause {name!r}; known: {', '.join(sorted(CAUSES))}")
     drive_given = any(name in params for name in DRIVE_PARAMETERS)
     if experiment is None:
-        experiment = "forced" if (case or drive_given) else "impact_decay"
-    if case and experiment != "forced":
+        experiment = (FORCED if (case or drive_given) else IMPACT_DECAY).name
+    kind = experiment_kind(experiment)
+    if case and not kind.driven:
         raise CommandError(f"--case {case} is a forced case; it cannot run as {experiment}")
-    if experiment != "forced" and (
+    if not kind.driven and (
         drive_given or any(n in params for n in NONDIMENSIONAL_PARAMETERS)
     ):
         raise CommandError(
@@ -217,7 +218,7 @@ def build_model(
         if "beta" in params:
             amplitude = params["beta"] * rig.L_m
         amplitude = params.get("A_m", amplitude)
-        if experiment == "forced":
+        if kind.driven:
             if frequency <= 0 or amplitude <= 0:
                 raise CommandError(
                     "a forced run needs a drive: --case, or --param f_drive_hz=... with "
@@ -230,7 +231,7 @@ def build_model(
         for name, value in params.items():
             if name in cause_of:
                 extensions.setdefault(cause_of[name], {})[name] = value
-        model = Model(rig, drive, barrier=experiment != "free_decay")
+        model = Model(rig, drive, barrier=kind.barrier)
         for name, values in extensions.items():
             model = model.with_extension(name, **values)
     except ParameterError as error:
@@ -247,7 +248,7 @@ def _metadata(model: Any, experiment: str, args: argparse.Namespace, extra: dict
 
     rig = model.rig
     drive = None
-    if experiment == "forced":
+    if experiment_kind(experiment).driven:
         drive = {
             "frequency_hz": model.drive.frequency_hz,
             "amplitude_m": model.drive.amplitude_m,
@@ -349,7 +350,7 @@ def run(args: argparse.Namespace) -> int:
         angle = measurement.apply(result.t, result.theta, model)
     table = tach = None
     p = model.pack()
-    if experiment == "forced":
+    if experiment_kind(experiment).driven:
         phase = p[P.OMEGA_DRIVE] * result.t + p[P.PHASE0]
         table = p[P.A1] * np.sin(phase) + p[P.A2] * np.sin(2.0 * phase + p[P.PHI2])
         tach = _tach(result.t, p, args.fs)

@@ -7,15 +7,30 @@ import math
 import numpy as np
 import pytest
 
-from analysis.discrepancy.candidates import VISIBILITY, candidates_for, excluded_for
+from analysis.discrepancy.candidates import candidates_for, excluded_for
 from analysis.discrepancy.restitution import restitution_samples
 from analysis.discrepancy.selection import Verdict, choose, correlation_time
+from analysis.experiments import KINDS
 from analysis.extensions import CAUSES
 
 
-def test_every_registered_cause_is_declared_for_every_experiment():
-    for name in CAUSES:
-        assert set(VISIBILITY[name]) == {"free_decay", "impact_decay", "forced"}
+def test_every_cause_is_a_candidate_or_excluded_with_a_reason_in_every_kind():
+    for kind in KINDS.values():
+        shown = {c.name for c in candidates_for(kind.name)}
+        hidden = excluded_for(kind.name)
+        assert shown.isdisjoint(hidden) and shown | set(hidden) == set(CAUSES)
+        assert all(reason.strip() for reason in hidden.values())
+        # every need a cause declares is something some kind provides, and the kinds that
+        # lack it say why
+        for c in CAUSES.values():
+            for need in c.needs:
+                assert any(need in k.provides for k in KINDS.values()), (c.name, need)
+                assert all(need in k.provides or need in k.lacks for k in KINDS.values())
+
+
+def test_unknown_experiment_is_refused_with_the_known_ones():
+    with pytest.raises(ValueError, match="free_decay, impact_decay, forced"):
+        candidates_for("pendulum")
 
 
 def test_free_decay_excludes_contact_drive_and_lag_with_reasons():

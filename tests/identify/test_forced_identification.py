@@ -1,0 +1,130 @@
+"""A forced record identified on its own: the rig's parameters, the barrier, the sensor zero,
+the drive, from one record as a lab records it.
+
+The records come from the independent reference simulator (``tests/reference``: scipy with
+events, not the project's integrator), with the rig, the drive, the noise, the transient
+and the laser drawn from a seed; the identification sees only the CSV + JSON.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from analysis.identify import fit_forced, identify_forced, measure_drive
+from analysis.identify.equation_error import TableMotion, flight_regression
+from analysis.identify.forced import forced_data
+from analysis.records import load_record
+from tests.reference.forced_records import draw_forced_case, write_forced_case
+
+# (seed, cause, frequency, laser): both frequencies, with and without the laser, clean, and a
+# barrier and a sensor zero away from 0 (both are identified, not causes, here)
+RECORDS = {
+    "2 Hz, laser": (4101, "none", 2.0, True),
+    "10 Hz, no laser": (4102, "none", 10.0, False),
+    "barrier moved": (4103, "barrier_offset", 10.0, True),
+    "sensor zero moved": (4104, "sensor_offset", 2.0, False),
+}
+
+
+def _record(tmp_path, seed, cause, frequency, laser):
+    case = draw_forced_case(seed, cause, frequency_hz=frequency, laser=laser, duration_s=30.0)
+    return case, load_record(write_forced_case(case, tmp_path))
+
+
+def _inside(estimate, truth: float, slack: float) -> bool:
+    """Within the 95 % interval widened by ``slack`` (relative) for the smoother's model."""
+    low, high = estimate.ci95
+    pad = slack * abs(truth)
+    return low - pad <= truth <= high + pad
+
+
+@pytest.mark.parametrize("name", list(RECORDS))
+def test_a_forced_record_alone_gives_the_rigs_parameters(name, tmp_path):
+    case, record = _record(tmp_path, *RECORDS[name])
+    result = fit_forced(record)
+    p = result.parameters
+    rig = case.rig
+    assert _inside(p["L_m"], rig.L_m, 0.002), (p["L_m"], rig.L_m)
+    assert _inside(p["zeta"], rig.zeta, 0.1), (p["zeta"], rig.zeta)
+    assert _inside(p["K_N_per_m1.5"], rig.K_N_per_m1_5, 0.05), (p["K_N_per_m1.5"],
+                                                                rig.K_N_per_m1_5)
+    assert _inside(p["mu0_s_per_m"], rig.mu0_s_per_m, 0.05), (p["mu0_s_per_m"],
+                                                              rig.mu0_s_per_m)
+    theta_b = case.causes.get("barrier_offset", {}).get("theta_b_rad", 0.0)
+    offset = case.causes.get("sensor_offset", {}).get("offset_rad", 0.0)
+    noise = case.measurement.angle_noise_rad
+    for key, truth in (("theta_b_rad", theta_b), ("offset_rad", offset)):
+        low, high = p[key].ci95
+        assert low - 2e-4 <= truth <= high + 2e-4, (key, p[key], truth)
+        assert high - low < 5e-3, (key, p[key])  # and known to a few mrad at worst
+    amplitude = case.drive.stated_amplitude_m
+    assert p["amplitude_m"].value == pytest.approx(amplitude, rel=0.01)
+    # the fit explains the record down to its noise
+    assert result.quality.rms_residual_rad < 1.1 * noise
+
+
+def test_the_drive_is_measured_from_the_tach_and_the_table(tmp_path):
+    case, record = _record(tmp_path, 4105, "none", 10.0, True)
+    drive = measure_drive(record)
+    truth = case.drive
+    # the table times the drive: the tach starts it, the table's samples refine it
+    assert drive.frequency_source == "table" and drive.phase_source == "table"
+    assert drive.timing_known
+    # the stated frequency is off by parts in 1e4; the tach finds the true one to parts in
+    # 1e6, the table to parts in 1e8
+    assert abs(drive.clock.frequency_hz / truth.frequency_hz - 1) < 2e-5
+    assert abs(drive.frequency_hz / truth.frequency_hz - 1) < 1e-7
+    assert abs(math.remainder(drive.phase0_rad - truth.phase_rad, 2 * math.pi)) < 0.01
+    assert abs(math.remainder(drive.clock.phase_at_start_rad - truth.phase_rad,
+                              2 * math.pi)) < 0.01
+    assert drive.table.amplitude_m.contains(truth.stated_amplitude_m)
+    report = drive.as_json()
+    assert report["stated"]["frequency_hz"] == truth.stated_frequency_hz
+    assert report["frequency_offset_ppm"] == pytest.approx(
+        1e6 * (truth.frequency_hz / truth.stated_frequency_hz - 1), abs=20)
+
+
+def test_equation_error_starts_within_the_multiple_shootings_reach(tmp_path):
+    # the flight regression must land omega within a few per cent (the short segments
+    # converge from there), with or without the table amplitude known
+    case, record = _record(tmp_path, 4106, "none", 2.0, True)
+    data = forced_data(record)
+    d = data.drive
+    for amplitude in (d.table.amplitude_m.value, None):
+        table = TableMotion(d.omega_rad_s, d.phase0_rad, amplitude)
+        flight = flight_regression(data.t, data.y, data.valid, data.noise_rad, table,
+                                   data.rig.g_m_s2)
+        assert flight.omega_rad_s == pytest.approx(case.rig.omega_rad_s, rel=0.05)
+
+
+def test_decays_only_start_the_fit(tmp_path):
+    # priors far off (a decay of another rig) change where the fit starts, not where it ends
+    case, record = _record(tmp_path, 4101, "none", 2.0, True)
+    alone = identify_forced(record)
+    wrong = {"omega_rad_s": 1.05 * case.rig.omega_rad_s, "zeta": 2 * case.rig.zeta,
+             "K_N_per_m1.5": 3 * case.rig.K_N_per_m1_5, "mu0_s_per_m": 0.5}
+    primed = identify_forced(record, priors=wrong)
+    for key in ("omega_rad_s", "zeta", "K_N_per_m1.5", "mu0_s_per_m"):
+        assert primed.values[key] == pytest.approx(alone.values[key], rel=0.02), key
+
+
+def test_a_record_too_short_is_refused_with_the_reason(tmp_path):
+    case = draw_forced_case(4107, "none", frequency_hz=10.0, duration_s=1.5)
+    record = load_record(write_forced_case(case, tmp_path))
+    with pytest.raises(ValueError, match="at least"):
+        fit_forced(record)
+
+
+def test_without_tach_and_table_the_phase_is_fitted(tmp_path):
+    case, record = _record(tmp_path, 4108, "none", 10.0, False)
+    blind = type(record)(record.time_s, record.angle_rad, record.experiment, rig=record.rig,
+                         drive=record.drive, source=record.source)
+    found = identify_forced(blind)
+    assert not found.data.drive.phase_known
+    assert abs(math.remainder(found.values["drive_phase_rad"] - case.drive.phase_rad,
+                              2 * math.pi)) < 0.05
+    assert found.fit.rms < 1.1 * case.measurement.angle_noise_rad
+    assert np.isfinite(found.values["omega_rad_s"])
