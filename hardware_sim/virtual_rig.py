@@ -26,10 +26,6 @@ from analysis.simulate import SimulationStoppedError, Stepper
 from hardware_sim.shaker_response import ShakerDynamics, ShakerOutput, ShakerResponse
 
 TWO_PI = 2.0 * math.pi
-# A pendulum resting on the barrier has a zero error estimate, so an unbounded step grows
-# to infinity and the integrator never lands on the next sample (the sim-rig froze after
-# a frequency write while idle).  A tenth of a second costs nothing when it binds.
-MAX_STEP_S = 0.1
 CHANNELS = ("angle", "table", "tach")
 
 # Defaults chosen so that rig/default_rig.toml's linear calibrations hold exactly:
@@ -159,9 +155,7 @@ class VirtualRig:
         self._index = 0  # running index of the next sample
         self._rate_index0 = 0  # index and time where the current rate began
         self._rate_t0 = 0.0
-        self._stepper = Stepper(
-            s.model, s.theta0_rad, s.theta_dot0_rad_s, t0=0.0, max_step_s=MAX_STEP_S
-        )
+        self._stepper = Stepper(s.model, s.theta0_rad, s.theta_dot0_rad_s, t0=0.0)
         self._held_at: float | None = None
         self.physics_stopped = ""  # why the simulation stopped, '' while it runs
         self._omega = 0.0
@@ -240,9 +234,7 @@ class VirtualRig:
         """The operator lets go of the pendulum at ``theta0_rad`` (takes effect now)."""
         with self._lock:
             t = self._time_of(self._index)
-            self._stepper = Stepper(
-                self._model, float(theta0_rad), float(theta_dot0_rad_s), t0=t, max_step_s=MAX_STEP_S
-            )
+            self._stepper = Stepper(self._model, float(theta0_rad), float(theta_dot0_rad_s), t0=t)
             self._stepper.set_packed(self._p, phase0=self._phase0)
             self._held_at = None
             self.physics_stopped = ""

@@ -445,13 +445,17 @@ def _bic(data: ForcedData, base: ModelFits, fit: ShootingFit) -> float:
 
 def regime_of(record: Record, data: ForcedData) -> Regime:
     """The record's regime judged from its strobe points (on the tach, else on the measured
-    drive), aware of its noise."""
+    drive), aware of its noise; 'undetermined', with the reason, when the record cannot be
+    judged (too few drive periods, say)."""
     drive = data.drive
-    regime, _ = judge_record_regime(
-        np.asarray(record.angle_rad, dtype=float), record.sample_rate_hz, data.noise_rad,
-        tach_indices=record.tach_indices if drive.clock is not None else None,
-        frequency_hz=drive.frequency_hz, phase_rad=drive.phase0_rad,
-    )
+    try:
+        regime, _ = judge_record_regime(
+            np.asarray(record.angle_rad, dtype=float), record.sample_rate_hz, data.noise_rad,
+            tach_indices=record.tach_indices if drive.clock is not None else None,
+            frequency_hz=drive.frequency_hz, phase_rad=drive.phase0_rad,
+        )
+    except ValueError as error:
+        return Regime("undetermined", None, f"undetermined: {error}")
     return regime
 
 
@@ -475,11 +479,7 @@ def analyze_forced(
         data = forced_data(record)
     except IdentificationError as error:
         raise AnalysisError(f"{record.source or 'record'}: {error}") from error
-    try:
-        regime = regime_of(record, data)
-    except ValueError as error:
-        raise AnalysisError(f"{record.source or 'record'}: cannot judge its regime: {error}") \
-            from error
+    regime = regime_of(record, data)
     chaotic = regime.kind == "chaotic"
     say(f"forced: {data.n_valid} samples at {1 / data.dt:.4g} Hz, noise {data.noise_rad:.3g} "
         f"rad, drive {data.drive.frequency_hz:.6g} Hz ({data.drive.frequency_source}); "

@@ -782,6 +782,11 @@ def integrate(
     barrier = p[P.BARRIER] != 0.0
     forced = p[P.OMEGA_DRIVE] > 0.0 and (p[P.A1] != 0.0 or p[P.A2] != 0.0)
     period = 2.0 * math.pi / p[P.OMEGA_DRIVE] if p[P.OMEGA_DRIVE] > 0.0 else math.inf
+    # A state at rest (on the barrier, undriven) has a zero error estimate, and its step
+    # would grow tenfold per step to infinity, past every later output.  No step need be
+    # longer than a swing: far beyond any step the error test accepts in motion.
+    if p[P.OMEGA2] > 0.0:
+        max_step = min(max_step, 2.0 * math.pi / math.sqrt(p[P.OMEGA2]))
     k_contact = coefficients(p, True)
     k_free = coefficients(p, False)
     kth = np.empty(N_EXTENDED)

@@ -15,11 +15,20 @@ Explain a measured record: fit the baseline model of docs/MODEL.md section 2, sh
 fails (phase of motion, angle, velocity, envelope, spectrum), fit every named cause of
 docs/MODEL.md section 6 that can show in this kind of experiment as an extension of the model,
 and choose the one that earns its keep on two counts: the information criterion (BIC with
-the data's own noise level and effective sample count) and the prediction of the last
-part of the record from a fit of the first part. `none` when no extension helps clearly.
+the data's own noise level and effective sample count) and the prediction of data the fit
+did not see. `none` when no extension helps clearly.
 
-Impact decays also compare the paper's finite-time (Hunt-Crossley) contact with a
-constant coefficient of restitution.
+Decays are fitted point by point on their first part and predict the rest. Impact decays
+also compare the paper's finite-time (Hunt-Crossley) contact with a constant coefficient
+of restitution.
+
+A forced record is explained on its own: its regime (period k, chaotic, ...) is judged
+from stroboscopic samples locked to the tach, aware of the noise; the drive's frequency,
+phase and amplitude come from the tach and the table channel and are compared with the
+stated ones; every model is identified from the record (equation error, then multiple
+shooting over short segments, then over the whole record), and judged by forecasts of
+the stretch after each fitted one (and, on a chaotic record, by the invariant statistics
+of the model's own long run). Decay records, when given, only start the fit.
 
 FILE is an exchange CSV (NAME.json beside it, or --meta) or an HDF5 recording.
 """
@@ -29,7 +38,8 @@ examples:
   impact-rig analyze decay.csv
   impact-rig analyze impacts.csv --json impacts_analysis.json --report out/
   impact-rig analyze run.h5 --workers 1
-  impact-rig analyze forced.csv --impact-decay impacts.csv --report out/
+  impact-rig analyze forced.csv --report out/
+  impact-rig analyze forced.csv --impact-decay impacts.csv   # start from the decay's values
 """
 
 
@@ -51,11 +61,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     parser.add_argument(
         "--free-decay", type=Path, dest="free_decay",
-        help="forced records: a free decay of the same rig (CSV/HDF5) to start L and zeta",
+        help="forced records: a free decay of the same rig (CSV/HDF5); its L and zeta only "
+        "start the fit",
     )
     parser.add_argument(
         "--impact-decay", type=Path, dest="impact_decay",
-        help="forced records: an impact decay of the same rig to start K and mu0",
+        help="forced records: an impact decay of the same rig; its K and mu0 only start the fit",
     )
     parser.add_argument(
         "--workers", type=int, default=None, help="processes fitting candidates (default: 2)"

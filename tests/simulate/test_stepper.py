@@ -113,3 +113,19 @@ def test_every_entry_point_refuses_step_settings_it_cannot_honour(settings, name
     for run in runs:
         with pytest.raises(ValueError, match=named):
             run()
+
+
+def test_a_pendulum_at_rest_keeps_time_for_hours():
+    # resting on the barrier, undriven: the error estimate is exactly zero, so without a
+    # cap the step grows tenfold per step to infinity and no later sample is ever written
+    model = Model(rig=RigParameters(), drive=Drive(), barrier=True)
+    stepper = Stepper(model, 0.0, 0.0)
+    for hour in (1, 2):
+        times = 3600.0 * hour + np.arange(10.0)
+        theta, _ = stepper.advance(times)
+        assert np.all(theta == 0.0), theta
+        assert stepper.t < 3600.0 * hour + 10.0 + 1.0  # no step reached far beyond
+    # and when the drive starts, it moves within its first period
+    stepper.set_model(Model(rig=RigParameters(), drive=Drive(0.005, 10.0), barrier=True))
+    theta, _ = stepper.advance(7210.0 + np.arange(1, 11) / 100.0)
+    assert np.ptp(theta) > 1e-3
