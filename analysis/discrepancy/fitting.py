@@ -21,7 +21,7 @@ from scipy.optimize import least_squares
 from analysis.discrepancy.candidates import REPLACES, ParameterPlan, RecordScale, plan_for
 from analysis.extensions import NONE, cause
 from analysis.identify.intervals import Z95, sandwich_covariance
-from analysis.identify.result import Estimate
+from analysis.identify.result import Estimate, Residuals
 from analysis.model import Drive, Model, RigParameters
 from analysis.model_values import measured_angle, model_from_values, packed_from_values
 from analysis.simulate import SimulationResult, simulate_packed
@@ -76,7 +76,7 @@ class FitData:
 
 
 @dataclass(frozen=True)
-class FitResult:
+class FitResult(Residuals):
     """A fitted model: its values, estimates with 95 % intervals, and residuals."""
 
     cause: str
@@ -87,22 +87,6 @@ class FitResult:
     success: bool
     message: str
     contacts: int = 0
-
-    @property
-    def rss(self) -> float:
-        """Residual sum of squares over the valid samples."""
-        r = self.residual[np.isfinite(self.residual)]
-        return float(r @ r)
-
-    @property
-    def n(self) -> int:
-        """Number of residuals."""
-        return int(np.count_nonzero(np.isfinite(self.residual)))
-
-    @property
-    def rms(self) -> float:
-        """Root mean square residual [rad]."""
-        return math.sqrt(self.rss / max(self.n, 1))
 
 
 def build_model(data: FitData, cause_name: str, values: Mapping[str, float]) -> Model:

@@ -211,22 +211,22 @@ def true_angle_states(
 
 def screen_cause(
     data: ForcedData, cause_name: str, ident: ForcedIdentification,
-    hints: Mapping[str, float], scale: RecordScale, threads: int | None,
+    hints: Mapping[str, float], threads: int | None,
 ) -> ShootingFit:
     """A cause (or ``none``) fitted over the identification's short unlinked segments from
     where the identification started (equation error, priors, nominal contact values) and
     the hints on the cause's own parameters: every model is identified from the record the
     same way, and over segments this short a start far from the solution still converges.
     (Starting from the identification's solution instead would carry the compromises its
-    own free barrier, sensor zero and phase made for an effect it lacks.)"""
+    own free barrier, sensor zero and phase made for an effect it lacks.)  The segments'
+    states are drawn onto the data for each model: its own sensor and dynamics at its start
+    values decide where they must begin."""
     model = ForcedModel(data, () if cause_name == NONE else (cause_name,))
-    start = {k: v for k, v in ident.start.items() if k in BASELINE_PLANS}
-    if not data.drive.timing_known:
-        start["drive_phase_rad"] = ident.start["drive_phase_rad"]
-        start["drive_frequency_hz"] = ident.start["drive_frequency_hz"]
-    free = candidate_parameters(data, cause_name, start, scale, hints)
-    states = smoothed_states(data, ident.short.start, 0.0)
-    fit, _ = fit_model(model, ident.short, free, {}, states, threads=threads,
+    timing = ("drive_phase_rad", "drive_frequency_hz") if not data.drive.timing_known else ()
+    start = {k: v for k, v in ident.start.items() if k in BASELINE_PLANS or k in timing}
+    free = candidate_parameters(data, cause_name, start, record_scale(data, start), hints)
+    fit, _ = fit_model(model, ident.short, free, {},
+                       smoothed_states(data, ident.short.start, 0.0), threads=threads,
                        max_iterations=SCREEN_ITERATIONS)
     return fit
 
@@ -369,14 +369,12 @@ def analyze_forced_fits(
     timings["identification"] = time.perf_counter() - clock
     notes = list(ident.notes)
     lay = layouts(data)
-    start = {k: ident.values[k] for k in BASELINE_PLANS}
     hints = cause_hints(ident)
     names = [c.name for c in candidates_for(FORCED.name)]
     if causes is not None:
         names = [n for n in names if n in causes]
-    scale = record_scale(data, start)
     say(f"screening every cause over {ident.short.count} short segments")
-    screened = {n: screen_cause(data, n, ident, hints, scale, threads) for n in [NONE, *names]}
+    screened = {n: screen_cause(data, n, ident, hints, threads) for n in [NONE, *names]}
     base_short = ModelFits(NONE, screened[NONE])
     bic = {n: _bic(data, base_short, screened[n]) for n in names}
     say("screened: " + ", ".join(f"{n} {bic[n]:.3g}" for n in sorted(bic, key=lambda n: -bic[n])))

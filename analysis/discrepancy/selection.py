@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from analysis.discrepancy.fitting import FitResult
-from analysis.identify.intervals import autocorrelation
+from analysis.identify.intervals import correlation_time
 
 BIC_MARGIN = 10.0  # "very strong" evidence on the Kass-Raftery scale
 HELDOUT_RATIO = 0.95  # the extension must predict the unseen part at least 5 % better
@@ -25,18 +25,6 @@ HELDOUT_EXCESS_RATIO = 0.9  # ... or shrink the error above the noise by 10 %, s
 HELDOUT_SIGMAS = 3.0
 INVARIANT_RATIO = 0.7  # chaotic records: invariants at least 30 % closer to the data's
 FORECAST_Z = 3.0  # paired forecast test: the error drop in standard errors, stretch by stretch
-CORRELATION_CUTOFF = 0.05
-
-
-def correlation_time(residual: np.ndarray) -> float:
-    """Integrated autocorrelation time (samples) of a residual: 1 for white noise."""
-    r = residual[np.isfinite(residual)]
-    if r.size < 8:
-        return 1.0
-    rho = autocorrelation(r, max(1, min(r.size // 4, 2000)))
-    below = np.flatnonzero(rho[1:] < CORRELATION_CUTOFF)
-    stop = int(below[0]) + 1 if below.size else rho.size
-    return float(max(1.0, 1.0 + 2.0 * np.sum(rho[1:stop])))
 
 
 def information_criterion_delta(

@@ -53,6 +53,17 @@ def autocorrelation(residual: np.ndarray, max_lag: int) -> np.ndarray:
     return acov / acov[0] if acov[0] > 0 else np.zeros(max_lag + 1)
 
 
+def correlation_time(residual: np.ndarray) -> float:
+    """Integrated autocorrelation time (samples) of a residual: 1 for white noise."""
+    r = residual[np.isfinite(residual)]
+    if r.size < 8:
+        return 1.0
+    rho = autocorrelation(r, max(1, min(r.size // 4, 2000)))
+    below = np.flatnonzero(rho[1:] < CORRELATION_CUTOFF)
+    stop = int(below[0]) + 1 if below.size else rho.size
+    return float(max(1.0, 1.0 + 2.0 * np.sum(rho[1:stop])))
+
+
 def bandwidth(residual: np.ndarray) -> int:
     """Newey-West bandwidth: a few times the lag where the autocorrelation first fades."""
     n = residual.size

@@ -6,6 +6,30 @@ import math
 from dataclasses import dataclass, field
 from typing import Any
 
+import numpy as np
+
+
+class Residuals:
+    """rss, n and rms of a fit's ``residual`` array (model - data, NaN where not fitted)."""
+
+    residual: np.ndarray
+
+    @property
+    def rss(self) -> float:
+        """Residual sum of squares over the fitted samples [rad^2]."""
+        r = self.residual[np.isfinite(self.residual)]
+        return float(r @ r)
+
+    @property
+    def n(self) -> int:
+        """Number of fitted samples."""
+        return int(np.count_nonzero(np.isfinite(self.residual)))
+
+    @property
+    def rms(self) -> float:
+        """RMS residual over the fitted samples [rad]."""
+        return math.sqrt(self.rss / max(self.n, 1))
+
 
 class IdentificationError(ValueError):
     """A record cannot be fitted; the message says why (too short, no oscillation, ...)."""

@@ -29,8 +29,8 @@ import numpy as np
 import scipy.sparse as sparse
 from scipy.sparse.linalg import splu
 
-from analysis.identify.intervals import Z95, autocorrelation
-from analysis.identify.result import Estimate
+from analysis.identify.intervals import Z95, correlation_time
+from analysis.identify.result import Estimate, Residuals
 from analysis.simulate.segments import integrate_segments
 
 RTOL = 1e-8
@@ -41,7 +41,6 @@ COST_TOLERANCE = 0.05  # a step gaining less chi^2 / 2 than this changes no judg
 # ... nor does a relative gain this small of a model that misses the record by far
 RELATIVE_TOLERANCE = 1e-4
 FAILED_RESIDUAL = 1e3  # in noise units, for samples a stopped run did not reach
-CORRELATION_CUTOFF = 0.05
 
 PackedOf = Callable[[Mapping[str, float]], np.ndarray]
 # (values, times, true angle, rate at the first time) -> measured angle, for one stretch of
@@ -118,7 +117,7 @@ def cut_segments(
 
 
 @dataclass(frozen=True)
-class ShootingFit:
+class ShootingFit(Residuals):
     """A multiple-shooting fit: shared values, segment states, and what they predict."""
 
     values: dict[str, float]
@@ -135,22 +134,6 @@ class ShootingFit:
     message: str
     iterations: int
     correlation: np.ndarray | None = None  # of the free shared parameters, same order
-
-    @property
-    def rss(self) -> float:
-        """Residual sum of squares over the fitted samples [rad^2]."""
-        r = self.residual[np.isfinite(self.residual)]
-        return float(r @ r)
-
-    @property
-    def n(self) -> int:
-        """Number of fitted samples."""
-        return int(np.count_nonzero(np.isfinite(self.residual)))
-
-    @property
-    def rms(self) -> float:
-        """RMS residual over the fitted samples [rad]."""
-        return math.sqrt(self.rss / max(self.n, 1))
 
     @property
     def forecast_rms(self) -> float:
@@ -430,9 +413,9 @@ class ShootingProblem:
             ds[:, k] += hs[k]
             return self.run(self.values_of(u), ds)
 
-        with ThreadPoolExecutor(max_workers=self.threads) as pool:
-            shared = list(pool.map(shared_column, range(g)))
-            perturbed = list(pool.map(state_run, range(2)))
+        pool = _pool(self.threads)
+        shared = list(pool.map(shared_column, range(g)))
+        perturbed = list(pool.map(state_run, range(2)))
         blocks = [sparse.csr_matrix(np.column_stack(shared)) if g else
                   sparse.csr_matrix((r.size, 0))]
         # data rows: d(residual)/d(own state), one column pair per segment
@@ -525,6 +508,18 @@ class ShootingProblem:
         return out, correlation
 
 
+_POOLS: dict[int, ThreadPoolExecutor] = {}
+
+
+def _pool(threads: int) -> ThreadPoolExecutor:
+    """A thread pool kept for the process: a fit asks for hundreds of Jacobians, and starting
+    threads for each costs more than the columns they share out."""
+    if threads not in _POOLS:
+        _POOLS[threads] = ThreadPoolExecutor(max_workers=threads,
+                                             thread_name_prefix="shooting-jacobian")
+    return _POOLS[threads]
+
+
 def _to_u(p: FreeParameter, x: float) -> float:
     """A bound in step units (infinite bounds stay infinite)."""
     if not math.isfinite(x):
@@ -534,14 +529,3 @@ def _to_u(p: FreeParameter, x: float) -> float:
             return -math.inf
         return (math.log(x) - math.log(p.start)) / p.step
     return (x - p.start) / p.step
-
-
-def correlation_time(residual: np.ndarray) -> float:
-    """Integrated autocorrelation time (samples) of a residual: 1 for white noise."""
-    r = residual[np.isfinite(residual)]
-    if r.size < 8:
-        return 1.0
-    rho = autocorrelation(r, max(1, min(r.size // 4, 2000)))
-    below = np.flatnonzero(rho[1:] < CORRELATION_CUTOFF)
-    stop = int(below[0]) + 1 if below.size else rho.size
-    return float(max(1.0, 1.0 + 2.0 * np.sum(rho[1:stop])))

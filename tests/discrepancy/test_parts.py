@@ -3,15 +3,17 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
 
 from analysis.discrepancy.candidates import candidates_for, excluded_for
 from analysis.discrepancy.restitution import restitution_samples
-from analysis.discrepancy.selection import Verdict, choose, correlation_time
+from analysis.discrepancy.selection import Verdict, choose
 from analysis.experiments import KINDS
 from analysis.extensions import CAUSES
+from analysis.identify.intervals import correlation_time
 
 
 def test_every_cause_is_a_candidate_or_excluded_with_a_reason_in_every_kind():
@@ -119,3 +121,24 @@ def test_a_worse_fit_stands_in_for_a_rejected_best_fit_only_on_point_by_point_re
     # a candidate below the BIC margin is no best fit: it neither wins nor vetoes
     weak = [_verdict("a", 5.0, 1.0, invariant=0.9), _verdict("b", 30.0, 1.0, invariant=0.5)]
     assert choose(weak).cause == "b"
+
+
+def test_a_small_forecast_gain_counts_when_it_is_significant_stretch_by_stretch():
+    # a forced record's forecasts barely improve (ratio 0.99, under the 5 % a ratio alone
+    # needs) but do so on nearly every held-out stretch: the paired test accepts it
+    small = replace(_verdict("drag", 50.0, 0.99), forecast_z=6.0)
+    assert small.heldout_helps and small.earns_keep
+    # the same ratio without that consistency is noise
+    assert not replace(small, forecast_z=1.0).heldout_helps
+    # and a significant loss is a loss, whatever the ratio
+    assert not replace(_verdict("drag", 50.0, 1.2), forecast_z=-8.0).earns_keep
+
+
+def test_on_a_chaotic_record_the_invariants_veto_forecasts_but_do_not_replace_them():
+    forecast = replace(_verdict("a", 50.0, 0.5, invariant=0.9), forecast_z=9.0)
+    assert forecast.earns_keep  # closer statistics than the baseline's, better forecasts
+    assert not replace(forecast, invariant_distance_extended=1.1).earns_keep
+    # with forecasts, a vetoed best fit no longer blocks the next candidate
+    runner = replace(_verdict("b", 30.0, 0.6, invariant=0.8), forecast_z=7.0)
+    vetoed = replace(forecast, invariant_distance_extended=1.2)
+    assert choose([vetoed, runner]).cause == "b"
