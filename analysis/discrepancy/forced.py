@@ -71,9 +71,10 @@ from analysis.simulate import simulate_packed
 
 HELDOUT_S = SEGMENT_S  # each fitted stretch is followed by a forecast one as long
 MODEL_INVARIANT_SPAN = 4  # a model's invariants come from a run this many records long
-BASELINE_ITERATIONS = 25
-SCREEN_ITERATIONS = 25  # every candidate, over short segments, from the cold start
-REFINE_ITERATIONS = 25  # the promising ones: to convergence
+SCREEN_ITERATIONS = 20  # every candidate, over short segments, from the cold start
+# Over the record every model starts from its screening solution: a right one converges in
+# a few iterations, a wrong one crawls, and more of its crawl would change no judgement.
+REFINE_ITERATIONS = 12
 REFINED = 4  # candidates refined beyond the screening (those that gained), best first
 SEED_RMS = 3.0  # a full fit within this many noise levels lends its segment states
 

@@ -71,13 +71,20 @@ class Analysis:
                 return c
         return None
 
+    @property
+    def unexplained(self) -> bool:
+        """True when the chosen model still misses the record by far more than its noise."""
+        best = self.chosen_outcome
+        final = best.full if best is not None else self.baseline
+        return final.rms > UNEXPLAINED_RATIO * self.data.noise_rad
+
     def warnings(self) -> list[str]:
         """Caveats on the finding: what the chosen model still leaves unexplained."""
         out = []
         best = self.chosen_outcome
         final = best.full if best is not None else self.baseline
         ratio = final.rms / max(self.data.noise_rad, 1e-300)
-        if ratio > UNEXPLAINED_RATIO:
+        if self.unexplained:
             what = f"the baseline extended by {best.cause}" if best is not None else "the baseline"
             out.append(
                 f"{what} still leaves {final.rms:.3g} rad rms, {ratio:.3g} x the noise: "
@@ -115,6 +122,8 @@ class Analysis:
         out: dict[str, Any] = {
             "experiment": self.data.experiment,
             "cause": self.chosen,
+            "causes": [] if best is None else [best.cause],
+            "unexplained": self.unexplained,
             "ranking": ranking,
             "baseline": {
                 "parameters": report_parameters(self.baseline, rig),
