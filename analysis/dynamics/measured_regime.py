@@ -2,8 +2,9 @@
 
 Period k when points k drive periods apart agree within the noise, or approach such an
 orbit as a decaying transient does; chaotic only when no period is found and both the
-0-1 test and the largest Lyapunov exponent from the data say so; quasi-periodic when
-both say regular; undetermined when they disagree.  The strobe points come from
+0-1 test and the divergence of neighbours from the data say so (both made to see chaos
+in bands, :mod:`analysis.dynamics.strobe_chaos`); quasi-periodic when both say regular;
+undetermined when they disagree.  The strobe points come from
 :mod:`analysis.dynamics.strobe`, locked to the tach.
 """
 
@@ -16,11 +17,14 @@ from typing import Any
 
 import numpy as np
 
-from analysis.dynamics.chaos01 import zero_one_test
-from analysis.dynamics.lyapunov import rosenstein_lyapunov
 from analysis.dynamics.regime import Regime, harmonic_content, harmonic_text
 from analysis.dynamics.spectrum import amplitude_spectrum
 from analysis.dynamics.strobe import StrobeSamples, strobe_record
+from analysis.dynamics.strobe_chaos import (
+    bands_from_recurrence,
+    neighbour_divergence,
+    zero_one_about_bands,
+)
 
 # Two strobe points agree when their differences, in units of the noise of a difference,
 # have an RMS over the phases of at most AGREEMENT_RMS.  Under noise alone a pair exceeds
@@ -43,11 +47,6 @@ SETTLING_SHRINK = 2.0
 SETTLING_EQUATIONS_PER_POINT = 5
 TRANSIENT_STEPS = 20  # transient lengths tried: the record's first half in this many steps
 CHAOS_K = 0.5  # 0-1 test K above this: chaotic by the 0-1 test
-LYAPUNOV_MIN_PER_PERIOD = 0.01  # Rosenstein exponent above this: chaotic by divergence
-# Neighbours must separate at least this much before the attractor's size bounds them
-# (chaotic records of 50 periods: 8 to 15-fold; longer ones more).
-MIN_DIVERGENCE_RISE = math.log(3.0)
-LYAPUNOV_HORIZON_PERIODS = 20  # neighbours followed this long (or half the record)
 MIN_ZERO_ONE_SAMPLES = 50  # the 0-1 test's least
 
 
@@ -82,15 +81,19 @@ def judge_regime(
       in the data and in the fitted roots.  The orbit approached may repeat after a
       divisor of k, which is then the period.
 
-    Without a period: chaotic only when the 0-1 test on the phase-0 points gives
-    K > CHAOS_K and Rosenstein's largest exponent of the strobe points exceeds
-    LYAPUNOV_MIN_PER_PERIOD, its neighbours separating at least threefold;
-    quasi-periodic (or a period beyond the ones tested) when both say regular;
-    undetermined when they disagree or the record is too short for them.  ``theta``
-    (the record the strobe came from) adds the sub- and superharmonics of its settled
-    part.  The evidence holds the clock, the tolerance, 'recurrence' (median RMS
-    difference of points k = 1, 2, ... periods apart over the second half, in noise
-    units), 'transient_periods', 'transient_s', 'settling', 'K', 'lyapunov_per_period'.
+    Without a period the recurrence still shows bands when every multiple of some lag
+    m brings the points far closer than typical (chaos about a period-m orbit).
+    Chaotic only when the 0-1 test on the phase-0 points less their band means gives
+    K > CHAOS_K and nearest neighbours in the same band separate from the noise floor
+    at least twofold (:mod:`analysis.dynamics.strobe_chaos`); quasi-periodic (or a
+    period beyond the ones tested) when both say regular; undetermined when they
+    disagree or the record is too short for them.  ``theta`` (the record the strobe
+    came from) adds the sub- and superharmonics of its settled part.  The evidence
+    holds the clock, the tolerance, 'recurrence' (median RMS difference of points
+    k = 1, 2, ... periods apart over the second half, in noise units),
+    'transient_periods', 'transient_s', 'settling', 'band_period', 'K',
+    'lyapunov_per_period' (biased low when the noise floor hides the start of the
+    divergence), 'divergence_rise' (log of the fold).
     """
     if not (math.isfinite(noise_rad) and noise_rad > 0):
         raise ValueError(f"noise_rad = {noise_rad!r}: the sample noise must be > 0")
@@ -123,7 +126,7 @@ def judge_regime(
         if settling is not None:
             return _periodic(strobe, settling.period, settling.start, settling, evidence, theta)
     evidence["max_period_tested"] = len(recurrence)
-    return _not_periodic(strobe, evidence, theta, seed)
+    return _not_periodic(strobe, sigma, evidence, theta, seed)
 
 
 def judge_record_regime(
@@ -372,6 +375,7 @@ def _periodic(
 
 def _not_periodic(
     strobe: StrobeSamples,
+    sigma: np.ndarray,
     evidence: dict[str, Any],
     theta: np.ndarray | None,
     seed: int,
@@ -386,22 +390,27 @@ def _not_periodic(
             f"for the 0-1 test (needs {MIN_ZERO_ONE_SAMPLES})"
         )
         return Regime("undetermined", None, label, MappingProxyType(evidence))
-    k01 = zero_one_test(points[:, 0], seed=seed).K
+    bands = bands_from_recurrence(evidence["recurrence"])
+    evidence["band_period"] = bands.period
+    k01 = zero_one_about_bands(points[:, 0], bands.skeleton_period, seed=seed)
     evidence["K"] = k01
-    exponent, note = _strobe_lyapunov(points)
+    divergence = neighbour_divergence(points, sigma[run], band_period=bands.period)
+    exponent = divergence.exponent_per_period
     evidence["lyapunov_per_period"] = exponent
-    evidence["lyapunov_note"] = note
+    evidence["lyapunov_note"] = divergence.note
+    evidence["divergence_rise"] = divergence.rise
     evidence.update(_record_harmonics(strobe, theta, 0))
     k_says = k01 > CHAOS_K
-    lyapunov_says = exponent is not None and exponent > LYAPUNOV_MIN_PER_PERIOD
-    k_text = f"0-1 test K = {k01:.2f}"
+    lyapunov_says = divergence.diverges
+    in_bands = f" in {bands.period} bands" if bands.period > 1 else ""
+    k_text = f"0-1 test K = {k01:.2f}{' about the bands' if in_bands else ''}"
     lyapunov_text = (
         f"largest Lyapunov exponent {exponent:.3g} per period"
         if exponent is not None
-        else "no exponential divergence of neighbours"
+        else f"no exponential divergence ({divergence.note})"
     )
     if k_says and lyapunov_says:
-        label = f"chaotic (K = {k01:.2f}, lambda = {exponent:.3g} per period)"
+        label = f"chaotic{in_bands} (K = {k01:.2f}, lambda = {exponent:.3g} per period)"
         return Regime("chaotic", None, label, MappingProxyType(evidence))
     if not k_says and not lyapunov_says:
         label = f"quasi-periodic or period > {tested} ({k_text}; {lyapunov_text})"
@@ -414,35 +423,6 @@ def _not_periodic(
     )
     label = f"undetermined: no period up to {tested}; {verdicts}"
     return Regime("undetermined", None, label, MappingProxyType(evidence))
-
-
-def _strobe_lyapunov(points: np.ndarray) -> tuple[float | None, str]:
-    """Largest exponent per drive period by Rosenstein's method on the strobe points.
-
-    The points, read as one series of d samples per period, embedded with d
-    consecutive samples, are states of the flow one phase step apart; neighbours are
-    at least two periods apart in time.  None (with why) when Rosenstein's method finds
-    no exponential divergence or the neighbours separate less than MIN_DIVERGENCE_RISE.
-    """
-    n, d = points.shape
-    horizon = min(LYAPUNOV_HORIZON_PERIODS, max(2, n // 2))
-    try:
-        estimate = rosenstein_lyapunov(
-            points.ravel(),
-            float(d),  # d samples per period: the exponent comes out per period
-            dimension=d,
-            delay=1,
-            theiler_window=2 * d,
-            horizon=horizon * d,
-            max_references=1000,
-        )
-    except ValueError as error:
-        return None, str(error)
-    tail = estimate.curve[int(0.8 * estimate.curve.size) :]
-    rise = float(np.median(tail) - estimate.curve[0])
-    if rise < MIN_DIVERGENCE_RISE:
-        return None, f"neighbours separate {math.exp(rise):.2g}-fold only"
-    return estimate.exponent, f"Rosenstein on the strobe points, divergence x{math.exp(rise):.3g}"
 
 
 def _longest_finite_run(points: np.ndarray) -> slice:
