@@ -1,0 +1,87 @@
+"""The judges of a candidate cause on a forced record: the information criterion over the
+whole record, the forecasts of held-out stretches (a paired test stretch by stretch), and,
+on a chaotic record, the invariant statistics of the model's own long run."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from analysis.discrepancy.forced_models import Layouts, ModelFits, as_fit_result
+from analysis.discrepancy.invariants import Invariants, invariant_distance, invariants
+from analysis.discrepancy.selection import Verdict, information_criterion_delta
+from analysis.extensions import NONE
+from analysis.identify.forced import ForcedData
+from analysis.identify.shooting import Segments, ShootingFit
+from analysis.model_values import measured_angle, packed_from_values
+from analysis.simulate import simulate_packed
+
+MODEL_INVARIANT_SPAN = 4  # a model's invariants come from a run this many records long
+
+
+def model_invariants_distance(
+    data: ForcedData, measured: Invariants, cause_name: str, fit: ShootingFit
+) -> float:
+    """Distance between the record's invariants and those of the fitted model run from its
+    first segment's state over MODEL_INVARIANT_SPAN times the record's length."""
+    causes = () if cause_name == NONE else (cause_name,)
+    values = fit.values
+    phase = values.get("drive_phase_rad", data.drive.phase0_rad)
+    drive = data.drive.model_drive(values.get("drive_frequency_hz"))
+    p = packed_from_values(data.rig, drive, True, values, causes, phase)
+    n = MODEL_INVARIANT_SPAN * data.t.size
+    sim = simulate_packed(p, float(fit.states[0, 0]), float(fit.states[0, 1]), n * data.dt,
+                          1.0 / data.dt, poincare_phase=None, rtol=1e-8, atol=1e-10)
+    t = np.arange(sim.theta.size) * data.dt
+    theta = measured_angle(causes, values, t, np.asarray(sim.theta, dtype=float))
+    if theta.size < 16:
+        return math.inf
+    return invariant_distance(measured, invariants(t, theta, data.drive.frequency_hz, phase))
+
+
+def forecast_z(base: ShootingFit, candidate: ShootingFit, train: Segments) -> float | None:
+    """The drop of the mean-square forecast error from baseline to candidate, in standard
+    errors of its mean over the held-out stretches (a paired test: the same noise enters
+    both, so small real gains show)."""
+    gains = []
+    for a, b in zip(train.fit_stop, train.stop, strict=True):
+        rb, rc = base.forecast_residual[a:b], candidate.forecast_residual[a:b]
+        both = np.isfinite(rb) & np.isfinite(rc)
+        if np.count_nonzero(both) >= 2:
+            gains.append(float(np.mean(rb[both] ** 2) - np.mean(rc[both] ** 2)))
+    if len(gains) < 3:
+        return None
+    g = np.asarray(gains)
+    spread = float(np.std(g, ddof=1)) / math.sqrt(g.size)
+    if not spread > 0:
+        return math.inf if g.mean() > 0 else -math.inf
+    return float(g.mean() / spread)
+
+
+def verdict_of(
+    data: ForcedData, candidate: ModelFits, base: ModelFits, lay: Layouts,
+    distances: tuple[float | None, float | None] = (None, None),
+    not_judged: str | None = None,
+) -> Verdict:
+    """Both judges' view of a candidate against the baseline (without training fits, when
+    it did not pass the information criterion or a better cause was accepted first, it has
+    no forecast)."""
+    judged = candidate.train is not None and base.train is not None
+    return Verdict(
+        cause=candidate.cause,
+        information_criterion_delta=information_criterion_delta(
+            as_fit_result(base.full, NONE), as_fit_result(candidate.full, candidate.cause),
+            data.noise_rad),
+        heldout_rms_baseline=base.train.forecast_rms if base.train is not None else math.nan,
+        heldout_rms_extended=candidate.train.forecast_rms if judged else math.nan,
+        rms_baseline=base.full.rms,
+        rms_extended=candidate.full.rms,
+        invariant_distance_baseline=distances[0],
+        invariant_distance_extended=distances[1],
+        noise_rad=data.noise_rad,
+        n_heldout=int(np.count_nonzero(np.isfinite(base.train.forecast_residual)))
+        if base.train is not None else 0,
+        forecast_z=forecast_z(base.train, candidate.train, lay.train) if judged else None,
+        not_judged=not_judged,
+    )

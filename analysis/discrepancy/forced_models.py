@@ -1,0 +1,227 @@
+"""How each model is fitted to a forced record: the two ways the record is cut, the
+parameters a model frees and where they start, a first fit over short segments from a
+cold start, and the fits over the whole record."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from analysis.discrepancy.candidates import REPLACES, RecordScale, plan_for
+from analysis.discrepancy.fitting import FitData, FitResult
+from analysis.experiments import FORCED
+from analysis.extensions import NONE, cause
+from analysis.identify.forced import (
+    BASELINE_PLANS,
+    SEGMENT_S,
+    ForcedData,
+    ForcedIdentification,
+    ForcedModel,
+    clock_parameter,
+    fit_model,
+    fit_over_record,
+    free_parameters,
+    hertz_penetration_rad,
+    impact_speed,
+    record_segments,
+    smoothed_states,
+)
+from analysis.identify.shooting import FreeParameter, Segments, ShootingFit
+from analysis.model_values import measured_angle
+
+HELDOUT_S = SEGMENT_S  # each fitted stretch is followed by a forecast one as long
+SCREEN_ITERATIONS = 20  # every candidate, over short segments, from the cold start
+# Over the record every model starts from its screening solution: a right one converges in
+# a few iterations, a wrong one crawls, and more of its crawl would change no judgement.
+REFINE_ITERATIONS = 12
+
+
+@dataclass(frozen=True)
+class ModelFits:
+    """One model fitted to the whole record and (when it is judged on forecasts) to the
+    alternating training stretches."""
+
+    cause: str
+    full: ShootingFit
+    train: ShootingFit | None = None
+
+
+@dataclass(frozen=True)
+class Layouts:
+    """The two ways the record is cut: linked segments over everything, and alternating
+    fitted and forecast stretches (their starts are every other segment's start)."""
+
+    full: Segments
+    train: Segments
+
+
+def layouts(data: ForcedData) -> Layouts:
+    """Segments of SEGMENT_S over the record; training stretches of SEGMENT_S, each
+    followed by HELDOUT_S of forecast."""
+    return Layouts(record_segments(data), record_segments(data, SEGMENT_S, HELDOUT_S))
+
+
+def fit_data_view(data: ForcedData) -> FitData:
+    """The forced record as the shared report and localisation code sees a record."""
+    return FitData(
+        experiment=FORCED.name, t=data.t, y=data.y, valid=data.valid, noise_rad=data.noise_rad,
+        rig=data.rig, drive=data.drive.model_drive(), barrier=True,
+        phase0_rad=data.drive.phase0_rad,
+    )
+
+
+def as_fit_result(fit: ShootingFit, cause_name: str, contacts: int = 0) -> FitResult:
+    """A shooting fit as the judges and reports of every experiment see a fit."""
+    return FitResult(
+        cause=cause_name, values=dict(fit.values), estimates=dict(fit.estimates),
+        residual=fit.residual, n_params=fit.n_params, success=fit.success,
+        message=fit.message, contacts=contacts,
+    )
+
+
+def record_scale(data: ForcedData, values: Mapping[str, float]) -> RecordScale:
+    """Magnitudes that size the candidates' steps and start values."""
+    omega = values["omega_rad_s"]
+    L = data.rig.g_m_s2 / omega**2
+    level = float(np.nanmax(data.y))
+    speed = impact_speed(data, level)
+    K = values.get("K_N_per_m1.5", data.rig.K_N_per_m1_5)
+    return RecordScale(
+        amplitude_rad=float(np.nanmax(np.abs(data.y))), omega_rad_s=omega, zeta=values["zeta"],
+        duration_s=float(data.t[-1]), dt_s=data.dt, inertia_kg_m2=data.rig.m_kg * L**2,
+        stiffness=K, mu0_s_per_m=values.get("mu0_s_per_m", data.rig.mu0_s_per_m),
+        penetration_m=data.rig.l_m * hertz_penetration_rad(data.rig, omega, K, speed),
+    )
+
+
+def cause_hints(ident: ForcedIdentification) -> dict[str, float]:
+    """What the record says about the causes' parameters before any cause is fitted: the
+    identified barrier and sensor zero, the table channel's amplitude and harmonic (or the
+    identified amplitude when there is no table channel)."""
+    values = ident.values
+    hints = {"theta_b_rad": values["theta_b_rad"], "offset_rad": values["offset_rad"]}
+    drive = ident.data.drive
+    if drive.phase_known:
+        # a sensor lagging by tau reads the response the drive caused Omega tau earlier
+        delay = -math.remainder(values["drive_phase_rad"] - drive.phase0_rad, 2 * math.pi) \
+            / drive.omega_rad_s
+        if delay > 0:
+            hints["tau_s"] = delay
+    if drive.table is not None:
+        hints["eps"] = drive.table.amplitude_m.value / drive.stated_amplitude_m - 1.0
+        hints["h2"] = drive.table.h2.value
+        hints["phi2_rad"] = drive.table.phi2_rad.value
+    elif "eps" in values:
+        hints["eps"] = values["eps"]
+    return hints
+
+
+def baseline_names(data: ForcedData, cause_name: str) -> list[str]:
+    """The baseline parameters a fit adjusts (a cause may take over one's role)."""
+    replaced = REPLACES.get(cause_name, ())
+    return [n for n in BASELINE_PLANS if n not in replaced]
+
+
+def candidate_parameters(
+    data: ForcedData, cause_name: str, start: Mapping[str, float], scale: RecordScale,
+    hints: Mapping[str, float],
+) -> list[FreeParameter]:
+    """Free parameters of the baseline extended by ``cause_name``."""
+    extra = []
+    if not data.drive.timing_known:
+        extra.append(clock_parameter(start["drive_frequency_hz"]))
+        phase = start["drive_phase_rad"]
+        extra.append(FreeParameter("drive_phase_rad", phase, 1e-5, False, phase - math.pi,
+                                   phase + math.pi))
+    if cause_name != NONE:
+        c = cause(cause_name)
+        plans = plan_for(c, scale)
+        for spec in c.parameters:
+            plan = plans[spec.name]
+            value = hints.get(spec.name, start.get(spec.name, plan.start))
+            value = min(max(value, spec.lower), spec.upper)
+            if plan.log:
+                value = max(value, spec.lower if spec.lower > 0 else 1e-12)
+            extra.append(FreeParameter(spec.name, value, plan.step, plan.log, spec.lower,
+                                       spec.upper))
+    return free_parameters(baseline_names(data, cause_name), start, extra)
+
+
+def true_angle_states(
+    states: np.ndarray, cause_name: str, values: Mapping[str, float]
+) -> np.ndarray:
+    """Segment states of a model whose sensor reads through ``cause_name``, from states of
+    one that reads the angle directly: the measured angle is kept (a few fixed-point steps
+    through the measurement), the rate is not changed."""
+    out = states.copy()
+    if cause_name == NONE or cause(cause_name).measurement is None:
+        return out
+    measured = states[:, 0]
+    theta = measured.copy()
+    for _ in range(4):
+        seen = measured_angle((cause_name,), values, np.zeros(theta.size), theta)
+        theta = theta - (seen - measured)
+    out[:, 0] = theta
+    return out
+
+
+def screen_cause(
+    data: ForcedData, cause_name: str, ident: ForcedIdentification,
+    hints: Mapping[str, float], threads: int | None,
+) -> ShootingFit:
+    """A cause (or ``none``) fitted over the identification's short unlinked segments from
+    where the identification started (equation error, priors, nominal contact values) and
+    the hints on the cause's own parameters: every model is identified from the record the
+    same way, and over segments this short a start far from the solution still converges.
+    (Starting from the identification's solution instead would carry the compromises its
+    own free barrier, sensor zero and phase made for an effect it lacks.)  The segments'
+    states are drawn onto the data for each model: its own sensor and dynamics at its start
+    values decide where they must begin."""
+    model = ForcedModel(data, () if cause_name == NONE else (cause_name,))
+    timing = ("drive_phase_rad", "drive_frequency_hz") if not data.drive.timing_known else ()
+    start = {k: v for k, v in ident.start.items() if k in BASELINE_PLANS or k in timing}
+    free = candidate_parameters(data, cause_name, start, record_scale(data, start), hints)
+    fit, _ = fit_model(model, ident.short, free, {},
+                       smoothed_states(data, ident.short.start, 0.0), threads=threads,
+                       max_iterations=SCREEN_ITERATIONS)
+    return fit
+
+
+def fit_cause(
+    data: ForcedData, cause_name: str, screened: ShootingFit, lay: Layouts,
+    threads: int | None, seed: ShootingFit | None = None,
+) -> ShootingFit:
+    """A cause fitted over the whole record from its screening fit's values.  Its segment
+    states come from ``seed`` (a full-layout fit of another model that fits the record
+    well, its states read through this cause's sensor), or else are drawn onto the data
+    over half-length segments first, as the identification does."""
+    model = ForcedModel(data, () if cause_name == NONE else (cause_name,))
+    scale = record_scale(data, screened.values)
+    free = [replace(p, start=screened.values[p.name]) for p in
+            candidate_parameters(data, cause_name, screened.values, scale, screened.values)]
+    start_from = None
+    if seed is not None:
+        measured = seed.prediction[lay.full.start]
+        states = true_angle_states(np.column_stack([measured, seed.states[:, 1]]), cause_name,
+                                   screened.values)
+        start_from = (replace(seed, states=states), lay.full)
+    full, _ = fit_over_record(model, free, {}, threads=threads, start_from=start_from,
+                              max_iterations=REFINE_ITERATIONS)
+    return full
+
+
+def refit(data: ForcedData, cause_name: str, fit: ShootingFit, lay: Layouts,
+          threads: int | None, *, heldout_s: float = 0.0,
+          max_iterations: int = REFINE_ITERATIONS) -> ShootingFit:
+    """Continue a full-layout fit (to convergence), or fit the training stretches
+    (``heldout_s`` > 0) from it: the same free parameters, started at its solution."""
+    model = ForcedModel(data, () if cause_name == NONE else (cause_name,))
+    scale = record_scale(data, fit.values)
+    free = [replace(p, start=fit.values[p.name])
+            for p in candidate_parameters(data, cause_name, fit.values, scale, fit.values)]
+    out, _ = fit_over_record(model, free, {}, heldout_s=heldout_s, threads=threads,
+                             start_from=(fit, lay.full), max_iterations=max_iterations)
+    return out
