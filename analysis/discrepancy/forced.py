@@ -34,6 +34,7 @@ from analysis.discrepancy.forced_models import (
     ModelFits,
     as_fit_result,
     cause_hints,
+    extend_baseline,
     fit_cause,
     fit_data_view,
     layouts,
@@ -125,6 +126,11 @@ def analyze_forced_fits(
         best = min([base_full, *fits.values()], key=lambda f: f.rms)
         seed = best if best.rms < SEED_RMS * data.noise_rad else None
         fits[name] = fit_cause(data, name, screened[name], lay, threads, seed)
+        if fits[name].rss > base_full.rss:
+            # a nested model ending worse than its parent found a worse basin: start again
+            # from the parent's optimum
+            fits[name] = min(fits[name], extend_baseline(data, name, base_full, lay, threads),
+                             key=lambda f: f.rss)
         bic[name] = _bic(data, base, fits[name])
         say(f"  {name} over the record: BIC gain {bic[name]:.3g}")
     for name in names:

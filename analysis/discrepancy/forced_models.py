@@ -213,6 +213,27 @@ def fit_cause(
     return full
 
 
+def extend_baseline(data: ForcedData, cause_name: str, base: ShootingFit, lay: Layouts,
+                    threads: int | None) -> ShootingFit:
+    """A cause fitted over the whole record from the baseline's own solution, the cause
+    neutral: it can only end at least as close to the record as the baseline (a nested
+    model from its parent's optimum), the fallback when a fit from the cause's screening
+    values ends in a worse basin (chaotic records have many)."""
+    model = ForcedModel(data, () if cause_name == NONE else (cause_name,))
+    scale = record_scale(data, base.values)
+    neutral = {s.name: s.default for s in cause(cause_name).parameters}
+    plans = plan_for(cause(cause_name), scale)
+    neutral.update({k: plans[k].start for k in neutral if plans[k].log})  # log scales need > 0
+    start = {**base.values, **neutral}
+    free = candidate_parameters(data, cause_name, start, scale, neutral)
+    states = true_angle_states(base.prediction[lay.full.start, None] * np.array([1.0, 0.0])
+                               + base.states * np.array([0.0, 1.0]), cause_name, start)
+    out, _ = fit_over_record(model, free, {}, threads=threads,
+                             start_from=(replace(base, states=states), lay.full),
+                             max_iterations=REFINE_ITERATIONS)
+    return out
+
+
 def refit(data: ForcedData, cause_name: str, fit: ShootingFit, lay: Layouts,
           threads: int | None, *, heldout_s: float = 0.0,
           max_iterations: int = REFINE_ITERATIONS) -> ShootingFit:

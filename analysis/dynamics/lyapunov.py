@@ -216,7 +216,9 @@ def contact_time_s(p: np.ndarray, entry_speed_m_s: float) -> float:
     return 3.2181 * (m_eff**2 / (p[P.K] ** 2 * entry_speed_m_s)) ** 0.2
 
 
-@numba.njit(cache=True)
+# Not cached: numba's cache tracks only this file, and these call the model's equations
+# from analysis/model.py; a cached copy would keep an old model after that file changed.
+@numba.njit
 def _pendulum_derivatives(t, th, om, v1, v2, p):
     acc = acceleration(t, th, om, p)
     # directional derivative of theta'' along v (|v| = O(1) after renormalisation)
@@ -226,7 +228,7 @@ def _pendulum_derivatives(t, th, om, v1, v2, p):
     return om, acc, v2, (plus - minus) / (2.0 * h)
 
 
-@numba.njit(cache=True)
+@numba.njit
 def _pendulum_tangent(p, theta0, theta_dot0, t0, dt, steps, transient_steps):
     th, om, t = theta0, theta_dot0, t0
     v1, v2 = 1.0 / math.sqrt(2.0), 1.0 / math.sqrt(2.0)

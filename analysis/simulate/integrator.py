@@ -1139,3 +1139,23 @@ def _poly_max(y0, S, base):
             best = max(best, _poly(y0, S, base, 0.5 * (lo + hi)))
         prev = cur
     return best
+
+
+@kernel(nogil=True)
+def integrate_segments(p, t0, theta0, theta_dot0, out_t, bounds, rtol, atol, max_steps,
+                        out_th, out_om, status):
+    """Run segment k from (t0[k], theta0[k], theta_dot0[k]) and write theta, theta' at
+    out_t[bounds[k]:bounds[k+1]] (its last time is where it ends) and its status code.
+    It lives beside ``integrate`` so that numba's cache, which tracks only a kernel's own
+    file, is renewed whenever the integrator changes."""
+    no_dense = np.empty((0, 3))
+    for k in range(t0.shape[0]):
+        a = bounds[k]
+        b = bounds[k + 1]
+        state = new_state(t0[k], theta0[k], theta_dot0[k], p)
+        integrate(
+            p, state, out_t[a:b], out_th[a:b], out_om[a:b], 0.0, 1.0,
+            np.empty(0), np.empty(0), out_t[b - 1], rtol, atol, np.inf, max_steps,
+            np.empty((16, EV_SIZE)), 0, False, no_dense, 0,
+        )
+        status[k] = state[S_STATUS]

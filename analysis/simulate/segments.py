@@ -2,9 +2,9 @@
 
 Each segment starts from its own (time, theta, theta') and is sampled at its own times;
 the last requested time of a segment is its end, whose state the caller compares with
-the next segment's start.  The loop over segments runs in the compiled code (no Python
-per segment), and releases the GIL so that finite-difference columns of a Jacobian run
-in threads.
+the next segment's start.  The loop over segments runs in the compiled code
+(``integrator.integrate_segments``: no Python per segment), and releases the GIL so that
+finite-difference columns of a Jacobian run in threads.
 """
 
 from __future__ import annotations
@@ -14,22 +14,6 @@ import numpy as np
 from analysis.model import P
 from analysis.simulate import integrator as ig
 from analysis.simulate.simulation import DEFAULT_MAX_STEPS, check_step_settings
-
-
-@ig.kernel(nogil=True)
-def _integrate_segments(p, t0, theta0, theta_dot0, out_t, bounds, rtol, atol, max_steps,
-                        out_th, out_om, status):
-    no_dense = np.empty((0, 3))
-    for k in range(t0.shape[0]):
-        a = bounds[k]
-        b = bounds[k + 1]
-        state = ig.new_state(t0[k], theta0[k], theta_dot0[k], p)
-        ig.integrate(
-            p, state, out_t[a:b], out_th[a:b], out_om[a:b], 0.0, 1.0,
-            np.empty(0), np.empty(0), out_t[b - 1], rtol, atol, np.inf, max_steps,
-            np.empty((16, ig.EV_SIZE)), 0, False, no_dense, 0,
-        )
-        status[k] = state[ig.S_STATUS]
 
 
 def integrate_segments(
@@ -71,6 +55,6 @@ def integrate_segments(
     out_th = np.empty(out_t.size)
     out_om = np.empty(out_t.size)
     status = np.zeros(t0.size)
-    _integrate_segments(p, t0, state0[:, 0].copy(), state0[:, 1].copy(), out_t, bounds, rtol,
+    ig.integrate_segments(p, t0, state0[:, 0].copy(), state0[:, 1].copy(), out_t, bounds, rtol,
                         atol, int(max_steps), out_th, out_om, status)
     return out_th, out_om, status.astype(np.int64)
