@@ -30,7 +30,6 @@ import numpy as np
 from analysis.discrepancy.candidates import candidates_for, excluded_for
 from analysis.discrepancy.forced_judges import model_invariants_distance, verdict_of
 from analysis.discrepancy.forced_models import (
-    HELDOUT_S,
     ModelFits,
     as_fit_result,
     cause_hints,
@@ -50,23 +49,22 @@ from analysis.discrepancy.selection import (
     choose,
     information_criterion_delta,
 )
-from analysis.dynamics.measured_regime import judge_record_regime
 from analysis.dynamics.regime import Regime
 from analysis.experiments import FORCED
 from analysis.extensions import NONE
 from analysis.identify.forced import (
-    SEGMENT_S,
     ForcedData,
     ForcedIdentification,
     forced_data,
     identify_forced,
+    record_regime,
 )
 from analysis.identify.result import IdentificationError
 from analysis.identify.shooting import ShootingFit
 from analysis.records import Record
 
 REFINED = 4  # candidates refined beyond the screening (those that gained), best first
-SEED_RMS = 3.0  # a full fit within this many noise levels lends its segment states
+SEED_RMS = 1.2  # a full fit this close to the noise lends its segment states
 
 Progress = Callable[[str], None]
 
@@ -143,7 +141,7 @@ def analyze_forced_fits(
     measured = base_distance = None
     if passing:
         base = ModelFits(NONE, base_full, refit(data, NONE, base_full, lay, threads,
-                                                heldout_s=HELDOUT_S))
+                                                heldout_s=data.segment_s))
         if chaotic:
             measured = invariants(data.t, data.y, data.drive.frequency_hz,
                                   data.drive.phase0_rad)
@@ -161,7 +159,7 @@ def analyze_forced_fits(
         if chaotic:
             distances = (base_distance,
                          model_invariants_distance(data, measured, name, fits[name]))
-        trains[name] = refit(data, name, fits[name], lay, threads, heldout_s=HELDOUT_S)
+        trains[name] = refit(data, name, fits[name], lay, threads, heldout_s=data.segment_s)
         judged[name] = verdict_of(data, ModelFits(name, fits[name], trains[name]), base, lay,
                                   distances)
         if judged[name].earns_keep:
@@ -180,22 +178,6 @@ def analyze_forced_fits(
 def _bic(data: ForcedData, base: ModelFits, fit: ShootingFit) -> float:
     return information_criterion_delta(as_fit_result(base.full, NONE),
                                        as_fit_result(fit, "candidate"), data.noise_rad)
-
-
-def regime_of(record: Record, data: ForcedData) -> Regime:
-    """The record's regime judged from its strobe points (on the tach, else on the measured
-    drive), aware of its noise; 'undetermined', with the reason, when the record cannot be
-    judged (too few drive periods, say)."""
-    drive = data.drive
-    try:
-        regime, _ = judge_record_regime(
-            np.asarray(record.angle_rad, dtype=float), record.sample_rate_hz, data.noise_rad,
-            tach_indices=record.tach_indices if drive.clock is not None else None,
-            frequency_hz=drive.frequency_hz, phase_rad=drive.phase0_rad,
-        )
-    except ValueError as error:
-        return Regime("undetermined", None, f"undetermined: {error}")
-    return regime
 
 
 def regime_summary(regime: Regime) -> dict[str, Any]:
@@ -218,8 +200,9 @@ def analyze_forced(
         data = forced_data(record)
     except IdentificationError as error:
         raise AnalysisError(f"{record.source or 'record'}: {error}") from error
-    regime = regime_of(record, data)
+    regime = record_regime(record, data)
     chaotic = regime.kind == "chaotic"
+    data = data.for_regime(regime.kind)
     say(f"forced: {data.n_valid} samples at {1 / data.dt:.4g} Hz, noise {data.noise_rad:.3g} "
         f"rad, drive {data.drive.frequency_hz:.6g} Hz ({data.drive.frequency_source}); "
         f"regime {regime.label}")
@@ -251,9 +234,10 @@ def analyze_forced(
         shown = max(out.candidates, key=lambda fv: fv[1].information_criterion_delta)[0]
     notes = [*out.notes]
     if chaotic:
-        notes.append("chaotic response: the causes are judged on the invariant statistics "
-                     "of the model's own long run (Poincare section, turning points, spectral "
-                     "lines), not on forecasts")
+        notes.append(f"chaotic response: fitted in segments of {data.segment_s:g} s, and a "
+                     "cause must also bring the invariant statistics of the model's own long "
+                     "run (Poincare section, turning points, spectral lines) closer to the "
+                     "record's")
     timings = {"regime": judge_time, **out.timings, "total": time.perf_counter() - clock}
     say(f"cause: {chosen} ({timings['total']:.1f} s)")
     return Analysis(
@@ -266,7 +250,8 @@ def analyze_forced(
         baseline_heldout_rms=base.train.forecast_rms if base.train is not None else None,
         curves=(base.full.prediction, shown.full.prediction if shown is not None else None),
         heldout_description=(
-            f"forecasts over the {HELDOUT_S:g} s after each fitted stretch of {SEGMENT_S:g} s, "
+            f"forecasts over the {data.segment_s:g} s after each fitted stretch of "
+            f"{data.segment_s:g} s, "
             "from the state fitted at that stretch's start"
         ),
     )

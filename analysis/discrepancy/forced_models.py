@@ -16,7 +16,6 @@ from analysis.experiments import FORCED
 from analysis.extensions import NONE, cause
 from analysis.identify.forced import (
     BASELINE_PLANS,
-    SEGMENT_S,
     ForcedData,
     ForcedIdentification,
     ForcedModel,
@@ -32,7 +31,6 @@ from analysis.identify.forced import (
 from analysis.identify.shooting import FreeParameter, Segments, ShootingFit
 from analysis.model_values import measured_angle
 
-HELDOUT_S = SEGMENT_S  # each fitted stretch is followed by a forecast one as long
 SCREEN_ITERATIONS = 20  # every candidate, over short segments, from the cold start
 # Over the record every model starts from its screening solution: a right one converges in
 # a few iterations, a wrong one crawls, and more of its crawl would change no judgement.
@@ -59,9 +57,9 @@ class Layouts:
 
 
 def layouts(data: ForcedData) -> Layouts:
-    """Segments of SEGMENT_S over the record; training stretches of SEGMENT_S, each
-    followed by HELDOUT_S of forecast."""
-    return Layouts(record_segments(data), record_segments(data, SEGMENT_S, HELDOUT_S))
+    """Segments of the record's length over it; training stretches as long, each followed
+    by a forecast one as long again."""
+    return Layouts(record_segments(data), record_segments(data, heldout_s=data.segment_s))
 
 
 def fit_data_view(data: ForcedData) -> FitData:

@@ -27,6 +27,8 @@ from typing import Any
 import numpy as np
 from scipy.signal import savgol_filter
 
+from analysis.dynamics.measured_regime import judge_record_regime
+from analysis.dynamics.regime import Regime
 from analysis.identify.drive import MeasuredDrive, measure_drive
 from analysis.identify.equation_error import (
     FlightEstimate,
@@ -51,6 +53,9 @@ from analysis.records import Record
 SHORT_SEGMENT_S = 0.1  # first stage: short enough that 10 % off in omega is a small phase error
 MAX_SHORT_SEGMENTS = 200
 SEGMENT_S = 0.4  # second stage: a few drive periods at 10 Hz, about one swing at 2 Hz
+# A chaotic record's response to a segment's state grows by e in a few tenths of a second,
+# and a near-grazing impact makes it steep: its segments are shorter.
+CHAOTIC_SEGMENT_S = 0.2
 MIN_DURATION_S = 2.0
 SMOOTHING_S = 0.012
 
@@ -77,6 +82,13 @@ class ForcedData:
     rig: RigParameters
     drive: MeasuredDrive
     source: str = ""
+    segment_s: float = SEGMENT_S  # linked segments over the whole record are this long
+
+    def for_regime(self, kind: str) -> ForcedData:
+        """The same record fitted in segments suited to its regime (chaotic or undetermined
+        records in CHAOTIC_SEGMENT_S)."""
+        chaotic = kind in ("chaotic", "undetermined")
+        return replace(self, segment_s=CHAOTIC_SEGMENT_S if chaotic else SEGMENT_S)
 
     @property
     def dt(self) -> float:
@@ -197,11 +209,11 @@ def short_segments(data: ForcedData) -> Segments:
                     np.zeros(take.size, dtype=bool))
 
 
-def record_segments(data: ForcedData, length_s: float = SEGMENT_S,
+def record_segments(data: ForcedData, length_s: float | None = None,
                     heldout_s: float = 0.0) -> Segments:
     """Linked segments over the whole record from its first sample, each ``length_s``
-    fitted and then ``heldout_s`` forecast."""
-    return cut_segments(data.t, 0.0, length_s, heldout_s=heldout_s)
+    (default: the record's ``segment_s``) fitted and then ``heldout_s`` forecast."""
+    return cut_segments(data.t, 0.0, length_s or data.segment_s, heldout_s=heldout_s)
 
 
 def inherited_states(new: Segments, old: Segments, old_states: np.ndarray,
@@ -222,8 +234,9 @@ def fit_over_record(
     start_from: tuple[ShootingFit, Segments] | None = None,
     max_iterations: int = MAX_ITERATIONS,
 ) -> tuple[ShootingFit, Segments]:
-    """Multiple shooting over the whole record in linked segments of SEGMENT_S, reached by
-    halving: first segments of SEGMENT_S / 2 (states drawn onto the data from a smoother),
+    """Multiple shooting over the whole record in linked segments of ``data.segment_s``,
+    reached by halving: first segments half as long (states drawn onto the data from a
+    smoother),
     then the full length from those fitted states.  A long segment's state must be close
     before the fit can improve it (near-grazing impacts make the response to it steep);
     half-length segments get there from a smoother's estimate.
@@ -234,14 +247,14 @@ def fit_over_record(
     data = model.data
     offset = fixed.get("offset_rad", next((p.start for p in free if p.name == "offset_rad"),
                                           0.0))
-    segments = record_segments(data, SEGMENT_S, heldout_s)
+    segments = record_segments(data, heldout_s=heldout_s)
     smooth = smoothed_states(data, segments.start, offset)
     if start_from is not None:
         states = inherited_states(segments, start_from[1], start_from[0].states, smooth)
         fit, _ = fit_model(model, segments, free, fixed, states, warm_states=False,
                            threads=threads, max_iterations=max_iterations)
         return fit, segments
-    half = record_segments(data, 0.5 * SEGMENT_S)
+    half = record_segments(data, 0.5 * data.segment_s)
     say(f"multiple shooting over the record in {half.count} linked segments")
     fit_half, _ = fit_model(model, half, free, fixed,
                             smoothed_states(data, half.start, offset), threads=threads,
@@ -396,14 +409,34 @@ def identify_forced(
                                 start=dict(start), notes=notes)
 
 
+def record_regime(record: Record, data: ForcedData) -> Regime:
+    """The record's regime judged from its strobe points (on the tach, else on the measured
+    drive), aware of its noise; 'undetermined', with the reason, when the record cannot be
+    judged (too few drive periods, say)."""
+    drive = data.drive
+    try:
+        regime, _ = judge_record_regime(
+            np.asarray(record.angle_rad, dtype=float), record.sample_rate_hz, data.noise_rad,
+            tach_indices=record.tach_indices if drive.clock is not None else None,
+            frequency_hz=drive.frequency_hz, phase_rad=drive.phase0_rad,
+        )
+    except ValueError as error:
+        return Regime("undetermined", None, f"undetermined: {error}")
+    return regime
+
+
 def fit_forced(
     record: Record, *, priors: Mapping[str, float] | None = None,
     progress: Progress | None = None,
 ) -> IdentificationResult:
     """``impact-rig identify`` of a forced record: every parameter it determines, with 95 %
     intervals, and the drive as measured."""
-    found = identify_forced(record, priors=priors, progress=progress)
-    return identification_result(found, record.experiment)
+    data = forced_data(record)
+    regime = record_regime(record, data)
+    found = identify_forced(data.for_regime(regime.kind), priors=priors, progress=progress)
+    result = identification_result(found, record.experiment)
+    result.details["regime"] = regime.label
+    return result
 
 
 def identification_result(found: ForcedIdentification, experiment: str) -> IdentificationResult:
