@@ -2,10 +2,12 @@
 by the reference simulator (never by the project's integrator or virtual rig).
 
 A case holds the drawn truth: the rig, the drive (stated and true), the initial state and
-the discarded transient, the measurement chain, the named causes at work, and the regime
-of the noiseless motion.  The files written from it state only what a lab would know:
-the rig constants m, l, R and g, the stated drive frequency and amplitude, and the
-channels time_s, angle_rad, tach and (when the laser is fitted) table_m.
+the discarded transient, the measurement chain, the named causes at work, how much of
+them shows once the baseline refits its own parameters (a cause that does not show is
+never handed out), and the regime of the noiseless motion.  The files written from it
+state only what a lab would know: the rig constants m, l, R and g, the stated drive
+frequency and amplitude, and the channels time_s, angle_rad, tach and (when the laser is
+fitted) table_m.
 """
 
 from __future__ import annotations
@@ -31,6 +33,7 @@ from tests.reference.simulator import (
     TableMotion,
     simulate_reference,
 )
+from tests.reference.visibility import SHOWS_OVER_NOISE, Visibility, cause_visibility
 
 FREQUENCIES_HZ = (2.0, 10.0)
 # Ranges of beta = A / L giving, over many draws, period-1 and period-2 records at 2 Hz
@@ -47,6 +50,13 @@ TABLE_SPAN_M = 0.1  # a 100 mm laser triangulation sensor, zero at mid range
 MAX_ATTEMPTS = 40
 REGIME_REQUEST = re.compile(r"^(periodic|chaotic|period-k|period-([2-9]|[12][0-9]|3[0-2]))$")
 PILOT_S = 10.0  # baseline run that sizes a cause to the response it acts on
+# Sizes tried for a cause before the record is given up: the whole plausible range, then
+# its largest quarter (the quantile the draw starts from).
+SIZE_QUANTILES = (0.0, 0.75)
+
+
+class CauseHiddenError(RuntimeError):
+    """No plausible size of the cause shows in the record: the baseline absorbs it."""
 
 
 @dataclass(frozen=True)
@@ -119,7 +129,9 @@ class ForcedCase:
     ``causes`` maps each named cause at work (docs/MODEL.md section 6) to its parameters;
     ``attempt`` is the sub-seed that met a requested regime (0: the seed itself).
     ``regime_truth.settling`` tells how settled a periodic record's start still is;
-    ``motion`` keeps the noiseless run the regime was judged on (not compared).
+    ``visibility`` how much of the cause shows after the baseline refits its own
+    parameters (None for a clean record); ``motion`` keeps the noiseless run the regime
+    was judged on (not compared).
     """
 
     seed: int
@@ -134,6 +146,7 @@ class ForcedCase:
     duration_s: float
     sample_rate_hz: float
     regime_truth: RegimeTruth
+    visibility: Visibility | None = None
     motion: TrueMotion | None = field(default=None, compare=False, repr=False)
 
     @property
@@ -234,10 +247,13 @@ def draw_forced_case(
     makes them).  ``regime`` ("periodic" for period 1, "period-k" for any subharmonic,
     "period-2".."period-32", "chaotic") is met by drawing again from the sub-seeds
     (seed, 1), (seed, 2), ... until the noiseless motion has it; draws driven over the
-    top are redrawn the same way.
+    top are redrawn the same way.  A cause is drawn at a size that shows after the
+    baseline refits its own parameters (``case.visibility``): one that does not is drawn
+    again from the largest part of its plausible range, and then the record is redrawn.
     """
     _check_request(seed, cause, frequency_hz, regime, duration_s, sample_rate_hz, laser)
     seen: dict[str, int] = {}
+    last_hidden = ""
     for attempt in range(MAX_ATTEMPTS):
         rng = np.random.default_rng(seed if attempt == 0 else [seed, attempt])
         try:
@@ -246,12 +262,17 @@ def draw_forced_case(
         except OverTheTopError:
             seen["over the top"] = seen.get("over the top", 0) + 1
             continue
+        except CauseHiddenError as hidden:
+            seen["cause hidden"] = seen.get("cause hidden", 0) + 1
+            last_hidden = str(hidden)
+            continue
         if regime is None or _regime_matches(case.regime_truth, regime):
             return case
         seen[case.regime] = seen.get(case.regime, 0) + 1
     raise RuntimeError(
         f"seed {seed}: no draw met regime={regime!r} (cause={cause!r}, "
         f"frequency_hz={frequency_hz!r}) in {MAX_ATTEMPTS} attempts; drew {seen}"
+        + (f"; last: {last_hidden}" if last_hidden else "")
     )
 
 
@@ -342,26 +363,58 @@ def _draw_once(
         table_step_m=TABLE_SPAN_M / 2**ADC_BITS,
         noise_seed=int(measure_rng.integers(2**63)),
     )
-    causes: dict[str, dict[str, float]] = {}
-    if cause != "none":
-        scale = _pilot_scale(rig, drive, theta0, theta_dot0, transient)
-        causes[cause] = draw_cause_values(
-            cause_rng, cause, scale, m_kg=rig.m_kg, l_m=rig.l_m, L_m=rig.L_m, zeta=rig.zeta,
-            omega_rad_s=rig.omega_rad_s, K_N_per_m1_5=rig.K_N_per_m1_5,
-            mu0_s_per_m=rig.mu0_s_per_m, noise_rad=measurement.angle_noise_rad,
-            gravity_torque_N_m=rig.m_kg * rig.g_m_s2 * rig.L_m,
-        )
     case = ForcedCase(
-        seed=seed, attempt=attempt, causes=causes, rig=rig, drive=drive,
+        seed=seed, attempt=attempt, causes={}, rig=rig, drive=drive,
         measurement=measurement, theta0_rad=theta0, theta_dot0_rad_s=theta_dot0,
         transient_s=transient, duration_s=float(duration_s), sample_rate_hz=float(sample_rate_hz),
         regime_truth=RegimeTruth("unsettled", None, None, None),
     )
-    motion = simulate_true_motion(case)
+    if cause == "none":
+        motion = simulate_true_motion(case)
+    else:
+        case, motion = _with_visible_cause(case, cause, cause_rng)
     extent = attractor_extent(motion.theta_rad, motion.theta_dot_rad_s)
     truth = judge_regime(case.pendulum(), case.table(), motion.strobe_s, motion.strobe_states,
                          extent)
     return replace(case, regime_truth=truth, motion=motion)
+
+
+def _with_visible_cause(
+    case: ForcedCase, cause: str, rng: np.random.Generator
+) -> tuple[ForcedCase, TrueMotion]:
+    """The case with ``cause`` drawn at a size that shows after the baseline refits its own
+    parameters (SIZE_QUANTILES: the plausible range, then its largest quarter), and its
+    motion; CauseHiddenError when no size tried shows."""
+    rig, drive = case.rig, case.drive
+    scale = _pilot_scale(rig, drive, case.theta0_rad, case.theta_dot0_rad_s, case.transient_s)
+    tried = []
+    for at_least in SIZE_QUANTILES:
+        values = draw_cause_values(
+            rng, cause, scale, m_kg=rig.m_kg, l_m=rig.l_m, L_m=rig.L_m, zeta=rig.zeta,
+            omega_rad_s=rig.omega_rad_s, K_N_per_m1_5=rig.K_N_per_m1_5,
+            mu0_s_per_m=rig.mu0_s_per_m, noise_rad=case.measurement.angle_noise_rad,
+            gravity_torque_N_m=rig.m_kg * rig.g_m_s2 * rig.L_m, at_least=at_least,
+        )
+        sized = replace(case, causes={cause: values})
+        motion = simulate_true_motion(sized)
+        visibility = visibility_of(sized, motion)
+        if visibility.shows:
+            return replace(sized, visibility=visibility), motion
+        tried.append(f"{visibility.visible_over_noise:.2g}")
+    raise CauseHiddenError(
+        f"{cause} does not show in this record at any plausible size: the baseline's refit "
+        f"leaves {', '.join(tried)} x the noise (needs {SHOWS_OVER_NOISE:g})"
+    )
+
+
+def visibility_of(case: ForcedCase, motion: TrueMotion) -> Visibility:
+    """How much of the case's causes shows in its noiseless reading after the baseline (the
+    rig's values, the stated table as a pure sine) refits its own parameters."""
+    return cause_visibility(
+        true_pendulum(case.rig, {}), true_table(case.drive, {}), motion.time_s,
+        motion.theta_rad, motion.theta_dot_rad_s, sensor_reading(motion, case.causes),
+        case.measurement.angle_noise_rad,
+    )
 
 
 def _pilot_scale(

@@ -24,6 +24,9 @@ from scipy.integrate import solve_ivp
 MAX_STEP_FRACTION = 1.0 / 10.0
 # Pieces that end where they began; more in a row than this means the event logic is stuck.
 MAX_EMPTY_PIECES = 20
+# How far past 0 theta' must go before a reversal is found: far below any speed that shows,
+# far above rounding (it moves the reversal by about 1e-12 s).
+REVERSAL_OFFSET_RAD_S = 1e-10
 
 
 class OverTheTopError(ValueError):
@@ -440,8 +443,14 @@ def _piece_events(equations: _Equations, mode: _Mode):
             handlers += [slip(1.0), slip(-1.0)]
         else:
 
+            direction = mode.direction
+
             def speed(t: float, y: np.ndarray) -> float:
-                return y[1]
+                # A piece that starts from a reversal starts at theta' = 0, a root the event
+                # search would return at once when theta' comes back through 0 within the
+                # first step (a fast drive turning it round): offset so that the start lies
+                # on the side the motion leaves, and the crossing is the one ahead.
+                return y[1] + REVERSAL_OFFSET_RAD_S * direction
 
             def speed_zero(t: float, y: np.ndarray, mode: _Mode) -> str:
                 y[1] = 0.0

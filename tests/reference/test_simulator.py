@@ -143,6 +143,28 @@ def test_stuck_pendulum_slips_when_the_drive_beats_friction():
     assert run.theta_dot_rad_s[0] > 0.0  # slides toward +theta: the drive pushes that way
 
 
+def test_a_reversal_the_drive_turns_round_within_a_step_is_found_ahead():
+    """Set sliding from rest by a 10 Hz drive, theta' comes back through 0 within a
+    millisecond, inside the solver's first step: that crossing, not the start, is the next
+    reversal, and there the drive's torque is within Tc, so the pendulum sticks."""
+    pendulum = _pendulum(m_kg=0.0336, l_m=0.0508, L_m=0.048, Tc_N_m=3.4e-4, barrier=False)
+    table = TableMotion(amplitude_m=0.00459, frequency_hz=10.0, phase_rad=5.0)
+    theta0, t0 = -0.94, 0.00621
+    friction = pendulum.Tc_N_m / (pendulum.m_kg * pendulum.L_m**2)
+
+    def other(t: float) -> float:  # gravity and drive at theta0; theta moves ~1e-6 rad here
+        return (-table.acceleration(t) / pendulum.L_m * math.cos(theta0)
+                - pendulum.omega_rad_s**2 * math.sin(theta0))
+
+    assert other(t0) < -friction  # it must slide, toward -theta
+    run = simulate_reference(pendulum, table, theta0, 0.0, np.array([t0 + 0.01]), t_start_s=t0)
+    stick = run.events[0]
+    assert stick.kind == "stick"
+    speed = quad(lambda t: other(t) + friction, t0, stick.t_s, epsabs=1e-13)[0]
+    assert abs(speed) < 1e-3 * quad(lambda t: abs(other(t) + friction), t0, stick.t_s)[0]
+    assert abs(other(stick.t_s)) <= friction
+
+
 def test_kelvin_voigt_force_clamps_to_free_flight_until_the_exit():
     pendulum = _pendulum(zeta=0.0, mu0_s_per_m=0.0, c_N_s_per_m=5.0)
     run = simulate_reference(pendulum, TableMotion(), -0.1, 0.0, np.array([0.2]))
