@@ -137,3 +137,34 @@ def judge_regime(
     else:
         regime = "quasi-periodic"
     return RegimeTruth(regime, None, exponent, None)
+
+
+# A record cannot tell period k from its divisor p when its stroboscopic angles p periods
+# apart differ by less than this fraction of the angle noise all over its settled end: one
+# sample per drive period carries that noise, and the difference hides in it.
+UNRESOLVED_OVER_NOISE = 0.1
+
+
+def periods_a_record_shows(
+    points: np.ndarray, noise_rad: float, truth: RegimeTruth
+) -> set[int]:
+    """The periods a judgement of the noisy record may rightly give: the true one, and each
+    divisor p of it whose splitting (angles p periods apart over the second half of the
+    record) stays below ``UNRESOLVED_OVER_NOISE`` of the noise.  For chaos or quasi-periodic
+    motion, a period p whose points agree that closely over the last quarter (the motion
+    ends periodic, or so nearly that the record cannot tell).  Empty when none."""
+    if noise_rad <= 0.0:
+        raise ValueError(f"noise_rad = {noise_rad!r}: expected the angle noise, > 0")
+    angles = points[:, 0]
+    settled = angles[angles.size // 2 :] if truth.period else angles[3 * angles.size // 4 :]
+    shown = {truth.period} if truth.period else set()
+    for p in range(1, (truth.period or MAX_PERIOD + 1)):
+        if truth.period and truth.period % p:
+            continue
+        if settled.size < p + 2:
+            break
+        if np.max(np.abs(settled[p:] - settled[:-p])) < UNRESOLVED_OVER_NOISE * noise_rad:
+            shown.add(p)
+            if not truth.period:
+                break
+    return shown
