@@ -109,13 +109,16 @@ class Verdict:
         """True when both judges say the extension helps by a clear margin.  On a chaotic
         record the invariant statistics join them: alone when there are no forecasts (a
         ratio under INVARIANT_RATIO), or as a veto of forecasts whose model's long run is
-        no closer to the record's statistics than the baseline's."""
+        no closer to the record's statistics than the baseline's.  One long run's statistics
+        are noisy: against forecasts clearly better (HELDOUT_RATIO) the veto needs its run
+        clearly further away (1 / INVARIANT_RATIO)."""
         if self.information_criterion_delta <= BIC_MARGIN:
             return False
         ratio = self.invariant_ratio
         if ratio is not None and self.forecast_z is None:
             return ratio < INVARIANT_RATIO
-        if ratio is not None and ratio >= 1.0:
+        if ratio is not None and ratio >= (1.0 if self.heldout_ratio >= HELDOUT_RATIO
+                                           else 1.0 / INVARIANT_RATIO):
             return False  # forecasts better, but its own long run further from the record's
         return self.heldout_helps
 

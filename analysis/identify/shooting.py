@@ -36,6 +36,15 @@ from analysis.simulate.segments import integrate_segments
 RTOL = 1e-8
 ATOL = 1e-10
 MAX_ITERATIONS = 40
+# After a fit converges, segments stuck on a motion their predecessor's end does not
+# continue take that continuation when it lowers their cost by more than REPAIR_GAIN (in
+# chi^2 / 2: a few samples' worth against a wrong basin's hundreds), over up to
+# REPAIR_PASSES passes; the fit then goes on for REPAIR_ITERATIONS, REPAIR_ROUNDS times
+# at most.
+REPAIR_GAIN = 10.0
+REPAIR_PASSES = 12
+REPAIR_ROUNDS = 2
+REPAIR_ITERATIONS = 6  # the fit's further iterations after a repair
 MAX_STEPS_PER_SEGMENT = 20_000  # a few hundred suffice; a trial needing more fails
 COST_TOLERANCE = 0.05  # a step gaining less chi^2 / 2 than this changes no judgement
 # ... nor does a relative gain this small of a model that misses the record by far
@@ -334,56 +343,127 @@ class ShootingProblem:
         nu = 2.0
         message = "maximum iterations reached"
         success = False
-        small_before = False
         iterations = 0
-        for iterations in range(1, max_iterations + 1):  # noqa: B007 - read after the loop
-            jac = self._jacobian(u, s, r, theta, ends, hs)
-            a = (jac.T @ jac).tocsc()
-            grad = jac.T @ r
-            diag = a.diagonal()
-            diag = np.maximum(diag, 1e-12 * max(1.0, float(np.max(diag))))
-            improved = False
-            for _ in range(12):
-                try:
-                    step = -splu((a + sparse.diags(lam * diag)).tocsc()).solve(grad)
-                except RuntimeError:  # singular
+        budget = max_iterations
+        for repair_round in range(REPAIR_ROUNDS + 1):
+            small_before = False
+            for _ in range(budget):
+                iterations += 1
+                jac = self._jacobian(u, s, r, theta, ends, hs)
+                a = (jac.T @ jac).tocsc()
+                grad = jac.T @ r
+                diag = a.diagonal()
+                diag = np.maximum(diag, 1e-12 * max(1.0, float(np.max(diag))))
+                improved = False
+                for _ in range(12):
+                    try:
+                        step = -splu((a + sparse.diags(lam * diag)).tocsc()).solve(grad)
+                    except RuntimeError:  # singular
+                        lam *= nu
+                        nu *= 2.0
+                        continue
+                    if not np.all(np.isfinite(step)):
+                        lam *= nu
+                        nu *= 2.0
+                        continue
+                    u_new = np.clip(u + np.clip(step[:g], -max_move, max_move), lower, upper)
+                    s_new = s + step[g:].reshape(n_seg, 2) * hs
+                    try:
+                        r_new, theta_new, ends_new = evaluate(u_new, s_new)
+                        cost_new = 0.5 * float(r_new @ r_new)
+                    except (ValueError, OverflowError, ZeroDivisionError):
+                        cost_new = math.inf  # a trial outside the model's domain: rejected
+                    predicted = -(grad @ step) - 0.5 * step @ (a @ step)
+                    rho = (cost - cost_new) / predicted if predicted > 0 else -1.0
+                    if cost_new < cost:
+                        gain = cost - cost_new
+                        u, s, r, theta, ends = u_new, s_new, r_new, theta_new, ends_new
+                        cost = cost_new
+                        lam *= max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3)
+                        nu = 2.0
+                        improved = True
+                        break
                     lam *= nu
                     nu *= 2.0
-                    continue
-                if not np.all(np.isfinite(step)):
-                    lam *= nu
-                    nu *= 2.0
-                    continue
-                u_new = np.clip(u + np.clip(step[:g], -max_move, max_move), lower, upper)
-                s_new = s + step[g:].reshape(n_seg, 2) * hs
-                try:
-                    r_new, theta_new, ends_new = evaluate(u_new, s_new)
-                    cost_new = 0.5 * float(r_new @ r_new)
-                except (ValueError, OverflowError, ZeroDivisionError):
-                    cost_new = math.inf  # a trial outside the model's domain: a rejected step
-                predicted = -(grad @ step) - 0.5 * step @ (a @ step)
-                rho = (cost - cost_new) / predicted if predicted > 0 else -1.0
-                if cost_new < cost:
-                    gain = cost - cost_new
-                    u, s, r, theta, ends = u_new, s_new, r_new, theta_new, ends_new
-                    cost = cost_new
-                    lam *= max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3)
-                    nu = 2.0
-                    improved = True
+                if not improved:
+                    message = "no step lowers the cost"
+                    success = True
                     break
-                lam *= nu
-                nu *= 2.0
-            if not improved:
-                message = "no step lowers the cost"
-                success = True
+                small = gain <= max(COST_TOLERANCE, RELATIVE_TOLERANCE * cost)
+                if small and (lam < 1e-2 or small_before):
+                    message = "cost converged"
+                    success = True
+                    break
+                small_before = small
+            if repair_round == REPAIR_ROUNDS:
                 break
-            small = gain <= max(COST_TOLERANCE, RELATIVE_TOLERANCE * cost)
-            if small and (lam < 1e-2 or small_before):
-                message = "cost converged"
-                success = True
+            repaired = self._continued_states(self.values_of(u), s)
+            if repaired is None:
                 break
-            small_before = small
+            s = repaired
+            r, theta, ends = evaluate(u, s)
+            cost = 0.5 * float(r @ r)
+            lam, nu = 1e-3, 2.0
+            budget = REPAIR_ITERATIONS
         return self._result(u, s, r, theta, ends, hs, success, message, iterations)
+
+    def _continued_states(
+        self, values: Mapping[str, float], s: np.ndarray
+    ) -> np.ndarray | None:
+        """Segment states with each segment that sits in a worse basin than its
+        predecessor's motion continued replaced by that continuation, or None when none is.
+
+        A segment's state is a local fit: after an impact near grazing it can settle on a
+        motion the record does not show while its predecessor's end is on the right one.
+        Two models compared on the same record must not differ by such accidents.  A
+        segment takes its predecessor's end state when that lowers its own cost (its data,
+        the jump into it and the jump out of it) by more than REPAIR_GAIN; a segment whose
+        predecessor changed waits for the next pass, and passes repeat (a good motion
+        continues along a run of bad segments) up to REPAIR_PASSES times."""
+        if self.links.size == 0:
+            return None
+        n_seg = self.segments.count
+        rows = int(np.count_nonzero(self.fitted))
+        seg_rows = self.segment_of[self.fitted]
+        scale = np.array([self.sigma, self.sigma * self.rate_scale])
+
+        def local_costs(r_: np.ndarray, own: np.ndarray, ends_: np.ndarray,
+                        successors: np.ndarray) -> np.ndarray:
+            """Each segment's data cost plus the jumps into it (from its predecessor's
+            present end to its ``own`` start) and out of it (to ``successors``' starts)."""
+            data = np.bincount(seg_rows, r_[:rows] ** 2, minlength=n_seg)
+            out = np.zeros(n_seg)
+            jump_out = np.sum(((ends_[self.links] - successors[self.links + 1]) / scale) ** 2,
+                              axis=1)
+            out[self.links] += jump_out
+            jump_in = np.sum(((ends_s[self.links] - own[self.links + 1]) / scale) ** 2, axis=1)
+            out[self.links + 1] += jump_in
+            return 0.5 * (data + out)
+
+        changed = False
+        theta_s, ends_s = self.run(values, s)
+        r_s = self.residuals(theta_s, ends_s, s)
+        for _ in range(REPAIR_PASSES):
+            trial = s.copy()
+            trial[self.links + 1] = ends_s[self.links]
+            theta_t, ends_t = self.run(values, trial)
+            r_t = self.residuals(theta_t, ends_t, trial)
+            now = local_costs(r_s, s, ends_s, s)
+            # a trial segment starts on its predecessor's present end (no jump in) and
+            # jumps out to its successor's present state
+            then = local_costs(r_t, trial, ends_t, s)
+            better = np.zeros(n_seg, dtype=bool)
+            better[self.links + 1] = (now - then)[self.links + 1] > REPAIR_GAIN
+            for k in np.flatnonzero(better):  # no two neighbours change in one pass
+                if k > 0 and better[k - 1]:
+                    better[k] = False
+            if not better.any():
+                break
+            s = np.where(better[:, None], trial, s)
+            changed = True
+            theta_s, ends_s = self.run(values, s)
+            r_s = self.residuals(theta_s, ends_s, s)
+        return s if changed else None
 
     def _bounds(self) -> tuple[np.ndarray, np.ndarray]:
         """Lower and upper bounds of the shared parameters in step units."""

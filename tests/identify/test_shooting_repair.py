@@ -1,0 +1,58 @@
+"""Multiple shooting on a chaotic record: a segment whose state sits on a motion the record
+does not show takes its predecessor's continued motion instead.
+
+The record comes from the independent reference simulator (``tests/reference``); the fit
+starts from the true parameters and the true states, one segment's state thrown far off.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from analysis.identify import shooting
+from analysis.identify.forced import (
+    BASELINE_PLANS,
+    ForcedModel,
+    forced_data,
+    free_parameters,
+    record_segments,
+)
+from analysis.records import load_record
+from tests.reference.forced_records import draw_forced_case, write_forced_case
+
+THROWN = 17  # the segment thrown off
+
+
+@pytest.fixture(scope="module")
+def thrown_off(tmp_path_factory):
+    """The problem, the true states and the states with one thrown off."""
+    case = draw_forced_case(7101, "none", frequency_hz=10.0, regime="chaotic", laser=True,
+                            duration_s=8.0)
+    record = load_record(write_forced_case(case, tmp_path_factory.mktemp("chaotic")))
+    data = forced_data(record).for_regime("chaotic")
+    segments = record_segments(data)
+    rig = case.rig
+    truth = {"omega_rad_s": rig.omega_rad_s, "zeta": rig.zeta,
+             "K_N_per_m1.5": rig.K_N_per_m1_5, "mu0_s_per_m": rig.mu0_s_per_m}
+    free = free_parameters(list(BASELINE_PLANS), truth)
+    problem = ForcedModel(data, ()).problem(segments, free, {}, threads=2)
+    motion = case.motion
+    at = segments.start  # the record's samples are the motion's, both from 0
+    true_states = np.column_stack([motion.theta_rad[at], motion.theta_dot_rad_s[at]])
+    states = true_states.copy()
+    states[THROWN, 1] = -states[THROWN, 1] + 3.0 * np.sign(states[THROWN, 1] or 1.0)
+    return problem, true_states, states, data.noise_rad
+
+
+def test_a_thrown_off_segment_takes_its_predecessors_motion(thrown_off, monkeypatch):
+    problem, true_states, states, noise = thrown_off
+    fit = problem.fit(states, max_iterations=2)
+    assert abs(fit.states[THROWN, 0] - true_states[THROWN, 0]) < 3 * noise
+    assert abs(fit.states[THROWN, 1] - true_states[THROWN, 1]) < 0.05
+    assert fit.rms < 1.2 * noise
+    # without the repair the same fit leaves it where it was thrown
+    monkeypatch.setattr(shooting, "REPAIR_ROUNDS", 0)
+    stuck = problem.fit(states, max_iterations=2)
+    assert abs(stuck.states[THROWN, 1] - true_states[THROWN, 1]) > 0.5
+    assert stuck.rms > 1.2 * noise
