@@ -322,7 +322,9 @@ class ShootingProblem:
         self, states0: np.ndarray, *, max_iterations: int = MAX_ITERATIONS,
         state_steps: tuple[float, float] = (1e-6, 1e-6),
     ) -> ShootingFit:
-        """Levenberg-Marquardt from the free parameters' starts and the given segment states."""
+        """Levenberg-Marquardt from the free parameters' starts and the given segment states
+        (states taken from elsewhere, and after convergence, repaired where a segment's
+        predecessor continues into a better fit: ``_continued_states``)."""
         g = len(self.free)
         n_seg = self.segments.count
         hs = np.asarray(state_steps, dtype=float)
@@ -337,6 +339,9 @@ class ShootingProblem:
             theta, ends = self.run(values, s_)
             return self.residuals(theta, ends, s_), theta, ends
 
+        repaired = self._continued_states(self.values_of(u), s)  # states from elsewhere
+        if repaired is not None:
+            s = repaired
         r, theta, ends = evaluate(u, s)
         cost = 0.5 * float(r @ r)
         lam = 1e-3
@@ -445,7 +450,8 @@ class ShootingProblem:
         r_s = self.residuals(theta_s, ends_s, s)
         for _ in range(REPAIR_PASSES):
             trial = s.copy()
-            trial[self.links + 1] = ends_s[self.links]
+            continued = self.links[np.all(np.isfinite(ends_s[self.links]), axis=1)]
+            trial[continued + 1] = ends_s[continued]  # a run that stopped continues nothing
             theta_t, ends_t = self.run(values, trial)
             r_t = self.residuals(theta_t, ends_t, trial)
             now = local_costs(r_s, s, ends_s, s)
