@@ -124,13 +124,14 @@ def analyze_forced_fits(
         best = min([base_full, *fits.values()], key=lambda f: f.rms)
         seed = best if best.rms < SEED_RMS * data.noise_rad else None
         fits[name] = fit_cause(data, name, screened[name], lay, threads, seed)
-        if fits[name].rss > base_full.rss and seed is not None:
-            # a model ending worse than the baseline found a worse basin: its own states,
-            # drawn onto the data afresh, then the baseline's optimum, as starts
-            fits[name] = min(fits[name], fit_cause(data, name, screened[name], lay, threads),
-                             key=lambda f: f.rss)
+        # a model ending worse than the baseline found a worse basin: start again from the
+        # baseline's optimum, then (when the first start was another model's states) from
+        # its own states drawn onto the data afresh
         if fits[name].rss > base_full.rss:
             fits[name] = min(fits[name], extend_baseline(data, name, base_full, lay, threads),
+                             key=lambda f: f.rss)
+        if fits[name].rss > base_full.rss and seed is not None:
+            fits[name] = min(fits[name], fit_cause(data, name, screened[name], lay, threads),
                              key=lambda f: f.rss)
         bic[name] = _bic(data, base, fits[name])
         say(f"  {name} over the record: BIC gain {bic[name]:.3g}")

@@ -110,15 +110,15 @@ class Verdict:
         record the invariant statistics join them: alone when there are no forecasts (a
         ratio under INVARIANT_RATIO), or as a veto of forecasts whose model's long run is
         no closer to the record's statistics than the baseline's.  One long run's statistics
-        are noisy: against forecasts clearly better (HELDOUT_RATIO) the veto needs its run
-        clearly further away (1 / INVARIANT_RATIO)."""
+        are noisy (a right cause's run came 1.4 times further away than the baseline's on
+        a record whose forecasts it improved threefold): the veto needs the run further
+        away by more than the factor the forecasts gain."""
         if self.information_criterion_delta <= BIC_MARGIN:
             return False
         ratio = self.invariant_ratio
         if ratio is not None and self.forecast_z is None:
             return ratio < INVARIANT_RATIO
-        if ratio is not None and ratio >= (1.0 if self.heldout_ratio >= HELDOUT_RATIO
-                                           else 1.0 / INVARIANT_RATIO):
+        if ratio is not None and ratio >= max(1.0, 1.0 / self.heldout_ratio):
             return False  # forecasts better, but its own long run further from the record's
         return self.heldout_helps
 
@@ -134,11 +134,16 @@ class Verdict:
             f"held-out error x{ratio:.3g} (above noise x{self.heldout_excess_ratio:.3g}): "
             f"{'better' if self.heldout_helps else 'no clear gain'}",
         ]
-        if self.invariant_ratio is not None:
+        invariant = self.invariant_ratio
+        if invariant is not None and self.forecast_z is None:
             parts[1] = (
-                f"invariant-statistics distance x{self.invariant_ratio:.3g} "
-                f"({'<' if self.invariant_ratio < INVARIANT_RATIO else '>='} {INVARIANT_RATIO:g})"
+                f"invariant-statistics distance x{invariant:.3g} "
+                f"({'<' if invariant < INVARIANT_RATIO else '>='} {INVARIANT_RATIO:g})"
             )
+        elif invariant is not None:
+            veto = max(1.0, 1.0 / ratio)
+            parts.append(f"its long run's invariant-statistics distance x{invariant:.3g} "
+                         f"({'vetoes' if invariant >= veto else 'under'} x{veto:.3g})")
         return ", ".join(parts)
 
 

@@ -43,7 +43,7 @@ MAX_ITERATIONS = 40
 # at most.
 REPAIR_GAIN = 10.0
 REPAIR_PASSES = 12
-REPAIR_ROUNDS = 2
+REPAIR_ROUNDS = 1
 REPAIR_ITERATIONS = 6  # the fit's further iterations after a repair
 MAX_STEPS_PER_SEGMENT = 20_000  # a few hundred suffice; a trial needing more fails
 COST_TOLERANCE = 0.05  # a step gaining less chi^2 / 2 than this changes no judgement
