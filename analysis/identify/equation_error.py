@@ -109,9 +109,14 @@ def flight_regression(
     if both_known:
         acc_g = table.amplitude_m * table.shape(t, table.phase_rad) / g
         columns = [yd, sin_y + acc_g * cos_y, cos_y - acc_g * sin_y]
-    else:  # the fundamental's two quadratures (x_t'' per unit amplitude at phases 0, pi/2)
+    else:
+        # the fundamental's two quadratures (x_t'' per unit amplitude at phases 0, pi/2),
+        # and the second harmonic's: a table that no laser watches may be distorted, and a
+        # 20 Hz push the basis lacks turns the gravity term's sign on a 10 Hz record
+        w2 = 2.0 * table.omega_rad_s
         columns = [yd, sin_y, cos_y, table.shape(t, 0.0) * cos_y / g,
-                   table.shape(t, 0.5 * math.pi) * cos_y / g]
+                   table.shape(t, 0.5 * math.pi) * cos_y / g,
+                   -w2 * w2 * np.sin(w2 * t) * cos_y / g, -w2 * w2 * np.cos(w2 * t) * cos_y / g]
     basis = np.column_stack(columns)
     keep = use.copy()
     coef = np.zeros(basis.shape[1])

@@ -100,6 +100,21 @@ def test_equation_error_starts_within_the_multiple_shootings_reach(tmp_path):
         assert flight.omega_rad_s == pytest.approx(case.rig.omega_rad_s, rel=0.05)
 
 
+@pytest.mark.parametrize("seed", [4111, 4112, 4113])
+def test_equation_error_finds_gravity_under_a_distorted_table_no_laser_watches(seed, tmp_path):
+    # a 10 Hz table with a second harmonic the record does not measure: its 20 Hz push
+    # must not take the gravity term's place (it once turned omega^2 negative)
+    case = draw_forced_case(seed, "excitation_distortion", frequency_hz=10.0, laser=False,
+                            duration_s=20.0)
+    data = forced_data(load_record(write_forced_case(case, tmp_path)))
+    d = data.drive
+    table = TableMotion(d.omega_rad_s, d.phase0_rad, None)
+    flight = flight_regression(data.t, data.y, data.valid, data.noise_rad, table,
+                               data.rig.g_m_s2)
+    assert flight.omega_rad_s == pytest.approx(case.rig.omega_rad_s, rel=0.25), \
+        case.causes
+
+
 def test_decays_only_start_the_fit(tmp_path):
     # priors far off (a decay of another rig) change where the fit starts, not where it ends
     case, record = _record(tmp_path, 4101, "none", 2.0, True)
