@@ -433,15 +433,15 @@ class ShootingProblem:
         scale = np.array([self.sigma, self.sigma * self.rate_scale])
 
         def local_costs(r_: np.ndarray, own: np.ndarray, ends_: np.ndarray,
-                        successors: np.ndarray) -> np.ndarray:
-            """Each segment's data cost plus the jumps into it (from its predecessor's
-            present end to its ``own`` start) and out of it (to ``successors``' starts)."""
+                        successors: np.ndarray, into: np.ndarray) -> np.ndarray:
+            """Each segment's data cost plus the jumps into it (from its predecessor's end
+            in ``into`` to its ``own`` start) and out of it (to ``successors``' starts)."""
             data = np.bincount(seg_rows, r_[:rows] ** 2, minlength=n_seg)
             out = np.zeros(n_seg)
             jump_out = np.sum(((ends_[self.links] - successors[self.links + 1]) / scale) ** 2,
                               axis=1)
             out[self.links] += jump_out
-            jump_in = np.sum(((ends_s[self.links] - own[self.links + 1]) / scale) ** 2, axis=1)
+            jump_in = np.sum(((into[self.links] - own[self.links + 1]) / scale) ** 2, axis=1)
             out[self.links + 1] += jump_in
             return 0.5 * (data + out)
 
@@ -454,10 +454,10 @@ class ShootingProblem:
             trial[continued + 1] = ends_s[continued]  # a run that stopped continues nothing
             theta_t, ends_t = self.run(values, trial)
             r_t = self.residuals(theta_t, ends_t, trial)
-            now = local_costs(r_s, s, ends_s, s)
+            now = local_costs(r_s, s, ends_s, s, ends_s)
             # a trial segment starts on its predecessor's present end (no jump in) and
             # jumps out to its successor's present state
-            then = local_costs(r_t, trial, ends_t, s)
+            then = local_costs(r_t, trial, ends_t, s, ends_s)
             better = np.zeros(n_seg, dtype=bool)
             better[self.links + 1] = (now - then)[self.links + 1] > REPAIR_GAIN
             for k in np.flatnonzero(better):  # no two neighbours change in one pass
