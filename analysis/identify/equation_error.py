@@ -26,6 +26,10 @@ SMOOTHING_S = 0.012  # Savitzky-Golay window: resolves drive harmonics well past
 POLYORDER = 3
 CONTACT_MARGIN_NOISE = 6.0  # samples above (barrier level - this many noise sigmas) are contact
 ROBUST_PASSES = 3
+# the contact exclusion level taken is the highest whose misfit is within this factor of
+# the least misfit over the levels tried
+LEVEL_TOLERANCE = 1.02
+LEVEL_KEEPS = 0.75  # ... and that keeps at least this fraction of the highest's samples
 
 
 @dataclass(frozen=True)
@@ -62,19 +66,25 @@ class TableMotion:
         return -w * w * (np.sin(phase) + 4.0 * self.h2 * np.sin(2.0 * phase + self.phi2_rad))
 
 
-def barrier_level(y: np.ndarray, valid: np.ndarray) -> float:
-    """The measured angle where the swings stop: the median of the upper half of the
-    excursions' maxima above the record's median (impacts cluster there)."""
+def excursion_maxima(y: np.ndarray, valid: np.ndarray) -> np.ndarray:
+    """The largest angle of every excursion above the record's median, in time order."""
     z = np.where(valid, y, np.nan)
     centre = float(np.nanmedian(z))
     filled = np.where(np.isfinite(z), z, centre)
-    above = filled > centre
-    edges = np.flatnonzero(np.diff(above.astype(np.int8)))
-    starts = edges[:-1][above[edges[:-1] + 1]] + 1
-    maxima = np.array([filled[a:b + 1].max() for a, b in zip(starts, edges[1:], strict=False)
-                       if b > a])
+    above = (filled > centre).astype(np.int8)
+    step = np.diff(above)
+    starts = np.flatnonzero(step == 1) + 1  # first sample of each excursion
+    ends = np.flatnonzero(step == -1) + 1  # first sample after it
+    ends = ends[ends > starts[0]] if starts.size else ends
+    return np.array([filled[a:b].max() for a, b in zip(starts, ends, strict=False)])
+
+
+def barrier_level(y: np.ndarray, valid: np.ndarray) -> float:
+    """The measured angle where the swings stop: the median of the upper half of the
+    excursions' maxima above the record's median (impacts cluster there)."""
+    maxima = excursion_maxima(y, valid)
     if maxima.size < 3:
-        return float(np.nanmax(z))
+        return float(np.nanmax(np.where(valid, y, np.nan)))
     top = np.sort(maxima)[maxima.size // 2:]
     return float(np.median(top))
 
@@ -93,17 +103,7 @@ def flight_regression(
     ys = savgol_filter(filled, window, POLYORDER)
     yd = savgol_filter(filled, window, POLYORDER, deriv=1, delta=dt)
     ydd = savgol_filter(filled, window, POLYORDER, deriv=2, delta=dt)
-    level = barrier_level(y, valid) if contact_level is None else contact_level
-    near = ~valid | ~np.isfinite(y) | (filled > level - CONTACT_MARGIN_NOISE * noise_rad)
-    # the smoother spreads a contact over its window: drop the window around every contact
-    spread = np.convolve(near.astype(float), np.ones(2 * window + 1), mode="same") > 0
-    use = ~spread
-    use[:window] = use[-window:] = False
-    if np.count_nonzero(use) < 50:
-        raise IdentificationError(
-            "too few samples in free flight for the flight fit (is the pendulum always at the "
-            "barrier?)"
-        )
+    unusable = ~valid | ~np.isfinite(y)
     sin_y, cos_y = np.sin(ys), np.cos(ys)
     both_known = table.amplitude_m is not None and table.phase_rad is not None
     if both_known:
@@ -118,14 +118,41 @@ def flight_regression(
                    table.shape(t, 0.5 * math.pi) * cos_y / g,
                    -w2 * w2 * np.sin(w2 * t) * cos_y / g, -w2 * w2 * np.cos(w2 * t) * cos_y / g]
     basis = np.column_stack(columns)
-    keep = use.copy()
-    coef = np.zeros(basis.shape[1])
-    rms = math.nan
-    for _ in range(ROBUST_PASSES):
-        coef, *_ = np.linalg.lstsq(basis[keep], -ydd[keep], rcond=None)
-        misfit = basis @ coef + ydd
-        rms = float(np.sqrt(np.mean(misfit[keep] ** 2)))
-        keep = use & (np.abs(misfit) < 4.0 * rms)
+
+    def regress(level: float) -> tuple[np.ndarray, float, np.ndarray]:
+        # the smoother spreads a contact over its window: drop the window around every
+        # sample above the contact level
+        near = unusable | (filled > level)
+        use = ~(np.convolve(near.astype(float), np.ones(2 * window + 1), mode="same") > 0)
+        use[:window] = use[-window:] = False
+        if np.count_nonzero(use) < 50:
+            return np.zeros(basis.shape[1]), math.inf, use
+        keep = use.copy()
+        for _ in range(ROBUST_PASSES):
+            coef, *_ = np.linalg.lstsq(basis[keep], -ydd[keep], rcond=None)
+            misfit = basis @ coef + ydd
+            rms = float(np.sqrt(np.mean(misfit[keep] ** 2)))
+            keep = use & (np.abs(misfit) < 4.0 * rms)
+        return coef, rms, keep
+
+    margin = CONTACT_MARGIN_NOISE * noise_rad
+    if contact_level is not None:
+        coef, rms, keep = regress(contact_level - margin)
+    else:
+        # A soft barrier stops slow impacts well short of the fast ones' peaks, and a
+        # contact left among the flight samples swamps the regression: the exclusion level
+        # steps down through the excursions' maxima until the misfit stops falling.
+        # (a level that leaves out much of the flight is a turning point of the swing's
+        # other branch, as on a period-2 orbit, not the barrier's)
+        fits = [regress(level - margin) for level in _contact_levels(y, valid)]
+        fits = [f for f in fits if f[2].sum() >= LEVEL_KEEPS * fits[0][2].sum()]
+        best = min(f[1] for f in fits)
+        coef, rms, keep = next(f for f in fits if f[1] <= LEVEL_TOLERANCE * best)
+    if not math.isfinite(rms):
+        raise IdentificationError(
+            "too few samples in free flight for the flight fit (is the pendulum always at the "
+            "barrier?)"
+        )
     omega2 = coef[1]
     if not omega2 > 0:
         raise IdentificationError(
@@ -147,6 +174,16 @@ def flight_regression(
         n_samples=int(np.count_nonzero(keep)),
         phase_rad=phase,
     )
+
+
+def _contact_levels(y: np.ndarray, valid: np.ndarray) -> list[float]:
+    """Candidate contact levels, highest first: the barrier level, then quantiles of the
+    excursions' maxima down to the lowest of the upper half."""
+    maxima = excursion_maxima(y, valid)
+    levels = [barrier_level(y, valid)]
+    if maxima.size >= 3:
+        levels += [float(q) for q in np.quantile(maxima, [0.6, 0.5, 0.4, 0.3, 0.2, 0.1])]
+    return sorted({lv for lv in levels if lv <= levels[0]}, reverse=True)
 
 
 def _filled(y: np.ndarray, valid: np.ndarray) -> np.ndarray:
