@@ -181,9 +181,14 @@ class PeriodMap:
         )
 
     def packed(self, value: float) -> np.ndarray:
-        """The packed parameter vector at ``value`` (the last one is kept)."""
+        """The packed parameter vector at ``value`` (the last one is kept); MapError for a
+        value outside the parameter's physical range."""
         if self._packed_cache is None or self._packed_cache[0] != value:
-            self._packed_cache = (value, model_with(self.model, self.parameter, value).pack())
+            try:
+                model = model_with(self.model, self.parameter, value)
+            except ParameterError as error:  # a corrector's trial beyond the physical range
+                raise MapError(str(error)) from None
+            self._packed_cache = (value, model.pack())
         return self._packed_cache[1]
 
     def duration_s(self, value: float) -> float:
