@@ -186,7 +186,7 @@ class PeriodMap:
         if self._packed_cache is None or self._packed_cache[0] != value:
             try:
                 model = model_with(self.model, self.parameter, value)
-            except ParameterError as error:  # a corrector's trial beyond the physical range
+            except ValueError as error:  # a corrector's trial beyond the physical range
                 raise MapError(str(error)) from None
             self._packed_cache = (value, model.pack())
         return self._packed_cache[1]

@@ -59,7 +59,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--max-period", type=int, metavar="N",
                         help="follow period-doubled branches up to this period (4 K)")
     parser.add_argument("--from-state", metavar="THETA,OMEGA",
-                        help="guess of the orbit's state at drive phase 0 [rad, rad/s]")
+                        help="guess of the orbit's state at drive phase 0 [rad, rad/s]; "
+                        "with a negative angle write --from-state=-0.12,-0.7")
     parser.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
                         help="set a parameter (repeatable; see 'impact-rig simulate --help')")
     parser.add_argument("--cause", action="append", default=[], metavar="NAME",
