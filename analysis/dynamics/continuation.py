@@ -8,7 +8,12 @@ tangent (the null vector of [P_x - I, P_value]) and corrects with Newton's metho
 P^k(x) = x and the pseudo-arclength condition t . (u - u_predicted) = 0 (Keller).  The step
 grows after easy corrections (<= 2 iterations) and halves after a failed one (no
 convergence, the integrator stopped) or one that turns the tangent by more than
-``MAX_TURN_RAD``.
+``MAX_TURN_RAD``.  Tangents and multipliers come from Richardson's Jacobians.  On a
+strongly unstable orbit (|multiplier| in the thousands, e.g. period 8 in the chaotic
+range) the bordered system is so ill-conditioned that the plain differences' error stalls
+Newton's method: once a correction shrinks the residual less than ``SLOW_CONVERGENCE``-fold,
+the branch is corrected with Richardson's Jacobians, and the residual tolerance grows with
+the largest multiplier (:func:`residual_tolerance`), as the map's rounding noise does.
 
 Bifurcations are sign changes of test functions between neighbouring points, located by
 the Illinois method on the arclength from the earlier point (every trial point corrected
@@ -62,6 +67,9 @@ INITIAL_STEP = 0.01
 MAX_STEP = 0.02
 MIN_STEP = 1e-7
 MAX_CORRECTOR_ITERATIONS = 7
+MAP_ROUNDING_RAD = 1e-13  # the map's rounding noise at MAP_RTOL (measured, period_map)
+NOISE_MARGIN = 100.0
+SLOW_CONVERGENCE = 0.05  # a Newton step that shrinks the residual less: Richardson from then on
 MAX_TURN_RAD = 0.1
 MAX_POINTS = 4000
 LOCATE_TOLERANCE = 1e-9
@@ -194,6 +202,14 @@ class ContinuationResult:
         return self.seconds / max(self.points, 1)
 
 
+def residual_tolerance(multipliers: np.ndarray) -> float:
+    """The corrector's residual tolerance: NEWTON_TOLERANCE, or ``NOISE_MARGIN`` times the
+    map's rounding noise magnified by the largest multiplier when that is larger (a
+    strongly unstable orbit's residual cannot fall below the magnified noise)."""
+    largest = float(np.max(np.abs(multipliers)))
+    return max(NEWTON_TOLERANCE, NOISE_MARGIN * MAP_ROUNDING_RAD * largest)
+
+
 class _Branching:
     """The scaled problem of one period map: residual, Jacobian, corrector, points."""
 
@@ -201,6 +217,7 @@ class _Branching:
         self.map = period_map
         self.scale = np.array([1.0, drive_rate])
         self.value_scale = period_map.parameter_scale
+        self.precise = False  # Richardson Jacobians in the corrector, once plain ones fell short
 
     def unknowns(self, state: np.ndarray, value: float) -> np.ndarray:
         return np.array([state[0], state[1] / self.scale[1], value / self.value_scale])
@@ -227,15 +244,22 @@ class _Branching:
     def correct(self, predicted: np.ndarray, normal: np.ndarray, previous_tangent: np.ndarray):
         """Newton on P^k(x) = x with normal . (u - predicted) = 0; the BranchPoint, or None."""
         u = predicted.copy()
+        previous = math.inf
         for iteration in range(1, MAX_CORRECTOR_ITERATIONS + 1):
             try:
-                residual, jac, _ = self.system(u)
+                residual, jac, lin = self.system(u, richardson=self.precise)
             except MapError:
                 return None
             if not np.all(np.isfinite(jac)) or not np.all(np.isfinite(residual)):
                 return None
-            if np.linalg.norm(residual) < NEWTON_TOLERANCE:
-                return self.point(u, jac, previous_tangent, iteration)
+            size = float(np.linalg.norm(residual))
+            if size < residual_tolerance(lin.multipliers):
+                return self.point(u, previous_tangent, iteration)
+            # Newton's method slowed to linear convergence: the plain differences' error,
+            # magnified by an ill-conditioned system (|multiplier| >> 1), is the cause; the
+            # rest of the branch is corrected with Richardson's Jacobians
+            self.precise = self.precise or size > SLOW_CONVERGENCE * previous
+            previous = size
             matrix = np.vstack([jac, normal])
             rhs = -np.concatenate([residual, [normal @ (u - predicted)]])
             try:
@@ -244,12 +268,12 @@ class _Branching:
                 return None
         return None
 
-    def point(self, u: np.ndarray, jac: np.ndarray, previous_tangent: np.ndarray,
+    def point(self, u: np.ndarray, previous_tangent: np.ndarray,
               iterations: int) -> BranchPoint | None:
-        """The BranchPoint at a converged u: Richardson multipliers, orbit geometry."""
+        """The BranchPoint at a converged u: Richardson multipliers and tangent, orbit geometry."""
         x, value = self.split(u)
         try:
-            _, _, lin = self.system(u, richardson=True)
+            _, jac, lin = self.system(u, richardson=True)
             orbit = self.map.orbit(value, x)
         except MapError:
             return None
@@ -299,8 +323,7 @@ def continue_orbits(
     problem = _Branching(period_map, drive_rate)
     direction = math.copysign(1.0, stop - start)
     u0 = problem.unknowns(orbit.state, start)
-    _, jac, _ = problem.system(u0)
-    first = problem.point(u0, jac, np.array([0.0, 0.0, direction]), orbit.iterations)
+    first = problem.point(u0, np.array([0.0, 0.0, direction]), orbit.iterations)
     if first is None:
         raise ContinuationError(f"the orbit found at {period_map.parameter} = {start} cannot "
                                 "be sampled (the integrator stopped)")

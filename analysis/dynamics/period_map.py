@@ -231,8 +231,9 @@ class PeriodMap:
         self, value: float, state: np.ndarray, *, richardson: bool = False
     ) -> Linearisation:
         """Image, Jacobian and parameter derivative at (state, value) by central differences;
-        ``richardson`` adds the columns at twice the step and returns the extrapolated
-        (fourth-order) Jacobian with the plain one's error estimate."""
+        ``richardson`` adds the columns at twice the steps and returns the extrapolated
+        (fourth-order) Jacobian and parameter derivative, with the plain Jacobian's error
+        estimate."""
         state = np.asarray(state, dtype=float)
         h = self.state_steps(state, value)
         scales = (1.0, 2.0) if richardson else (1.0,)
@@ -257,9 +258,15 @@ class PeriodMap:
             error = float(np.max(np.abs(columns[0] - columns[1])) / 3.0
                           / max(np.max(np.abs(columns[0])), 1e-300))
         dv = self.parameter_step(value)
-        up = self.images(value + dv, state)[0]
-        down = self.images(value - dv, state)[0]
-        return Linearisation(image, jacobian, (up - down) / (2.0 * dv), error)
+        derivatives = [
+            (self.images(value + scale * dv, state)[0]
+             - self.images(value - scale * dv, state)[0]) / (2.0 * scale * dv)
+            for scale in scales
+        ]
+        derivative = derivatives[0]
+        if richardson:
+            derivative = (4.0 * derivatives[0] - derivatives[1]) / 3.0
+        return Linearisation(image, jacobian, derivative, error)
 
     def orbit(self, value: float, state: np.ndarray,
               samples_per_period: int = ORBIT_SAMPLES_PER_PERIOD) -> OrbitSample:
