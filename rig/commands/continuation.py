@@ -25,8 +25,16 @@ settles to in 2000 drive periods). Parameters start from the paper's rig (or --c
 --param, as in 'impact-rig simulate'; the varied one starts at START.
 
 Writes FILE.h5 (branches: parameter, state at drive phase 0, multipliers, stability,
-largest angle, barrier distance, contacts; the events; provenance) and FILE.png (largest
-angle against the parameter: stable solid, unstable dashed, events marked and named).
+largest angle, barrier distance, contacts, the angles at drive phase 0; the events;
+provenance) and FILE.png (largest angle against the parameter: stable solid, unstable
+dashed, every event numbered and listed with its value and multipliers).
+
+What a brute-force diagram shows is only the attractors its runs fall into: with
+--brute-force N (N parameter values, each run settled from the previous one, upwards and
+downwards, as the experiment does) and --overlay SWEEP.h5 (a recording of 'impact-rig
+sweep' over beta or the drive frequency) a second panel draws their points at drive
+phase 0 under the branches' k angles at drive phase 0, so one sees which orbit a sweep
+sits on, and where it leaves it.
 """
 
 EPILOG = """\
@@ -36,6 +44,8 @@ examples:
       --from-state 0,0 --out gap.h5
   impact-rig continue --f-drive-hz 2.6 --vary f_drive_hz=2.6:2.0 --param beta=0.0016 \\
       --param zeta=0.002 --no-barrier --out resonance.h5
+  impact-rig continue --case g --vary beta=0.01:0.13 --period 2 --brute-force 120 \\
+      --overlay sweep10hz.h5 --out ten_hz.h5
 """
 
 
@@ -66,6 +76,15 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--cause", action="append", default=[], metavar="NAME",
                         help="switch on a named cause of docs/MODEL.md section 6 (repeatable)")
     parser.add_argument("--no-barrier", action="store_true", help="remove the barrier")
+    parser.add_argument("--overlay", action="extend", nargs="+", default=[], type=Path,
+                        metavar="FILE.h5", help="draw the Poincare points of these files under "
+                        "the branches: recordings of 'impact-rig sweep' (repeatable)")
+    parser.add_argument("--brute-force", type=int, default=0, metavar="N",
+                        help="also simulate the brute-force diagram at N values over the "
+                        "range (up and down, each from the previous state) and draw it")
+    parser.add_argument("--brute-force-periods", type=int, default=500, metavar="P",
+                        help="drive periods per value of --brute-force, the last fifth "
+                        "recorded (500)")
     parser.add_argument("--out", type=Path, required=True,
                         help="output FILE.h5; the figure goes to FILE.png beside it")
     parser.add_argument("--overwrite", action="store_true", help="replace existing outputs")
@@ -107,7 +126,8 @@ def run(args: argparse.Namespace) -> int:
 
     from analysis.dynamics.continuation import ContinuationError, continue_orbits
     from analysis.dynamics.continuation_output import plot_continuation, write_continuation
-    from analysis.dynamics.period_map import PeriodMap, model_with
+    from analysis.dynamics.model_parameters import model_with
+    from analysis.dynamics.period_map import PeriodMap
     from analysis.model import ParameterError
     from analysis.output_paths import check_outputs
     from analysis.provenance import provenance
@@ -119,6 +139,11 @@ def run(args: argparse.Namespace) -> int:
         raise CommandError(f"--out {args.out}: expected an .h5 file name")
     if args.period < 1:
         raise CommandError(f"--period {args.period}: must be at least 1")
+    if args.brute_force < 0 or args.brute_force == 1 or args.brute_force_periods < 5:
+        raise CommandError("--brute-force N needs N >= 2 values and --brute-force-periods >= 5")
+    for overlay in args.overlay:
+        if not overlay.is_file():
+            raise CommandError(f"--overlay {overlay}: no such file")
     figure_path = args.out.with_suffix(".png")
     check_outputs([args.out, figure_path], overwrite=args.overwrite)
     name, start, stop = _parse_vary(args.vary)
@@ -159,17 +184,57 @@ def run(args: argparse.Namespace) -> int:
                                  progress=progress)
     except ContinuationError as error:
         raise CommandError(f"no period-{args.period} orbit to start from: {error}") from None
-    write_continuation(args.out, result, model, provenance())
+    overlays, described = _overlays(args, model, name, start, stop, progress)
+    write_continuation(args.out, result, model, provenance(), described)
     title = f"{name} from {start:g} to {stop:g}, drive {model.drive.frequency_hz:g} Hz"
-    plot_continuation(result, title=title, path=figure_path)
+    barrier = model.rig.theta_b_rad if model.barrier else None
+    plot_continuation(result, overlays=overlays, barrier_rad=barrier, title=title,
+                      path=figure_path)
     for i, branch in enumerate(result.branches):
         print(f"branch {i}: period {branch.periods}, {len(branch.points)} points, "
               f"{int(branch.stable.sum())} stable; {branch.origin}; {branch.stop_reason}")
     for event in result.events:
         print(f"  {event.kind} on branch {event.branch} (period {event.periods}) at {name} = "
-              f"{event.value:.9g} (bracket {event.bracket[1] - event.bracket[0]:.1g}), "
+              f"{event.value:.9g} ({_bracket_text(event.bracket)}), "
               f"multipliers {np.round(event.point.multipliers, 4).tolist()}")
     print(f"continue: {result.points} orbits in {result.seconds:.2f} s "
           f"({1e3 * result.seconds_per_point:.1f} ms per point) -> {args.out}, {figure_path.name}",
           file=sys.stdout)
     return 0
+
+
+def _overlays(args: argparse.Namespace, model, name: str, start: float, stop: float, progress):
+    """The diagrams to draw under the branches, and what each is (for the file)."""
+    import numpy as np
+
+    from analysis.dynamics.bifurcation import simulate_bifurcation
+    from analysis.dynamics.diagram_files import DiagramFileError, read_diagrams
+
+    diagrams, described = [], []
+    for path in args.overlay:
+        try:
+            found = read_diagrams(path, name)
+        except DiagramFileError as error:
+            raise CommandError(f"--overlay: {error}") from None
+        diagrams += found
+        described.append({"file": str(path), "directions": [d.direction for d in found]})
+    if args.brute_force:
+        values = np.linspace(min(start, stop), max(start, stop), args.brute_force)
+        periods = args.brute_force_periods
+        progress(f"brute force: {values.size} values of {name} x {periods} periods, up and down")
+        try:
+            found = simulate_bifurcation(model, values, periods=periods,
+                                         record_periods=max(periods // 5, 1), parameter=name)
+        except ValueError as error:  # e.g. runs at several drive frequencies
+            raise CommandError(f"--brute-force over {name}: {error}") from None
+        diagrams += found
+        described.append({"brute_force": {"values": values.size, "periods": periods,
+                                          "record_periods": max(periods // 5, 1)},
+                          "directions": [d.direction for d in found]})
+    return diagrams, described
+
+
+def _bracket_text(bracket: tuple[float, float]) -> str:
+    """The width of a located event's bracket, or why there is none."""
+    width = bracket[1] - bracket[0]
+    return f"bracket {width:.1g}" if math.isfinite(width) else "the branch stops short of it"

@@ -60,3 +60,20 @@ def test_continue_refuses_existing_output_and_names_failed_newton(tmp_path):
     with pytest.raises(CommandError, match=r"beta = 0\.022"):
         _run("continue", "--case", "g", "--vary", "beta=0.022:0.03", "--from-state", "3,40",
              "--out", str(tmp_path / "z.h5"))
+
+
+def test_continue_draws_a_brute_force_diagram_under_the_branches(tmp_path):
+    out = tmp_path / "g.h5"
+    code = _run("continue", "--case", "g", "--vary", "beta=0.02:0.03", "--period", "2",
+                "--from-state=-0.12,-0.7", "--brute-force", "3", "--brute-force-periods",
+                "50", "--out", str(out), "--quiet")
+    assert code == 0
+    with h5py.File(out) as handle:
+        overlays = json.loads(handle.attrs["overlays_json"])
+        assert overlays[0]["directions"] == ["up", "down"]
+        assert overlays[0]["brute_force"]["values"] == 3
+        section = handle["branches/0/section_theta"][:]
+        assert section.shape == (handle["branches/0/parameter"].size, 2)
+    with pytest.raises(CommandError, match=r"--overlay .*no such file"):
+        _run("continue", "--case", "g", "--vary", "beta=0.02:0.03", "--overlay",
+             str(tmp_path / "missing.h5"), "--out", str(tmp_path / "m.h5"))

@@ -11,7 +11,8 @@ from scipy.optimize import fsolve
 
 from analysis.dynamics import simulate_bifurcation
 from analysis.dynamics.continuation import continue_orbits
-from analysis.dynamics.period_map import PeriodMap, model_with
+from analysis.dynamics.model_parameters import model_with
+from analysis.dynamics.period_map import PeriodMap
 from analysis.dynamics.periodic_orbits import find_periodic_orbit
 from analysis.model import Drive, Model, P, RigParameters, paper_case
 from analysis.simulate import simulate, simulate_packed
@@ -188,3 +189,28 @@ def test_weakly_forced_pendulum_matches_harmonic_balance_through_its_folds():
     predicted = np.sort(curve[turns + 1])
     located = np.sort([e.value for e in folds])
     assert np.allclose(located, predicted, rtol=2e-4)
+
+
+def test_branch_points_carry_the_orbit_s_angles_at_drive_phase_zero(gap_branches):
+    # a period-2 point's two section angles: its own state and its image after one period
+    # (read off the orbit's sampled second pass, another integration than the map's)
+    branch = next(b for b in gap_branches.branches if b.periods == 2)
+    point = branch.points[len(branch.points) // 2]
+    once = PeriodMap(_case_g(theta_b_rad=0.02), "beta", 1).images(point.value, point.state)[0]
+    assert point.section_theta.shape == (2,)
+    assert point.section_theta[0] == pytest.approx(point.state[0], abs=1e-7)
+    assert point.section_theta[1] == pytest.approx(once[0], abs=1e-7)
+    assert abs(point.section_theta[1] - point.section_theta[0]) > 1e-3
+
+
+def test_brute_force_diagram_over_another_parameter_sets_that_parameter():
+    model = _case_g()
+    dampings = np.array([0.005, 0.02])
+    (by_name,) = simulate_bifurcation(model, dampings, periods=40, record_periods=4,
+                                      mode="fixed", parameter="zeta")
+    assert by_name.parameter_name == "zeta"
+    for i, zeta in enumerate(dampings):
+        (direct,) = simulate_bifurcation(model_with(model, "zeta", zeta), [0.022],
+                                         periods=40, record_periods=4, mode="fixed")
+        np.testing.assert_array_equal(by_name.theta[i], direct.theta[0])
+    assert not np.allclose(by_name.theta[0], by_name.theta[1])
