@@ -160,7 +160,7 @@ _STYLE = {
     "fixed": dict(color="tab:green", label="simulation, fixed initial state"),
     "recorded": dict(color="black", label="measured"),
     "recorded up": dict(color="black", label="measured, sweep up"),
-    "recorded down": dict(color="tab:red", label="measured, sweep down"),
+    "recorded down": dict(color="tab:gray", label="measured, sweep down"),
 }
 # the down sweep drawn larger, so where the two sweeps agree both stay visible
 _SIZE = {"recorded": 6.0, "recorded up": 6.0, "recorded down": 9.0, "down": 2.0}

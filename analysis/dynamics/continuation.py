@@ -333,7 +333,7 @@ def continue_orbits(
     if first is None:
         raise ContinuationError(f"the orbit found at {period_map.parameter} = {start} cannot "
                                 "be sampled (the integrator stopped)")
-    origin = f"period-{period_map.periods} orbit from the given state at {start:g}"
+    origin = f"period-{period_map.periods} orbit at {period_map.parameter} = {start:g}"
     branches = [Branch(period_map.periods, origin, [first])]
     queue = [(0, problem)]
     while queue:

@@ -155,7 +155,8 @@ def plot_continuation(result: ContinuationResult, *,
         for diagram in overlays:
             x, y = diagram.scatter()
             style = diagram_style(diagram.direction)
-            lower.scatter(x, y, marker=".", linewidths=0, alpha=0.7, zorder=1, **style)
+            # over the lines: where a sweep sits on a branch its points must stay visible
+            lower.scatter(x, y, marker=".", linewidths=0, alpha=0.8, zorder=5, **style)
         _draw_branches(lower, result, lambda b: b.column("section_theta").reshape(
             -1, b.periods), colours)
         for event in events:
