@@ -1,4 +1,5 @@
-"""Bifurcation diagrams over the drive amplitude ratio beta = A / L: simulated and recorded.
+"""Bifurcation diagrams over the drive amplitude ratio beta = A / L (or any model parameter):
+simulated and recorded.
 
 Simulated sweeps come in two kinds (``mode``):
 
@@ -21,14 +22,15 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from analysis.dynamics.model_parameters import model_with
 from analysis.dynamics.poincare import PoincareSection
-from analysis.dynamics.sweeps import Progress, continue_along, model_at_beta, run_poincare
+from analysis.dynamics.sweeps import Progress, continue_along, run_poincare
 from analysis.model import Model
 
 if TYPE_CHECKING:  # matplotlib is imported by the plot functions only (slow import)
     from matplotlib.figure import Figure
 
-DIRECTIONS = ("up", "down", "fixed", "recorded")
+DIRECTIONS = ("up", "down", "fixed", "recorded", "recorded up", "recorded down")
 
 
 @dataclass(frozen=True)
@@ -36,7 +38,9 @@ class BifurcationDiagram:
     """Poincare angles per parameter step of one sweep.
 
     ``theta`` and ``theta_dot`` are (steps, samples) arrays (NaN where a step has fewer
-    samples or its run stopped); ``direction`` is 'up', 'down', 'fixed' or 'recorded'.
+    samples or its run stopped); ``direction`` is one of ``DIRECTIONS``: 'up', 'down',
+    'fixed' (simulated), 'recorded', or 'recorded up' / 'recorded down' (a recorded sweep
+    split by the way it went)
     """
 
     parameter: np.ndarray
@@ -64,8 +68,10 @@ def simulate_bifurcation(
     atol: float = 1e-10,
     workers: int | None = None,
     progress: Progress | None = None,
+    parameter: str = "beta",
 ) -> tuple[BifurcationDiagram, ...]:
-    """Bifurcation diagram(s) of ``model`` over ``beta_values`` (sorted ascending here).
+    """Bifurcation diagram(s) of ``model`` over ``beta_values`` (sorted ascending here), or
+    over the values of another model ``parameter`` (a name :func:`model_with` knows).
 
     Each beta runs ``periods`` drive periods, of which the last ``record_periods`` give
     the Poincare samples (drive phase 0).  Returns (up, down) diagrams for
@@ -77,7 +83,7 @@ def simulate_bifurcation(
         raise ValueError("beta_values is empty")
     if not 1 <= record_periods <= periods:
         raise ValueError(f"need 1 <= record_periods ({record_periods}) <= periods ({periods})")
-    packed = np.array([model_at_beta(model, beta).pack() for beta in betas])
+    packed = np.array([model_with(model, parameter, value).pack() for value in betas])
     transient = periods - record_periods
     settings = dict(
         transient_periods=transient, record_periods=record_periods, rtol=rtol, atol=atol
@@ -85,7 +91,7 @@ def simulate_bifurcation(
     if mode == "fixed":
         initial = np.tile(np.asarray(initial_state, dtype=float), (betas.size, 1))
         runs = run_poincare(packed, initial, workers=workers, progress=progress, **settings)
-        return (BifurcationDiagram(betas, runs.theta, runs.theta_dot, "fixed"),)
+        return (BifurcationDiagram(betas, runs.theta, runs.theta_dot, "fixed", parameter),)
     if mode != "continuation":
         raise ValueError(f"mode = {mode!r}: choose 'continuation' or 'fixed'")
     # up and down advance in lockstep: one two-member ensemble call per step, in parallel
@@ -102,7 +108,8 @@ def simulate_bifurcation(
     for name, order in orders.items():
         back = np.argsort(order)  # results back in ascending beta
         diagrams.append(
-            BifurcationDiagram(betas, runs[name].theta[back], runs[name].theta_dot[back], name)
+            BifurcationDiagram(betas, runs[name].theta[back], runs[name].theta_dot[back], name,
+                               parameter)
         )
     return tuple(diagrams)
 
@@ -152,7 +159,18 @@ _STYLE = {
     "down": dict(color="tab:orange", label="simulation, sweep down"),
     "fixed": dict(color="tab:green", label="simulation, fixed initial state"),
     "recorded": dict(color="black", label="measured"),
+    "recorded up": dict(color="black", label="measured, sweep up"),
+    "recorded down": dict(color="tab:gray", label="measured, sweep down"),
 }
+# the down sweep drawn larger, so where the two sweeps agree both stay visible
+_SIZE = {"recorded": 6.0, "recorded up": 6.0, "recorded down": 9.0, "down": 2.0}
+
+
+def diagram_style(direction: str) -> dict[str, object]:
+    """Colour, legend label and marker size (points^2) a diagram of ``direction`` is drawn with."""
+    style = _STYLE.get(direction, dict(color="gray", label=direction))
+    return {**style, "s": _SIZE.get(direction, 0.8)}
+
 
 
 def plot_bifurcation(
@@ -171,10 +189,7 @@ def plot_bifurcation(
     axes = figure.add_subplot()
     for diagram in diagrams:
         x, y = diagram.scatter()
-        style = _STYLE.get(diagram.direction, dict(color="gray", label=diagram.direction))
-        # the down sweep drawn larger, so where the two sweeps agree both stay visible
-        size = {"recorded": 6.0, "down": 2.0}.get(diagram.direction, 0.8)
-        axes.scatter(x, y, s=size, marker=".", linewidths=0, alpha=0.8, **style)
+        axes.scatter(x, y, marker=".", linewidths=0, alpha=0.8, **diagram_style(diagram.direction))
     axes.set_xlabel(diagrams[0].parameter_name)
     axes.set_ylabel("theta at drive phase 0 [rad]")
     if title:
