@@ -1,0 +1,271 @@
+"""Running a map's tasks: in this process (one worker), or on Dask distributed workers.
+
+One worker runs every task here, in order, with no pool: the reference for results and
+speed-ups.  More workers run on a Dask ``LocalCluster`` of worker processes (one thread
+each), or on any Dask scheduler given by address (``tcp://host:8786``).  Every finished
+task is written to the map file at once; the pieces of a continuation sweep go out one
+after another, each as soon as the one before is written, ahead of the batches of
+independent runs.  Tasks already done in the file are not run again.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import time
+import uuid
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+from typing import Any
+
+from analysis.maps.plan import MapPlan, Task
+from analysis.maps.store import MapStore
+from analysis.maps.tasks import TaskInput, continued_state, run_task, task_input, warm_up
+
+CONNECT_TIMEOUT_S = 5.0
+WORKERS_TIMEOUT_S = 30.0
+CHAIN_PRIORITY = 10  # continuation pieces are the critical path: they go first
+
+
+class SchedulerError(RuntimeError):
+    """The Dask scheduler or its workers cannot take the map; the message says what to do."""
+
+
+@dataclass(frozen=True)
+class MapProgress:
+    """Where a run stands: tasks and trajectories done (this run and earlier ones), the rate
+    of this run in trajectories per second and the time it still needs."""
+
+    tasks_done: int
+    tasks_total: int
+    trajectories_done: int
+    trajectories_total: int
+    elapsed_s: float
+    rate_per_s: float
+    eta_s: float
+
+
+@dataclass(frozen=True)
+class RunReport:
+    """What one run computed: tasks and trajectories, wall time, workers and where."""
+
+    tasks: int
+    trajectories: int
+    seconds: float
+    workers: int
+    where: str
+
+    @property
+    def rate_per_s(self) -> float:
+        """Trajectories per second of wall time."""
+        return self.trajectories / self.seconds if self.seconds > 0 else float("nan")
+
+
+Progress = Callable[[MapProgress], None]
+
+
+def default_workers() -> int:
+    """Local worker processes unless told otherwise: one per core."""
+    return os.cpu_count() or 1
+
+
+def compute_map(
+    plan: MapPlan,
+    store: MapStore,
+    *,
+    workers: int | None = None,
+    scheduler: str | None = None,
+    progress: Progress | None = None,
+) -> RunReport:
+    """Run every task of ``plan`` not yet done in ``store`` and write each as it finishes.
+
+    ``scheduler`` (an address) uses that Dask scheduler's workers; otherwise ``workers``
+    local processes (default one per core), where 1 runs here, without a pool.
+    """
+    count = default_workers() if workers is None else workers
+    if count < 1:
+        raise ValueError(f"workers = {count}: need at least 1")
+    queue = _TaskQueue(plan, store)
+    meter = _Meter(plan, store, progress)
+    started = time.perf_counter()
+    if scheduler is None and count == 1:
+        warm_up()
+        for task in queue.ready():  # in order: each piece of a sweep finds the one before done
+            store.write(task, run_task(queue.input(task)))
+            meter.finished(task)
+        where = "this process"
+    else:
+        with _DaskClient(scheduler, count) as client:
+            count = len(client.scheduler_info()["workers"])
+            _run_on(client, queue, store, meter)
+        where = scheduler or "local Dask cluster"
+    seconds = time.perf_counter() - started
+    return RunReport(meter.tasks_run, meter.trajectories_run, seconds, count, where)
+
+
+class _TaskQueue:
+    """Which pending tasks can start: every batch at once, a sweep's pieces in order."""
+
+    def __init__(self, plan: MapPlan, store: MapStore) -> None:
+        self.plan, self.store = plan, store
+        self.pending = [task for task in plan.tasks if not store.done[task.index]]
+
+    def ready(self) -> Iterator[Task]:
+        """Pending tasks whose inputs are known now, in plan order (re-checked as they go)."""
+        for task in list(self.pending):
+            if self._startable(task):
+                self.pending.remove(task)
+                yield task
+
+    def next_piece(self, task: Task) -> Task | None:
+        """The pending piece that continues ``task``'s sweep, if any."""
+        for candidate in self.pending:
+            if candidate.chain_first == task.chain_first >= 0 and candidate.start == task.stop:
+                self.pending.remove(candidate)
+                return candidate
+        return None
+
+    def input(self, task: Task) -> TaskInput:
+        """The task's input; a sweep's later piece starts where the piece before ended."""
+        if task.chain_first < 0 or task.start == task.chain_first:
+            return task_input(self.plan, task)
+        final, status = self.store.state_after(task.start - 1)
+        start = continued_state(final, status, self.plan.initial[task.chain_first])
+        return task_input(self.plan, task, start)
+
+    def _startable(self, task: Task) -> bool:
+        if task.chain_first < 0 or task.start == task.chain_first:
+            return True
+        before = next(t for t in self.plan.tasks if t.stop == task.start)
+        return bool(self.store.done[before.index])
+
+
+class _Meter:
+    """Counts finished tasks and reports progress."""
+
+    def __init__(self, plan: MapPlan, store: MapStore, progress: Progress | None) -> None:
+        self.plan, self.store, self.progress = plan, store, progress
+        self.started = time.perf_counter()
+        self.tasks_run = self.trajectories_run = 0
+        self.report()
+
+    def finished(self, task: Task) -> None:
+        self.tasks_run += 1
+        self.trajectories_run += task.size
+        self.report()
+
+    def report(self) -> None:
+        if self.progress is None:
+            return
+        done = [task for task in self.plan.tasks if self.store.done[task.index]]
+        trajectories = sum(task.size for task in done)
+        elapsed = time.perf_counter() - self.started
+        rate = self.trajectories_run / elapsed if self.trajectories_run else float("nan")
+        left = self.plan.trajectories - trajectories
+        eta = left / rate if self.trajectories_run else float("nan")
+        self.progress(
+            MapProgress(
+                len(done), len(self.plan.tasks), trajectories, self.plan.trajectories,
+                elapsed, rate, eta,
+            )
+        )
+
+
+def _run_on(client: Any, queue: _TaskQueue, store: MapStore, meter: _Meter) -> None:
+    """Submit what can start, write results as they come, send each sweep's next piece."""
+    from distributed import as_completed
+
+    running: dict[str, Task] = {}
+    run_id = uuid.uuid4().hex  # task keys unique on a scheduler shared by several maps
+
+    def submit(task: Task) -> Any:
+        future = client.submit(
+            run_task,
+            queue.input(task),
+            key=f"impact-rig-map-{run_id}-{task.index}",
+            priority=CHAIN_PRIORITY if task.chain_first >= 0 else 0,
+            pure=False,
+        )
+        running[future.key] = task
+        return future
+
+    futures = as_completed([submit(task) for task in queue.ready()])
+    for future in futures:
+        task = running.pop(future.key)
+        store.write(task, future.result())
+        future.release()
+        meter.finished(task)
+        following = queue.next_piece(task) if task.chain_first >= 0 else None
+        if following is not None:
+            futures.add(submit(following))
+
+
+class _DaskClient:
+    """A Dask client on the scheduler at ``address``, or on a new LocalCluster of ``workers``
+    processes (closed on exit); every worker loads the integrator and must compute with the
+    same software as this process, or the map would not be the same bit for bit."""
+
+    def __init__(self, address: str | None, workers: int) -> None:
+        self.address, self.workers = address, workers
+        self.cluster: Any = None
+        self.client: Any = None
+
+    def __enter__(self) -> Any:
+        from distributed import Client, LocalCluster
+
+        local = warm_up()  # compiles here first, so the workers only load numba's cache
+        try:
+            if self.address is None:
+                self.cluster = LocalCluster(
+                    n_workers=self.workers, threads_per_worker=1, processes=True,
+                    dashboard_address=None, silence_logs=logging.ERROR,
+                )
+                self.client = Client(self.cluster)
+            else:
+                self.client = _connect(self.address)
+            _check_workers(self.client, local)
+        except BaseException:
+            self.__exit__(None, None, None)
+            raise
+        return self.client
+
+    def __exit__(self, *exc: object) -> None:
+        if self.client is not None:
+            self.client.close()
+        if self.cluster is not None:
+            self.cluster.close()
+
+
+def _connect(address: str) -> Any:
+    from distributed import Client
+
+    try:
+        client = Client(address, timeout=CONNECT_TIMEOUT_S)
+    except (OSError, TimeoutError, ValueError) as error:
+        reason = str(error).strip().splitlines()[0] if str(error).strip() else type(error).__name__
+        raise SchedulerError(
+            f"cannot reach the Dask scheduler at {address} within {CONNECT_TIMEOUT_S:g} s "
+            f"({reason}); start one with 'dask scheduler' and workers with 'dask worker "
+            f"{address}', or leave out --scheduler to run on this machine"
+        ) from None
+    try:
+        client.wait_for_workers(1, timeout=WORKERS_TIMEOUT_S)
+    except TimeoutError:
+        client.close()
+        raise SchedulerError(
+            f"the Dask scheduler at {address} has had no workers for {WORKERS_TIMEOUT_S:g} s; "
+            f"start some with 'dask worker {address} --nthreads 1'"
+        ) from None
+    return client
+
+
+def _check_workers(client: Any, local: dict[str, str]) -> None:
+    """Warm every worker up and refuse one that computes with other software."""
+    for worker, versions in client.run(warm_up).items():
+        for name, version in versions.items():
+            if version != local.get(name):
+                raise SchedulerError(
+                    f"worker {worker} has {name} {version}, this machine {local.get(name)}: "
+                    "install the same versions everywhere, or the map would not be the "
+                    "same bit for bit"
+                )
