@@ -5,6 +5,7 @@ finish, resumable, identical bit for bit wherever they ran."""
 from analysis.maps.axes import Axis, AxisError
 from analysis.maps.execute import (
     MapProgress,
+    MapRunner,
     RunReport,
     SchedulerError,
     compute_map,
@@ -31,6 +32,7 @@ __all__ = [
     "MapFileError",
     "MapPlan",
     "MapProgress",
+    "MapRunner",
     "MapSettings",
     "MapStore",
     "PlanError",

@@ -69,6 +69,51 @@ def default_workers() -> int:
     return os.cpu_count() or 1
 
 
+class MapRunner:
+    """Where a map's tasks run, ready before any file is written: this process (one worker),
+    a new LocalCluster of worker processes, or the scheduler at an address.
+
+    Use as a context manager; an unreachable scheduler, or workers with other software,
+    fail on entry with :class:`SchedulerError`.
+    """
+
+    def __init__(self, workers: int | None = None, scheduler: str | None = None) -> None:
+        self.workers = default_workers() if workers is None else workers
+        if self.workers < 1:
+            raise ValueError(f"workers = {self.workers}: need at least 1")
+        self.scheduler = scheduler
+        self.where = scheduler or ("this process" if self.workers == 1 else "local Dask cluster")
+        self._dask: _DaskClient | None = None
+
+    def __enter__(self) -> MapRunner:
+        warm_up()  # compiles here first (once per machine), so workers only load numba's cache
+        if self.scheduler is not None or self.workers > 1:
+            self._dask = _DaskClient(self.scheduler, self.workers)
+            client = self._dask.__enter__()
+            self.workers = len(client.scheduler_info()["workers"])
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        if self._dask is not None:
+            self._dask.__exit__(*exc)
+            self._dask = None
+
+    def run(self, plan: MapPlan, store: MapStore, progress: Progress | None = None) -> RunReport:
+        """Run every task of ``plan`` not yet done in ``store``, writing each as it finishes."""
+        queue = _TaskQueue(plan, store)
+        meter = _Meter(plan, store, progress)
+        started = time.perf_counter()
+        if self._dask is None:
+            for task in queue.ready():  # in order: a sweep's piece finds the one before done
+                store.write(task, run_task(queue.input(task)))
+                meter.finished(task)
+        else:
+            _run_on(self._dask.client, queue, store, meter)
+        seconds = time.perf_counter() - started
+        return RunReport(meter.tasks_run, meter.trajectories_run, seconds, self.workers,
+                         self.where)
+
+
 def compute_map(
     plan: MapPlan,
     store: MapStore,
@@ -82,25 +127,8 @@ def compute_map(
     ``scheduler`` (an address) uses that Dask scheduler's workers; otherwise ``workers``
     local processes (default one per core), where 1 runs here, without a pool.
     """
-    count = default_workers() if workers is None else workers
-    if count < 1:
-        raise ValueError(f"workers = {count}: need at least 1")
-    queue = _TaskQueue(plan, store)
-    meter = _Meter(plan, store, progress)
-    started = time.perf_counter()
-    if scheduler is None and count == 1:
-        warm_up()
-        for task in queue.ready():  # in order: each piece of a sweep finds the one before done
-            store.write(task, run_task(queue.input(task)))
-            meter.finished(task)
-        where = "this process"
-    else:
-        with _DaskClient(scheduler, count) as client:
-            count = len(client.scheduler_info()["workers"])
-            _run_on(client, queue, store, meter)
-        where = scheduler or "local Dask cluster"
-    seconds = time.perf_counter() - started
-    return RunReport(meter.tasks_run, meter.trajectories_run, seconds, count, where)
+    with MapRunner(workers, scheduler) as runner:
+        return runner.run(plan, store, progress)
 
 
 class _TaskQueue:
@@ -213,7 +241,7 @@ class _DaskClient:
     def __enter__(self) -> Any:
         from distributed import Client, LocalCluster
 
-        local = warm_up()  # compiles here first, so the workers only load numba's cache
+        local = warm_up()
         try:
             if self.address is None:
                 self.cluster = LocalCluster(

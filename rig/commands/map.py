@@ -126,16 +126,8 @@ def run(args: argparse.Namespace) -> int:
     """Check everything, plan the map, compute what the file lacks, summarize and draw."""
     import logging
 
-    from analysis.maps import (
-        MapFileError,
-        MapStore,
-        SchedulerError,
-        compute_map,
-        finish_map,
-    )
+    from analysis.maps import MapRunner, SchedulerError, finish_map
     from analysis.output_paths import check_outputs
-    from analysis.provenance import provenance
-    from rig.commands.rig_options import ProgressLine
 
     plan = plan_from_args(args)  # every user error is found here, before anything runs
     if args.out.suffix.lower() not in (".h5", ".hdf5"):
@@ -148,6 +140,31 @@ def run(args: argparse.Namespace) -> int:
     if not args.verbose:
         logging.getLogger("distributed").setLevel(logging.ERROR)
     try:
+        with MapRunner(args.workers, args.scheduler) as runner:  # reachable before any writing
+            report = _compute(args, plan, runner, resume, figure)
+    except SchedulerError as error:
+        raise CommandError(str(error)) from None
+    if report is None:
+        return 0
+    finish_map(args.out, figure)
+    _say(args, f"map {plan.kind}: summarized; figure {figure}")
+    print(
+        f"map {plan.kind}: {report.trajectories} trajectories computed in {report.seconds:.2f} s "
+        f"({report.rate_per_s:.0f} per s) on {report.workers} worker(s), {report.where} "
+        f"-> {args.out} + {figure.name}"
+    )
+    return 0
+
+
+def _compute(
+    args: argparse.Namespace, plan: Any, runner: Any, resume: bool, figure: Path
+) -> Any:
+    """Open (or continue) the file and run what it lacks; None when it was complete."""
+    from analysis.maps import MapFileError, MapStore
+    from analysis.provenance import provenance
+    from rig.commands.rig_options import ProgressLine
+
+    try:
         if resume:
             store = MapStore.resume(args.out, plan, provenance())
         else:
@@ -155,31 +172,19 @@ def run(args: argparse.Namespace) -> int:
             store = MapStore.create(args.out, plan, provenance())
     except MapFileError as error:
         raise CommandError(str(error)) from None
-    left = int((~store.done).sum())
-    if resume and left == 0 and figure.exists():
-        store.close()
-        _say(args, f"{args.out}: the map is complete; nothing to do (--overwrite computes it "
-             "again)")
-        return 0
-    _say(args, f"map {plan.kind}: {plan.trajectories} trajectories in {len(plan.tasks)} tasks "
-         f"of up to {plan.batch}" + (f"; {left} tasks left in {args.out}" if resume else ""))
-    line = ProgressLine(args.quiet)
     try:
-        report = compute_map(
-            plan, store, workers=args.workers, scheduler=args.scheduler,
-            progress=lambda p: line(_progress_text(p)),
-        )
-    except SchedulerError as error:
-        raise CommandError(str(error)) from None
+        left = int((~store.done).sum())
+        if resume and left == 0 and figure.exists():
+            _say(args, f"{args.out}: the map is complete; nothing to do (--overwrite computes "
+                 "it again)")
+            return None
+        _say(args, f"map {plan.kind}: {plan.trajectories} trajectories in {len(plan.tasks)} "
+             f"tasks of up to {plan.batch} on {runner.workers} worker(s), {runner.where}"
+             + (f"; {left} tasks left in {args.out}" if resume else ""))
+        line = ProgressLine(args.quiet)
+        return runner.run(plan, store, lambda p: line(_progress_text(p)))
     finally:
         store.close()
-    finish_map(args.out, figure)
-    print(
-        f"map {plan.kind}: {report.trajectories} trajectories computed in {report.seconds:.2f} s "
-        f"({report.rate_per_s:.0f} per s) on {report.workers} worker(s), {report.where} "
-        f"-> {args.out} + {figure.name}"
-    )
-    return 0
 
 
 def plan_from_args(args: argparse.Namespace) -> Any:
@@ -196,7 +201,7 @@ def plan_from_args(args: argparse.Namespace) -> Any:
         bifurcation_plan,
         regime_plan,
     )
-    from rig.commands.simulate import build_model, parse_assignments
+    from rig.commands.simulate import build_model, parameter_names, parse_assignments
 
     wanted = {"bifurcation": 1, "regimes": 2, "basins": 2}[args.kind]
     if len(args.vary) != wanted:
@@ -236,6 +241,10 @@ def plan_from_args(args: argparse.Namespace) -> Any:
                 )
             if name in params:
                 raise CommandError(f"--vary {name} and a fixed value of {name}: give one")
+            if name not in parameter_names():
+                raise CommandError(
+                    f"--vary {name}: unknown parameter; valid names: {', '.join(parameter_names())}"
+                )
     ics, transient, record = KIND_DEFAULTS[args.kind]
     if args.kind == "basins" and args.ics:
         raise CommandError("--ics: a basin map's initial states are its grid (--vary)")

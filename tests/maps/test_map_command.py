@@ -1,0 +1,132 @@
+"""impact-rig map as a user runs it: files, provenance, clear errors before any work, resume."""
+
+from __future__ import annotations
+
+import re
+import shutil
+import signal
+import socket
+import subprocess
+import sys
+
+import h5py
+import numpy as np
+import pytest
+
+from analysis.maps import read_map
+from analysis.recording_file import clear_writer_flags
+from tests.maps.conftest import TINY, assert_same_map, finite_fraction, map_main
+
+
+def test_each_kind_writes_a_complete_map_with_its_provenance_and_figure(reference_maps):
+    for kind, path in reference_maps.items():
+        data = read_map(path)
+        assert data["kind"] == kind and data["complete"]
+        assert data["tasks"]["done"].all()
+        assert finite_fraction(path) > 0.5  # the tiny maps stay in the model mostly
+        command = data["provenance"]["command_line"]
+        assert command[:3] == ["impact-rig", "map", kind]
+        assert data["provenance"]["dependencies"]["numba"] != "not installed"
+        assert path.with_suffix(".png").stat().st_size > 10_000
+    regimes = read_map(reference_maps["regimes"])["summary"]
+    assert regimes["attractors"].shape == (6,) and np.all(regimes["attractors"] >= 1)
+    basins = read_map(reference_maps["basins"])
+    assert basins["summary"]["label"].shape == (12,)
+    assert len(basins["summary_info"]["attractors"]) >= 1
+
+
+def test_a_bifurcation_sweeps_continue_from_step_to_step(reference_maps):
+    traj = read_map(reference_maps["bifurcation"])["trajectories"]
+    up = np.flatnonzero(traj["role"] == 0)
+    ok = traj["status"][up[:-1]] == 0
+    # each step of the up sweep started exactly where the step before ended
+    assert np.array_equal(traj["initial"][up[1:]][ok], traj["final"][up[:-1]][ok])
+
+
+@pytest.mark.parametrize(
+    ("vary", "named"),
+    [
+        ("beta=0.02:0.6", "NAME=START:STOP:N"),
+        ("beta=0.02:0.6:zero", "whole number"),
+        ("beta=0.02:0.6:0", "N must be"),
+        ("bta=0.02:0.6:5", "bta"),
+        ("theta0=-0.5:0:5", "map basins"),
+    ],
+)
+def test_a_bad_vary_is_refused_before_anything_runs(tmp_path, capsys, vary, named):
+    out = tmp_path / "map.h5"
+    status, err = map_main(capsys, "bifurcation", "--f-drive-hz", "10", "--vary", vary,
+                           "--out", str(out))
+    assert status == 2
+    assert err.startswith("impact-rig map: error: --vary ") and named in err
+    assert not out.exists() and not out.with_suffix(".png").exists()
+
+
+def test_a_varied_value_that_another_setting_overrides_is_refused(tmp_path, capsys):
+    out = tmp_path / "map.h5"
+    status, err = map_main(
+        capsys, "bifurcation", "--f-drive-hz", "10", "--param", "A_m=0.003",
+        "--vary", "beta=0.02:0.2:5", "--out", str(out),
+    )
+    assert status == 2
+    assert "--vary beta: its values do not change the model" in err
+    assert not out.exists()
+
+
+@pytest.mark.timeout(60)
+def test_an_unreachable_scheduler_is_a_clear_error(tmp_path, capsys):
+    with socket.socket() as probe:  # a port nothing listens on
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    out = tmp_path / "map.h5"
+    status, err = map_main(capsys, *TINY["bifurcation"], "--scheduler",
+                           f"tcp://127.0.0.1:{port}", "--out", str(out))
+    assert status == 2
+    assert f"cannot reach the Dask scheduler at tcp://127.0.0.1:{port} within 5 s" in err
+    assert "Traceback" not in err
+    assert not out.exists()  # nothing written for a map that could not run
+
+
+def test_another_map_never_overwrites_an_existing_file(tmp_path, capsys, reference_maps):
+    out = tmp_path / "map.h5"
+    shutil.copy(reference_maps["bifurcation"], out)
+    before = out.read_bytes()
+    status, err = map_main(capsys, *TINY["bifurcation"], "--seed", "7", "--workers", "1",
+                           "--out", str(out))
+    assert status == 2
+    assert "holds a different map (seed: 0 in the file, 7 now)" in err
+    assert "--overwrite" in err
+    assert out.read_bytes() == before
+
+
+def test_a_killed_run_resumes_to_the_same_map(tmp_path, capsys):
+    args = [
+        "bifurcation", "--f-drive-hz", "10", "--vary", "beta=0.06:0.14:60", "--ics", "4",
+        "--transient-periods", "200", "--record-periods", "50", "--batch", "4",
+        "--workers", "1",
+    ]
+    whole = tmp_path / "whole.h5"
+    assert map_main(capsys, *args, "--out", str(whole))[0] == 0
+    killed = tmp_path / "killed.h5"
+    process = subprocess.Popen(
+        [sys.executable, "-m", "rig.cli", "map", *args, "--out", str(killed)],
+        stderr=subprocess.PIPE, text=True,
+    )
+    for line in process.stderr:
+        found = re.search(r"map: (\d+)/(\d+) tasks", line)
+        if found and 0 < int(found[1]) < int(found[2]):
+            process.send_signal(signal.SIGKILL)  # no chance to close the file
+            break
+    process.wait(timeout=60)
+    assert process.returncode == -signal.SIGKILL
+    scratch = tmp_path / "inspect.h5"
+    shutil.copy(killed, scratch)
+    clear_writer_flags(scratch)
+    with h5py.File(scratch, "r") as handle:
+        done = handle["tasks/done"][...].astype(bool)
+    assert 0 < done.sum() < done.size  # killed in the middle
+    status, err = map_main(capsys, *args, "--out", str(killed))
+    assert status == 0, err
+    assert f"{done.size - done.sum()} tasks left" in err
+    assert_same_map(whole, killed)
+    assert len(read_map(killed)["runs"]) == 2  # both runs recorded with their provenance
