@@ -246,7 +246,7 @@ class _DaskClient:
             if self.address is None:
                 self.cluster = LocalCluster(
                     n_workers=self.workers, threads_per_worker=1, processes=True,
-                    dashboard_address=None, silence_logs=logging.ERROR,
+                    dashboard_address=":0", silence_logs=logging.ERROR,
                 )
                 self.client = Client(self.cluster)
             else:

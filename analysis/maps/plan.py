@@ -28,7 +28,7 @@ IC_THETA_RAD = 0.6
 IC_RATE_FRACTION = 0.6
 MIN_RECORD_PERIODS = 50  # the 0-1 test that names non-periodic attractors needs 50 samples
 TASKS_PER_MAP = 64  # the automatic batch aims at about this many tasks ...
-BATCH_RANGE = (16, 512)  # ... within these trajectories per task
+BATCH_RANGE = (64, 1024)  # ... within these trajectories per task
 
 
 class PlanError(ValueError):
@@ -130,9 +130,10 @@ class MapPlan:
 def auto_batch(trajectories: int) -> int:
     """Trajectories per task: about TASKS_PER_MAP tasks, clipped to BATCH_RANGE.
 
-    Hundreds of trajectories per task keep the scheduler's overhead (about a millisecond a
-    task, benchmarks/bench_maps.py) far below the work (milliseconds per trajectory); a
-    small map still gets enough tasks to keep every worker busy to the end.
+    The scheduler costs a few milliseconds per task (benchmarks/bench_maps.py) and a
+    trajectory of a few hundred drive periods a few milliseconds, so 64 or more
+    trajectories per task keep the overhead near 1 %; a map of some thousand trajectories
+    still gets enough tasks to keep every worker busy to the end.
     """
     low, high = BATCH_RANGE
     return int(min(high, max(low, math.ceil(trajectories / TASKS_PER_MAP))))

@@ -113,7 +113,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     parser.add_argument(
         "--batch", type=int, default=0, metavar="N",
-        help="trajectories per task (default: from the map's size, 16 to 512)",
+        help="trajectories per task (default: from the map's size, 64 to 1024)",
     )
     parser.add_argument(
         "--rtol", type=float, default=1e-8,

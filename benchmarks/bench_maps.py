@@ -1,0 +1,142 @@
+"""Maps at scale: trajectories per second in one process and on N local Dask workers.
+
+Each map is planned exactly as ``impact-rig map`` plans it, then computed twice in the
+same run: by one worker in this process (no pool: the reference) and by a LocalCluster of
+N worker processes (one thread each).  Printed: trajectories per second of both, the
+ratio (goal: at least 0.8 N for maps of 1000 or more trajectories), that both files hold
+the same numbers bit for bit, the cluster's start-up time, and the scheduler's overhead
+per task (empty tasks), with what it costs at the automatic batch size.
+
+    nice -n 10 python benchmarks/bench_maps.py            # three maps of 1440-1800 runs
+    nice -n 10 python benchmarks/bench_maps.py --quick    # smaller maps
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import os
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from analysis.maps import MapRunner, MapStore, read_map  # noqa: E402
+from analysis.provenance import provenance  # noqa: E402
+from rig.cli import build_parser  # noqa: E402
+from rig.commands.map import plan_from_args  # noqa: E402
+
+MAPS = {
+    # the issue's Done-when map: 240 betas, up + down + 4 random initial states each
+    "bifurcation": "bifurcation --f-drive-hz 10 --vary beta=0.02:0.6:240",
+    "basins": "basins --f-drive-hz 10 --beta 0.08 --vary theta0=-0.6:0:40 "
+    "--vary omega0=-8:8:40",
+    "regimes": "regimes --vary beta=0.02:0.16:30 --vary f_drive_hz=8:12:30 --ics 2",
+}
+QUICK = {
+    "bifurcation": "bifurcation --f-drive-hz 10 --vary beta=0.02:0.2:60",
+    "basins": "basins --f-drive-hz 10 --beta 0.08 --vary theta0=-0.6:0:16 "
+    "--vary omega0=-8:8:16",
+    "regimes": "regimes --vary beta=0.02:0.16:12 --vary f_drive_hz=8:12:12 --ics 2",
+}
+
+
+def plan_of(command: str, out: Path):
+    """The plan ``impact-rig map COMMAND --out OUT`` would compute."""
+    return plan_from_args(build_parser().parse_args(["map", *command.split(), "--out", str(out)]))
+
+
+def compute(runner: MapRunner, command: str, out: Path) -> tuple[float, int, int]:
+    """Seconds to compute the whole map into a new file; trajectories and tasks."""
+    plan = plan_of(command, out)
+    store = MapStore.create(out, plan, provenance())
+    try:
+        report = runner.run(plan, store)
+    finally:
+        store.close()
+    return report.seconds, plan.trajectories, len(plan.tasks)
+
+
+def same_numbers(first: Path, second: Path) -> bool:
+    """Every trajectory dataset equal bit for bit."""
+    a, b = read_map(first)["trajectories"], read_map(second)["trajectories"]
+    return all(a[name].tobytes() == b[name].tobytes() for name in a)
+
+
+def scheduler_overhead(workers: int, tasks: int = 400) -> tuple[float, float]:
+    """(throughput overhead per task, round-trip latency of one task) in seconds, for empty
+    tasks on a LocalCluster like the maps' one."""
+    from distributed import Client, LocalCluster
+
+    with (
+        LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                     dashboard_address=":0", silence_logs=logging.ERROR) as cluster,
+        Client(cluster) as client,
+    ):
+        client.gather(client.map(abs, range(-workers * 4, 0)))  # connections warm
+        start = time.perf_counter()
+        client.gather(client.map(abs, range(tasks)))
+        per_task = (time.perf_counter() - start) / tasks
+        start = time.perf_counter()
+        for k in range(50):
+            client.submit(abs, -k - 1000).result()
+        latency = (time.perf_counter() - start) / 50
+    return per_task, latency
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="smaller maps")
+    parser.add_argument("--workers", type=int, default=os.cpu_count() or 1,
+                        help="local Dask workers (default: one per core)")
+    args = parser.parse_args()
+    logging.getLogger("distributed").setLevel(logging.ERROR)
+    maps = QUICK if args.quick else MAPS
+    n = args.workers
+    print(f"maps on 1 process vs {n} local Dask workers; load {os.getloadavg()[0]:.2f}")
+    rows = []
+    with tempfile.TemporaryDirectory() as folder:
+        with MapRunner(workers=1) as one:
+            serial = {kind: compute(one, command, Path(folder) / f"{kind}-1.h5")
+                      for kind, command in maps.items()}
+        started = time.perf_counter()
+        with MapRunner(workers=n) as cluster:
+            startup = time.perf_counter() - started
+            parallel = {kind: compute(cluster, command, Path(folder) / f"{kind}-n.h5")
+                        for kind, command in maps.items()}
+        for kind in maps:
+            (t1, count, tasks), (tn, _, _) = serial[kind], parallel[kind]
+            same = same_numbers(Path(folder) / f"{kind}-1.h5", Path(folder) / f"{kind}-n.h5")
+            rows.append((kind, count, tasks, t1, tn, same))
+    print(f"LocalCluster of {n} processes: ready (started, integrator loaded) in {startup:.2f} s")
+    print(f"{'map':<12} {'runs':>6} {'tasks':>5} {'1 process':>20} {f'{n} workers':>20} "
+          f"{'ratio':>6}  bit for bit")
+    for kind, count, tasks, t1, tn, same in rows:
+        print(f"{kind:<12} {count:>6} {tasks:>5} {count / t1:>8.0f}/s ({t1:6.2f} s) "
+              f"{count / tn:>8.0f}/s ({tn:6.2f} s) {t1 / tn:>6.2f}  {'yes' if same else 'NO'}")
+    total1 = sum(r[3] for r in rows)
+    totaln = sum(r[4] for r in rows)
+    runs = sum(r[1] for r in rows)
+    print(f"{'all':<12} {runs:>6} {'':>5} {runs / total1:>8.0f}/s ({total1:6.2f} s) "
+          f"{runs / totaln:>8.0f}/s ({totaln:6.2f} s) {total1 / totaln:>6.2f}  "
+          f"(goal >= {0.8 * n:.1f})")
+    per_task, latency = scheduler_overhead(n)
+    per_run = total1 / runs
+    print(f"scheduler overhead: {per_task * 1e3:.2f} ms per task at full throughput, "
+          f"{latency * 1e3:.2f} ms round trip of one task; {per_run * 1e3:.2f} ms per "
+          "trajectory in one process")
+    for kind, count, tasks, *_ in rows:
+        batch = int(np.ceil(count / tasks))
+        share = per_task / (batch * per_run + per_task)
+        print(f"  {kind}: automatic batch {batch} trajectories per task -> overhead "
+              f"{100 * share:.2f} % of a task")
+    return 0 if all(row[5] for row in rows) else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
