@@ -18,8 +18,12 @@ _ROLE_STYLE = {
     ROLE_DOWN: dict(color="tab:orange", label="sweep down (continuation)", s=3.0),
     ROLE_RANDOM: dict(color="tab:green", label="random initial states", s=0.8),
 }
-_PALETTE = ["#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2",
-            "#17becf", "#bcbd22", "#aec7e8", "#ffbb78", "#98df8a"]
+# tab20 without its browns, pinks and greys, which name the other regimes
+_PERIOD_COLOURS = ["#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#17becf", "#bcbd22",
+                   "#aec7e8", "#ffbb78", "#98df8a", "#ff9896", "#c5b0d5", "#9edae5", "#dbdb8d"]
+_FIXED_COLOURS = {"quasi-periodic": "#e377c2", "chaotic": "#8c564b",
+                  "undetermined": "#7f7f7f", "left the model": "#d0d0d0"}
+MAX_NAMED_PERIOD = len(_PERIOD_COLOURS) - 1  # one colour left for the longer periods
 
 
 def draw_map(data: dict[str, Any], path: str | Path) -> Path:
@@ -72,23 +76,31 @@ def _bifurcation(data: dict[str, Any]):
 
 
 def _categories(regime: np.ndarray, period: np.ndarray) -> tuple[np.ndarray, list[str]]:
-    """An index per point into a list of category names ('period-2', 'chaotic', ...)."""
+    """An index per point into a list of category names ('period-2', 'chaotic', ...);
+    periods above MAX_NAMED_PERIOD share one category, so every colour stays distinct."""
     names = []
     for code, k in zip(regime, period, strict=True):
         if code == NO_REGIME:
             names.append("left the model")
-        elif KINDS[code] == "periodic":
-            names.append(f"period-{k}")
-        else:
+        elif KINDS[code] != "periodic":
             names.append(KINDS[code].replace("_", "-"))
+        elif k > MAX_NAMED_PERIOD:
+            names.append(f"period > {MAX_NAMED_PERIOD}")
+        else:
+            names.append(f"period-{k}")
 
     def order(name: str) -> tuple[int, int]:
         if name.startswith("period-"):
             return (0, int(name.split("-")[1]))
-        return (1, ["quasi-periodic", "chaotic", "undetermined", "left the model"].index(name))
+        return (1, [f"period > {MAX_NAMED_PERIOD}", *_FIXED_COLOURS].index(name))
 
     legend = sorted(set(names), key=order)
     return np.array([legend.index(name) for name in names]), legend
+
+
+def _colours(legend: list[str]) -> list[str]:
+    periodic = iter(_PERIOD_COLOURS)
+    return [_FIXED_COLOURS.get(name) or next(periodic) for name in legend]
 
 
 def _regimes(data: dict[str, Any]):
@@ -100,10 +112,7 @@ def _regimes(data: dict[str, Any]):
     index, legend = _categories(summary["point_regime"], summary["point_period"])
     shape = (first["count"], second["count"])
     grid = index.reshape(shape).T  # rows: the second axis (y), columns: the first (x)
-    colours = [
-        "#d0d0d0" if name == "left the model" else _PALETTE[k % len(_PALETTE)]
-        for k, name in enumerate(legend)
-    ]
+    colours = _colours(legend)
     figure, axes = _figure((8.0, 6.0))
     x, y = data["axes"][first["name"]], data["axes"][second["name"]]
     axes.imshow(
