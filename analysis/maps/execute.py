@@ -14,7 +14,7 @@ import logging
 import os
 import time
 import uuid
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -97,6 +97,13 @@ class MapRunner:
         if self._dask is not None:
             self._dask.__exit__(*exc)
             self._dask = None
+
+    def map(self, function: Callable[[Any], Any], inputs: Sequence[Any]) -> list[Any]:
+        """``[function(x) for x in inputs]``, spread over the workers; results in order."""
+        if self._dask is None:
+            return [function(item) for item in inputs]
+        client = self._dask.client  # one submission per input: no single large graph
+        return client.gather([client.submit(function, item, pure=False) for item in inputs])
 
     def run(self, plan: MapPlan, store: MapStore, progress: Progress | None = None) -> RunReport:
         """Run every task of ``plan`` not yet done in ``store``, writing each as it finishes."""

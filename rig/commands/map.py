@@ -142,12 +142,12 @@ def run(args: argparse.Namespace) -> int:
     try:
         with MapRunner(args.workers, args.scheduler) as runner:  # reachable before any writing
             report = _compute(args, plan, runner, resume, figure)
+            if report is None:
+                return 0
+            finish_map(args.out, figure, runner.map)  # the workers classify the attractors
     except SchedulerError as error:
         raise CommandError(str(error)) from None
-    if report is None:
-        return 0
-    finish_map(args.out, figure)
-    _say(args, f"map {plan.kind}: summarized; figure {figure}")
+    _say(args, f"map {plan.kind}: attractors classified; figure {figure}")
     print(
         f"map {plan.kind}: {report.trajectories} trajectories computed in {report.seconds:.2f} s "
         f"({report.rate_per_s:.0f} per s) on {report.workers} worker(s), {report.where} "

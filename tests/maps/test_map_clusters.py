@@ -31,7 +31,7 @@ def test_a_local_cluster_of_processes_computes_the_same_maps(tmp_path, reference
             finally:
                 store.close()
             assert report.tasks == len(plan.tasks) and report.trajectories == plan.trajectories
-            finish_map(out, out.with_suffix(".png"))
+            finish_map(out, out.with_suffix(".png"), runner.map)
             assert_same_map(reference_maps[kind], out)
 
 
