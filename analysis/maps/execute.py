@@ -25,6 +25,7 @@ from analysis.maps.tasks import TaskInput, continued_state, run_task, task_input
 CONNECT_TIMEOUT_S = 5.0
 WORKERS_TIMEOUT_S = 30.0
 CHAIN_PRIORITY = 10  # continuation pieces are the critical path: they go first
+IN_FLIGHT_PER_WORKER = 2  # one running, one ready to start: no worker waits for the driver
 
 
 class SchedulerError(RuntimeError):
@@ -207,11 +208,14 @@ class _Meter:
 
 
 def _run_on(client: Any, queue: _TaskQueue, store: MapStore, meter: _Meter) -> None:
-    """Submit what can start, write results as they come, send each sweep's next piece."""
+    """Keep every worker busy with about IN_FLIGHT_PER_WORKER tasks, write results as they
+    come, and send each sweep's next piece at once, ahead of the batches still waiting."""
     from distributed import as_completed
 
     running: dict[str, Task] = {}
     run_id = uuid.uuid4().hex  # task keys unique on a scheduler shared by several maps
+    waiting = list(queue.ready())
+    limit = IN_FLIGHT_PER_WORKER * max(1, len(client.scheduler_info()["workers"]))
 
     def submit(task: Task) -> Any:
         future = client.submit(
@@ -224,7 +228,9 @@ def _run_on(client: Any, queue: _TaskQueue, store: MapStore, meter: _Meter) -> N
         running[future.key] = task
         return future
 
-    futures = as_completed([submit(task) for task in queue.ready()])
+    futures = as_completed()
+    while waiting and len(running) < limit:
+        futures.add(submit(waiting.pop(0)))
     for future in futures:
         task = running.pop(future.key)
         store.write(task, future.result())
@@ -233,6 +239,8 @@ def _run_on(client: Any, queue: _TaskQueue, store: MapStore, meter: _Meter) -> N
         following = queue.next_piece(task) if task.chain_first >= 0 else None
         if following is not None:
             futures.add(submit(following))
+        while waiting and len(running) < limit:
+            futures.add(submit(waiting.pop(0)))
 
 
 class _DaskClient:

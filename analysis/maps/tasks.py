@@ -113,9 +113,11 @@ def run_task(inputs: TaskInput) -> TaskOutput:
 def warm_up() -> dict[str, str]:
     """Load (or compile, once per machine: numba caches it) the integrator by one short run,
     and say which software this process computes with."""
-    from analysis.provenance import DEPENDENCIES, package_version
+    from analysis.provenance import DEPENDENCIES, git_commit, package_version
 
     model = Model(RigParameters(), Drive(amplitude_m=0.001, frequency_hz=10.0))
     run_poincare(model.pack()[None], np.zeros((1, 2)), transient_periods=0, record_periods=1,
                  workers=1)
-    return {name: package_version(name) for name in ("impact-rig", *DEPENDENCIES)}
+    versions = {name: package_version(name) for name in ("impact-rig", *DEPENDENCIES)}
+    versions["impact-rig commit"] = (git_commit() or {}).get("commit", "none (installed)")
+    return versions
