@@ -30,6 +30,7 @@ from analysis.recording_file import clear_writer_flags
 
 FORMAT = "impact-rig map"
 FORMAT_VERSION = 1
+HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
 
 
 class MapFileError(ValueError):
@@ -99,6 +100,12 @@ class MapStore:
         """Continue a file of the same map (MapFileError when it holds another); the run is
         added to the file's ``runs`` unless every task is done already."""
         path = Path(path)
+        with path.open("rb") as head:
+            if head.read(len(HDF5_SIGNATURE)) != HDF5_SIGNATURE:
+                raise MapFileError(
+                    f"{path}: exists and is not an HDF5 map file; pass --overwrite to replace "
+                    "it, or choose another --out"
+                )
         try:
             clear_writer_flags(path)  # a killed writer left them set
             handle = h5py.File(path, "r+", libver="latest")

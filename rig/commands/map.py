@@ -178,6 +178,8 @@ def _compute(
             _say(args, f"{args.out}: the map is complete; nothing to do (--overwrite computes "
                  "it again)")
             return None
+        if figure.exists() and not args.overwrite:  # not drawn by this map: never replaced
+            raise CommandError(f"{figure}: already exists; pass --overwrite to replace it")
         _say(args, f"map {plan.kind}: {plan.trajectories} trajectories in {len(plan.tasks)} "
              f"tasks of up to {plan.batch} on {runner.workers} worker(s), {runner.where}"
              + (f"; {left} tasks left in {args.out}" if resume else ""))

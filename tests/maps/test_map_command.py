@@ -130,3 +130,13 @@ def test_a_killed_run_resumes_to_the_same_map(tmp_path, capsys):
     assert f"{done.size - done.sum()} tasks left" in err
     assert_same_map(whole, killed)
     assert len(read_map(killed)["runs"]) == 2  # both runs recorded with their provenance
+
+
+def test_a_file_that_is_not_a_map_is_never_written_over(tmp_path, capsys):
+    out = tmp_path / "notes.h5"
+    out.write_bytes(b"lab notes, not HDF5\n" * 10)
+    before = out.read_bytes()
+    status, err = map_main(capsys, *TINY["bifurcation"], "--workers", "1", "--out", str(out))
+    assert status == 2
+    assert "is not an HDF5 map file; pass --overwrite" in err
+    assert out.read_bytes() == before
