@@ -79,7 +79,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="a swept quantity, N values from START to STOP (once for bifurcation, twice "
         "for regimes and basins)",
     )
-    parser.add_argument("--f-drive-hz", type=float, help="drive frequency [Hz]")
+    parser.add_argument("--f-drive-hz", type=float, metavar="HZ", help="drive frequency [Hz]")
     parser.add_argument("--beta", type=float, help="drive amplitude as a fraction of L")
     parser.add_argument(
         "--param", action="append", default=[], metavar="NAME=VALUE",
