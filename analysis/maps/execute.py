@@ -172,7 +172,9 @@ class _TaskQueue:
     def _startable(self, task: Task) -> bool:
         if task.chain_first < 0 or task.start == task.chain_first:
             return True
-        before = next(t for t in self.plan.tasks if t.stop == task.start)
+        before = next(
+            t for t in self.plan.tasks if t.stop == task.start and t.chain_first == task.chain_first
+        )
         return bool(self.store.done[before.index])
 
 
@@ -180,29 +182,32 @@ class _Meter:
     """Counts finished tasks and reports progress."""
 
     def __init__(self, plan: MapPlan, store: MapStore, progress: Progress | None) -> None:
-        self.plan, self.store, self.progress = plan, store, progress
+        self.plan, self.progress = plan, progress
         self.started = time.perf_counter()
         self.tasks_run = self.trajectories_run = 0
+        done = [task for task in plan.tasks if store.done[task.index]]
+        self.tasks_done = len(done)
+        self.trajectories_done = sum(task.size for task in done)
         self.report()
 
     def finished(self, task: Task) -> None:
         self.tasks_run += 1
         self.trajectories_run += task.size
+        self.tasks_done += 1
+        self.trajectories_done += task.size
         self.report()
 
     def report(self) -> None:
         if self.progress is None:
             return
-        done = [task for task in self.plan.tasks if self.store.done[task.index]]
-        trajectories = sum(task.size for task in done)
         elapsed = time.perf_counter() - self.started
         rate = self.trajectories_run / elapsed if self.trajectories_run else float("nan")
-        left = self.plan.trajectories - trajectories
+        left = self.plan.trajectories - self.trajectories_done
         eta = left / rate if self.trajectories_run else float("nan")
         self.progress(
             MapProgress(
-                len(done), len(self.plan.tasks), trajectories, self.plan.trajectories,
-                elapsed, rate, eta,
+                self.tasks_done, len(self.plan.tasks), self.trajectories_done,
+                self.plan.trajectories, elapsed, rate, eta,
             )
         )
 

@@ -140,3 +140,17 @@ def test_a_file_that_is_not_a_map_is_never_written_over(tmp_path, capsys):
     assert status == 2
     assert "is not an HDF5 map file; pass --overwrite" in err
     assert out.read_bytes() == before
+
+
+def test_the_numbers_do_not_depend_on_how_the_map_is_cut_into_tasks(
+    tmp_path, capsys, reference_maps
+):
+    for kind in ("bifurcation", "regimes"):
+        out = tmp_path / f"{kind}.h5"
+        args = [*TINY[kind][:-2], "--batch", "3"]  # the reference cut into other tasks
+        assert map_main(capsys, *args, "--workers", "1", "--out", str(out))[0] == 0
+        a, b = read_map(reference_maps[kind]), read_map(out)
+        assert a["settings"]["batch"] != b["settings"]["batch"]
+        for group in ("trajectories", "summary"):
+            for name, values in a[group].items():
+                assert values.tobytes() == b[group][name].tobytes(), (kind, group, name)
