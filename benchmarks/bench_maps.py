@@ -50,15 +50,33 @@ def plan_of(command: str, out: Path):
     return plan_from_args(build_parser().parse_args(["map", *command.split(), "--out", str(out)]))
 
 
-def compute(runner: MapRunner, command: str, out: Path) -> tuple[float, int, int]:
-    """Seconds to compute the whole map into a new file; trajectories and tasks."""
+def process_cpu_seconds() -> float:
+    """User + system CPU time of the calling process."""
+    import psutil
+
+    times = psutil.Process().cpu_times()
+    return times.user + times.system
+
+
+def workers_cpu_seconds(runner: MapRunner) -> float:
+    """CPU seconds used so far by the runner's worker processes (0 in this process)."""
+    if runner.client is None:
+        return 0.0
+    return sum(runner.client.run(process_cpu_seconds).values())
+
+
+def compute(runner: MapRunner, command: str, out: Path) -> tuple[float, float, int, int]:
+    """Wall and CPU seconds (this process and the workers) to compute the whole map into a
+    new file; trajectories and tasks."""
     plan = plan_of(command, out)
     store = MapStore.create(out, plan, provenance())
+    cpu = process_cpu_seconds() + workers_cpu_seconds(runner)
     try:
         report = runner.run(plan, store)
     finally:
         store.close()
-    return report.seconds, plan.trajectories, len(plan.tasks)
+    cpu = process_cpu_seconds() + workers_cpu_seconds(runner) - cpu
+    return report.seconds, cpu, plan.trajectories, len(plan.tasks)
 
 
 def same_numbers(first: Path, second: Path) -> bool:
@@ -107,29 +125,35 @@ def main() -> int:
             startup = time.perf_counter() - started
             with MapRunner(workers=1) as one:
                 for kind, command in maps.items():
-                    times: dict[str, list[float]] = {"1": [], "n": []}
+                    times: dict[str, list[tuple[float, float]]] = {"1": [], "n": []}
                     for _ in range(args.repeat):  # alternating, so load changes hit both
                         for label, runner in (("1", one), ("n", cluster)):
                             out = Path(folder) / f"{kind}-{label}.h5"
                             out.unlink(missing_ok=True)
-                            seconds, count, tasks = compute(runner, command, out)
-                            times[label].append(seconds)
+                            wall, cpu, count, tasks = compute(runner, command, out)
+                            times[label].append((wall, cpu))
                     same = same_numbers(Path(folder) / f"{kind}-1.h5",
                                         Path(folder) / f"{kind}-n.h5")
                     rows.append((kind, count, tasks, min(times["1"]), min(times["n"]), same))
     print(f"(best of {args.repeat} alternating runs each; load now {os.getloadavg()[0]:.2f})")
     print(f"LocalCluster of {n} processes: ready (started, integrator loaded) in {startup:.2f} s")
     print(f"{'map':<12} {'runs':>6} {'tasks':>5} {'1 process':>20} {f'{n} workers':>20} "
-          f"{'ratio':>6}  bit for bit")
-    for kind, count, tasks, t1, tn, same in rows:
+          f"{'ratio':>6}  CPU s 1 / {n}   bit for bit")
+    for kind, count, tasks, (t1, c1), (tn, cn), same in rows:
         print(f"{kind:<12} {count:>6} {tasks:>5} {count / t1:>8.0f}/s ({t1:6.2f} s) "
-              f"{count / tn:>8.0f}/s ({tn:6.2f} s) {t1 / tn:>6.2f}  {'yes' if same else 'NO'}")
-    total1 = sum(r[3] for r in rows)
-    totaln = sum(r[4] for r in rows)
+              f"{count / tn:>8.0f}/s ({tn:6.2f} s) {t1 / tn:>6.2f}  {c1:5.2f} / {cn:5.2f}"
+              f"   {'yes' if same else 'NO'}")
+    total1 = sum(r[3][0] for r in rows)
+    totaln = sum(r[4][0] for r in rows)
+    cpu1 = sum(r[3][1] for r in rows)
+    cpun = sum(r[4][1] for r in rows)
     runs = sum(r[1] for r in rows)
     print(f"{'all':<12} {runs:>6} {'':>5} {runs / total1:>8.0f}/s ({total1:6.2f} s) "
           f"{runs / totaln:>8.0f}/s ({totaln:6.2f} s) {total1 / totaln:>6.2f}  "
-          f"(goal >= {0.8 * n:.1f})")
+          f"{cpu1:5.2f} / {cpun:5.2f}   (goal >= {0.8 * n:.1f})")
+    print(f"CPU seconds on {n} workers (driver included) per CPU second in one process: "
+          f"{cpun / cpu1:.2f}; with {n} free cores the ratio could reach about "
+          f"{n * cpu1 / cpun:.2f} (less where a continuation sweep is the longest path)")
     per_task, latency = scheduler_overhead(n)
     per_run = total1 / runs
     print(f"scheduler overhead: {per_task * 1e3:.2f} ms per task at full throughput, "

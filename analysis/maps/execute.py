@@ -99,6 +99,11 @@ class MapRunner:
             self._dask.__exit__(*exc)
             self._dask = None
 
+    @property
+    def client(self) -> Any:
+        """The Dask client of the workers (None when the map runs in this process)."""
+        return None if self._dask is None else self._dask.client
+
     def map(self, function: Callable[[Any], Any], inputs: Sequence[Any]) -> list[Any]:
         """``[function(x) for x in inputs]``, spread over the workers; results in order."""
         if self._dask is None:
