@@ -8,7 +8,6 @@ from analysis.maps.execute import (
     MapRunner,
     RunReport,
     SchedulerError,
-    compute_map,
     default_workers,
 )
 from analysis.maps.plan import (
@@ -40,7 +39,6 @@ __all__ = [
     "SchedulerError",
     "basin_plan",
     "bifurcation_plan",
-    "compute_map",
     "default_workers",
     "finish_map",
     "read_map",

@@ -127,23 +127,6 @@ class MapRunner:
                          self.where)
 
 
-def compute_map(
-    plan: MapPlan,
-    store: MapStore,
-    *,
-    workers: int | None = None,
-    scheduler: str | None = None,
-    progress: Progress | None = None,
-) -> RunReport:
-    """Run every task of ``plan`` not yet done in ``store`` and write each as it finishes.
-
-    ``scheduler`` (an address) uses that Dask scheduler's workers; otherwise ``workers``
-    local processes (default one per core), where 1 runs here, without a pool.
-    """
-    with MapRunner(workers, scheduler) as runner:
-        return runner.run(plan, store, progress)
-
-
 class _TaskQueue:
     """Which pending tasks can start: every batch at once, a sweep's pieces in order."""
 

@@ -121,11 +121,6 @@ class MapPlan:
         """Trajectories per task (the largest task)."""
         return max(task.size for task in self.tasks)
 
-    @property
-    def grid_shape(self) -> tuple[int, ...]:
-        """Points per axis (a basin map has one point; its axes are initial states)."""
-        return (1,) if self.kind == "basins" else tuple(axis.count for axis in self.axes)
-
 
 def auto_batch(trajectories: int) -> int:
     """Trajectories per task: about TASKS_PER_MAP tasks, clipped to BATCH_RANGE.

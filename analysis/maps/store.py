@@ -24,7 +24,7 @@ from typing import Any
 import h5py
 import numpy as np
 
-from analysis.maps.plan import MapPlan
+from analysis.maps.plan import ROLE_NAMES, MapPlan
 from analysis.maps.tasks import NOT_RUN, STATUSES, Task, TaskOutput
 from analysis.recording_file import clear_writer_flags
 
@@ -86,6 +86,7 @@ class MapStore:
                 compression="gzip", compression_opts=1, shuffle=True,
             )
         group["status"].attrs["names"] = json.dumps(STATUSES)
+        group["role"].attrs["names"] = json.dumps(ROLE_NAMES)
         group["initial"][...] = plan.initial
         tasks = handle.create_group("tasks")
         tasks["start"] = [task.start for task in plan.tasks]

@@ -52,11 +52,6 @@ class TaskOutput:
     contacts: np.ndarray
     status: np.ndarray
 
-    @property
-    def size(self) -> int:
-        """Trajectories in the output."""
-        return int(self.status.size)
-
 
 def task_input(plan: MapPlan, task: Task, start_state: np.ndarray | None = None) -> TaskInput:
     """The input of ``task``; a continuation piece after its sweep's first needs the state
