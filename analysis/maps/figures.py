@@ -10,6 +10,7 @@ import numpy as np
 
 from analysis.dynamics.basins import Attractor, BasinMap, plot_basins
 from analysis.dynamics.regime import KINDS, Regime
+from analysis.maps.overlay import RecordedSweep
 from analysis.maps.plan import ROLE_DOWN, ROLE_RANDOM, ROLE_UP
 from analysis.maps.summary import NO_REGIME
 
@@ -26,10 +27,15 @@ _FIXED_COLOURS = {"quasi-periodic": "#e377c2", "chaotic": "#8c564b",
 MAX_NAMED_PERIOD = len(_PERIOD_COLOURS) - 1  # one colour left for the longer periods
 
 
-def draw_map(data: dict[str, Any], path: str | Path) -> Path:
-    """Draw the map read by :func:`analysis.maps.store.read_map` to ``path`` (PNG)."""
-    draw = {"bifurcation": _bifurcation, "regimes": _regimes, "basins": _basins}[data["kind"]]
-    figure = draw(data)
+def draw_map(
+    data: dict[str, Any], path: str | Path, overlay: RecordedSweep | None = None
+) -> Path:
+    """Draw the map read by :func:`analysis.maps.store.read_map` to ``path`` (PNG), a
+    bifurcation map with a recorded sweep's points over it when ``overlay`` is given."""
+    if data["kind"] == "bifurcation":
+        figure = _bifurcation(data, overlay)
+    else:
+        figure = {"regimes": _regimes, "basins": _basins}[data["kind"]](data)
     figure.savefig(Path(path), format="png")
     return Path(path)
 
@@ -50,7 +56,7 @@ def _title(data: dict[str, Any]) -> str:
             f"{settings['transient_periods']} + {settings['record_periods']} periods each")
 
 
-def _bifurcation(data: dict[str, Any]):
+def _bifurcation(data: dict[str, Any], overlay: RecordedSweep | None):
     name = data["settings"]["axes"][0]["name"]
     values = data["points"][name]
     traj = data["trajectories"]
@@ -64,11 +70,19 @@ def _bifurcation(data: dict[str, Any]):
             continue
         xs = np.broadcast_to(x[rows][:, None], theta.shape)[finite]
         top.scatter(xs, theta[finite], marker=".", linewidths=0, alpha=0.8, **style)
+    if overlay is not None:
+        for direction, marker in (("up", "^"), ("down", "v")):
+            steps = [k for k, d in enumerate(overlay.directions) if d == direction]
+            xs = np.concatenate([np.full(overlay.theta[k].size, overlay.values[k]) for k in steps])
+            ys = np.concatenate([overlay.theta[k] for k in steps])
+            top.scatter(xs, ys, s=14, marker=marker, facecolors="none", edgecolors="black",
+                        linewidths=0.6, label=f"recorded sweep, {direction}")
     top.set_ylabel("theta at drive phase 0 [rad]")
     top.set_title(_title(data))
-    legend = top.legend(loc="best", markerscale=8, fontsize="small")
-    for handle in legend.legend_handles:
+    legend = top.legend(loc="best", fontsize="small")
+    for handle in legend.legend_handles:  # the map's dots are tiny: legible marks instead
         handle.set_alpha(1.0)
+        handle.set_sizes([30.0])
     bottom.step(values, data["summary"]["attractors"], where="mid", color="black")
     bottom.set_ylabel("attractors")
     bottom.set_xlabel(name)

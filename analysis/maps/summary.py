@@ -121,9 +121,12 @@ def summarize(
     return arrays, info
 
 
-def finish_map(path: str | Path, figure_path: str | Path, run: Runner | None = None) -> dict:
+def finish_map(
+    path: str | Path, figure_path: str | Path, run: Runner | None = None, overlay: Any = None
+) -> dict:
     """Summarize a map file whose tasks are all done (chunks classified by ``run``), store the
-    summary and draw the figure; returns the file's contents."""
+    summary and draw the figure (with a recorded sweep's points, ``overlay``); returns the
+    file's contents."""
     from analysis.maps.figures import draw_map
     from analysis.maps.store import read_map, write_summary
 
@@ -136,7 +139,7 @@ def finish_map(path: str | Path, figure_path: str | Path, run: Runner | None = N
     )
     write_summary(path, arrays, info)
     data = read_map(path)
-    draw_map(data, figure_path)
+    draw_map(data, figure_path, overlay)
     return data
 
 

@@ -59,6 +59,8 @@ examples:
       --out regimes.h5
   impact-rig map basins --f-drive-hz 10 --beta 0.08 --vary theta0=-0.5:0:200 \\
       --vary omega0=-6:6:200 --out basins.h5
+  impact-rig map bifurcation --f-drive-hz 10 --vary beta=0.02:0.15:200 --overlay sweep.h5 \\
+      --out bif_and_sweep.h5
   impact-rig map bifurcation --f-drive-hz 10 --param beta=0.05 --vary zeta=0.002:0.03:100 \\
       --scheduler tcp://10.0.0.5:8786 --out zeta.h5
 """
@@ -97,6 +99,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--record-periods", type=int, metavar="Q",
         help="Poincare samples kept per trajectory, >= 50 (bifurcation 100, others 64)",
     )
+    parser.add_argument(
+        "--overlay", type=Path, metavar="SWEEP.h5",
+        help="bifurcation: draw a recorded sweep (impact-rig sweep) over the diagram, the "
+        "settled tach-pulse angles of each step, up and down in different marks",
+    )
     parser.add_argument("--seed", type=int, default=0, help="seed of the random initial states")
     parser.add_argument("--out", type=Path, required=True, help="output FILE.h5 (+ FILE.png)")
     parser.add_argument(
@@ -133,6 +140,7 @@ def run(args: argparse.Namespace) -> int:
     if args.out.suffix.lower() not in (".h5", ".hdf5"):
         raise CommandError(f"--out {args.out}: expected a .h5 file name")
     figure = args.out.with_suffix(".png")
+    overlay = _overlay(args, plan)
     resume = args.out.exists() and not args.overwrite
     check_outputs([] if resume else [args.out, figure], overwrite=args.overwrite)
     if args.workers is not None and args.workers < 1:
@@ -144,7 +152,7 @@ def run(args: argparse.Namespace) -> int:
             report = _compute(args, plan, runner, resume, figure)
             if report is None:
                 return 0
-            finish_map(args.out, figure, runner.map)  # the workers classify the attractors
+            finish_map(args.out, figure, runner.map, overlay)  # workers classify attractors
     except SchedulerError as error:
         raise CommandError(str(error)) from None
     _say(args, f"map {plan.kind}: attractors classified; figure {figure}")
@@ -299,6 +307,23 @@ def _check_axes_matter(axes: list[Any], vectors: Any, shape: tuple[int, ...]) ->
                     f"--vary {axis.name}: its values do not change the model (another "
                     "setting overrides it, e.g. A_m over beta)"
                 )
+
+
+def _overlay(args: argparse.Namespace, plan: Any) -> Any:
+    """The recorded sweep to draw over a bifurcation map (None without --overlay)."""
+    if args.overlay is None:
+        return None
+    from analysis.maps.overlay import recorded_sweep
+    from analysis.records import RecordFormatError
+
+    if plan.kind != "bifurcation":
+        raise CommandError("--overlay: a recorded sweep is drawn over a bifurcation map only")
+    if not args.overlay.is_file():
+        raise CommandError(f"--overlay {args.overlay}: no such file")
+    try:
+        return recorded_sweep(args.overlay, plan.axes[0].name)
+    except (RecordFormatError, OSError, KeyError) as error:
+        raise CommandError(f"--overlay {error}") from None
 
 
 def _given(value: int | None, default: int) -> int:

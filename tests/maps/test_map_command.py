@@ -13,8 +13,14 @@ import h5py
 import numpy as np
 import pytest
 
+from analysis.dynamics import model_at_beta
 from analysis.maps import read_map
+from analysis.maps.figures import draw_map
+from analysis.maps.overlay import sweep_from_steps
+from analysis.model import Drive, Model, RigParameters
 from analysis.recording_file import clear_writer_flags
+from analysis.records import Record
+from analysis.simulate import simulate
 from tests.maps.conftest import TINY, assert_same_map, finite_fraction, map_main
 
 
@@ -154,3 +160,30 @@ def test_the_numbers_do_not_depend_on_how_the_map_is_cut_into_tasks(
         for group in ("trajectories", "summary"):
             for name, values in a[group].items():
                 assert values.tobytes() == b[group][name].tobytes(), (kind, group, name)
+
+
+def test_a_recorded_sweep_is_drawn_from_the_settled_poincare_points_of_its_steps(
+    tmp_path, reference_maps
+):
+    base = Model(RigParameters(), Drive(amplitude_m=0.002, frequency_hz=10.0))
+    steps, expected = [], []
+    for beta in (0.05, 0.08, 0.05):  # up, up, down
+        result = simulate(model_at_beta(base, beta), 0.0, 0.0, duration_s=4.0, fs_hz=1000.0,
+                          skip_s=20.0, poincare_phase=0.0)
+        time_s = result.t - result.t[0]
+        tach = np.arange(0, time_s.size, 100)  # a pulse at every drive phase 0 (100 samples)
+        steps.append(Record(time_s, result.theta, "forced", rig={},
+                            drive={"frequency_hz": 10.0, "amplitude_m": beta * 0.046},
+                            tach_indices=tach))
+        # the integrator's own Poincare section over the settled (second) half: the oracle
+        settled = (result.poincare.t - result.t[0] >= 2.0 - 1e-9) & (
+            result.poincare.t <= result.t[-1] + 1e-9
+        )
+        expected.append(result.poincare.theta[settled])
+    sweep = sweep_from_steps(steps, "beta")
+    assert sweep.directions == ("up", "up", "down")
+    np.testing.assert_allclose(sweep.values, [0.05, 0.08, 0.05], rtol=1e-12)
+    for measured, oracle in zip(sweep.theta, expected, strict=True):
+        np.testing.assert_allclose(measured, oracle, atol=1e-9)
+    figure = draw_map(read_map(reference_maps["bifurcation"]), tmp_path / "with_sweep.png", sweep)
+    assert figure.stat().st_size > 10_000
