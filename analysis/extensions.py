@@ -24,15 +24,39 @@ if TYPE_CHECKING:
 NONE = "none"
 
 
+AT_BOUND = 1e-6  # an estimate this close to a bound (relative to it and the range) sits on it
+
+
 @dataclass(frozen=True)
 class ParameterSpec:
-    """One parameter of a cause: its JSON key (SI unit in the name), default and bounds."""
+    """One parameter of a cause: its JSON key (SI unit in the name), default, the bounds a
+    fit may explore, and the range a real rig can have (None: the bounds)."""
 
     name: str
     default: float
     lower: float
     upper: float
     doc: str
+    plausible: tuple[float, float] | None = None
+
+    def implausibility(self, value: float) -> str | None:
+        """Why ``value`` cannot be a real rig's (outside the plausible range, or on a bound
+        of the fit, where the fit stopped rather than found it), or None."""
+        if not math.isfinite(value):
+            return f"{self.name} = {value!r} is not a number"
+        span = self.upper - self.lower
+        for bound in (self.lower, self.upper):
+            # a bound at the parameter's neutral value (no friction, no lag) is where an
+            # absent effect rests, not a stop
+            gap = abs(value - bound)
+            if bound != self.default and gap <= AT_BOUND * span and gap <= AT_BOUND * abs(bound):
+                return f"{self.name} = {value:.4g} sits on the fit's bound {bound:g}"
+        if self.plausible is not None:
+            low, high = self.plausible
+            if not low <= value <= high:
+                return (f"{self.name} = {value:.4g} is outside what a real rig can have "
+                        f"[{low:g}, {high:g}] ({self.doc})")
+        return None
 
 
 DynamicsHook = Callable[["Model", Mapping[str, float], np.ndarray], None]
@@ -54,6 +78,12 @@ class Cause:
     # what a record needs for this cause to show in it (analysis.experiments: "barrier",
     # "drive", "harmonics"); the experiment kind says why it cannot where one is missing
     needs: frozenset[str] = frozenset()
+
+    def implausibility(self, values: Mapping[str, float]) -> str | None:
+        """Why these fitted values are no explanation a real rig can have, or None."""
+        reasons = [r for spec in self.parameters if spec.name in values
+                   if (r := spec.implausibility(float(values[spec.name]))) is not None]
+        return "; ".join(reasons) or None
 
     def values(self, given: Mapping[str, float]) -> dict[str, float]:
         """Complete, validated parameter values (defaults filled in)."""
@@ -193,7 +223,8 @@ register(
     Cause(
         "coulomb_friction",
         "dynamics",
-        (ParameterSpec("Tc_N_m", 0.0, 0.0, 1.0, "pivot dry-friction torque, N m"),),
+        (ParameterSpec("Tc_N_m", 0.0, 0.0, 1.0, "pivot dry-friction torque, N m",
+                       (0.0, 0.05)),),
         "Dry friction at the pivot with stiction: + Tc/(m L^2) sign(theta').",
         dynamics=_coulomb,
     )
@@ -202,7 +233,8 @@ register(
     Cause(
         "quadratic_drag",
         "dynamics",
-        (ParameterSpec("c2_per_rad", 0.0, 0.0, 100.0, "aerodynamic drag coefficient, 1/rad"),),
+        (ParameterSpec("c2_per_rad", 0.0, 0.0, 100.0, "aerodynamic drag coefficient, 1/rad",
+                       (0.0, 50.0)),),
         "Aerodynamic drag: + c2 theta' |theta'|.",
         dynamics=_drag,
     )
@@ -211,7 +243,8 @@ register(
     Cause(
         "barrier_offset",
         "dynamics",
-        (ParameterSpec("theta_b_rad", 0.0, -0.5, 0.5, "barrier surface angle, rad"),),
+        (ParameterSpec("theta_b_rad", 0.0, -0.5, 0.5, "barrier surface angle, rad",
+                       (-0.2, 0.2)),),
         "Barrier surface not at theta = 0: contact while theta > theta_b.",
         dynamics=_barrier_offset,
         needs=frozenset({"barrier"}),
@@ -222,7 +255,7 @@ register(
         "contact_exponent",
         "dynamics",
         (
-            ParameterSpec("n", 1.5, 0.5, 3.0, "force-penetration exponent"),
+            ParameterSpec("n", 1.5, 0.5, 3.0, "force-penetration exponent", (0.9, 2.6)),
             ParameterSpec("K_n", 1.0e5, 1.0e-3, 1.0e12, "contact stiffness, N/m^n"),
         ),
         "Force-penetration law K_n delta^n instead of Hertz's delta^(3/2).",
@@ -234,7 +267,8 @@ register(
     Cause(
         "contact_damping_law",
         "dynamics",
-        (ParameterSpec("c_N_s_per_m", 0.0, 0.0, 1.0e4, "Kelvin-Voigt contact damping, N s/m"),),
+        (ParameterSpec("c_N_s_per_m", 0.0, 0.0, 1.0e4, "Kelvin-Voigt contact damping, N s/m",
+                       (0.0, 1.0e3)),),
         "Kelvin-Voigt contact dissipation K delta^(3/2) + c deltadot instead of Hunt-Crossley.",
         dynamics=_kelvin_voigt,
         needs=frozenset({"barrier"}),
@@ -245,7 +279,7 @@ register(
         "excitation_distortion",
         "dynamics",
         (
-            ParameterSpec("h2", 0.0, 0.0, 1.0, "second-harmonic amplitude ratio"),
+            ParameterSpec("h2", 0.0, 0.0, 1.0, "second-harmonic amplitude ratio", (0.0, 0.5)),
             ParameterSpec("phi2_rad", 0.0, -2 * math.pi, 2 * math.pi, "second-harmonic phase"),
         ),
         "Table motion with a second harmonic: A h2 sin(2 Omega t + phi2).",
@@ -257,7 +291,8 @@ register(
     Cause(
         "excitation_amplitude",
         "dynamics",
-        (ParameterSpec("eps", 0.0, -0.9, 9.0, "relative error of the stated amplitude"),),
+        (ParameterSpec("eps", 0.0, -0.9, 9.0, "relative error of the stated amplitude",
+                       (-0.5, 0.5)),),
         "True table amplitude A (1 + eps).",
         dynamics=_amplitude,
         needs=frozenset({"drive"}),
@@ -267,7 +302,7 @@ register(
     Cause(
         "sensor_offset",
         "measurement",
-        (ParameterSpec("offset_rad", 0.0, -1.0, 1.0, "sensor zero offset, rad"),),
+        (ParameterSpec("offset_rad", 0.0, -1.0, 1.0, "sensor zero offset, rad", (-0.3, 0.3)),),
         "Angle sensor zero not at the hanging position: measured = theta + offset.",
         measurement=_offset,
     )
@@ -276,7 +311,7 @@ register(
     Cause(
         "sensor_nonlinearity",
         "measurement",
-        (ParameterSpec("k3", 0.0, -10.0, 10.0, "cubic linearity error, 1/rad^2"),),
+        (ParameterSpec("k3", 0.0, -10.0, 10.0, "cubic linearity error, 1/rad^2", (-3.0, 3.0)),),
         "Angle sensor linearity error: measured = theta + k3 theta^3.",
         measurement=_nonlinearity,
     )
@@ -285,7 +320,8 @@ register(
     Cause(
         "sensor_lag",
         "measurement",
-        (ParameterSpec("tau_s", 0.0, 0.0, 1.0, "first-order low-pass time constant, s"),),
+        (ParameterSpec("tau_s", 0.0, 0.0, 1.0, "first-order low-pass time constant, s",
+                       (0.0, 0.05)),),
         "Angle channel low-pass filtered with time constant tau.",
         measurement=_lag,
         needs=frozenset({"harmonics"}),

@@ -205,6 +205,7 @@ def assess_candidate(
         rms_extended=full.rms,
         noise_rad=data.noise_rad,
         n_heldout=int(np.count_nonzero(data.valid[n_train:])),
+        implausible=cause(cause_name).implausibility(full.values),
     )
     rival = None
     if verdict.earns_keep:

@@ -51,7 +51,7 @@ from analysis.discrepancy.selection import (
 )
 from analysis.dynamics.regime import Regime
 from analysis.experiments import FORCED
-from analysis.extensions import NONE
+from analysis.extensions import NONE, cause
 from analysis.identify.forced import (
     ForcedData,
     ForcedIdentification,
@@ -141,7 +141,10 @@ def analyze_forced_fits(
     # The judges, best information criterion first: forecasts over the training stretches
     # (and, on a chaotic record, the invariant statistics of the model's own long run); the
     # first cause they accept is the finding, and the rest need no training fits.
-    passing = sorted((n for n in names if bic[n] > BIC_MARGIN), key=lambda n: -bic[n])
+    # (a cause whose values no real rig can have explains nothing: it needs no forecasts)
+    passing = sorted((n for n in names if bic[n] > BIC_MARGIN
+                      and not (n in fits and cause(n).implausibility(fits[n].values))),
+                     key=lambda n: -bic[n])
     measured = base_distance = None
     if passing:
         base = ModelFits(NONE, base_full, refit(data, NONE, base_full, lay, threads,

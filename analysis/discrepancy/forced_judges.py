@@ -11,7 +11,7 @@ import numpy as np
 from analysis.discrepancy.forced_models import Layouts, ModelFits, as_fit_result
 from analysis.discrepancy.invariants import Invariants, invariant_distance, invariants
 from analysis.discrepancy.selection import Verdict, information_criterion_delta
-from analysis.extensions import NONE
+from analysis.extensions import NONE, cause
 from analysis.identify.forced import ForcedData
 from analysis.identify.shooting import Segments, ShootingFit
 from analysis.model_values import measured_angle, packed_from_values
@@ -84,4 +84,6 @@ def verdict_of(
         if base.train is not None else 0,
         forecast_z=forecast_z(base.train, candidate.train, lay.train) if judged else None,
         not_judged=not_judged,
+        implausible=None if candidate.cause == NONE
+        else cause(candidate.cause).implausibility(candidate.full.values),
     )

@@ -11,7 +11,7 @@ import numpy as np
 
 from analysis.discrepancy.fitting import FitData, FitResult
 from analysis.discrepancy.localize import Localization
-from analysis.discrepancy.selection import Verdict, heldout_rms
+from analysis.discrepancy.selection import BIC_MARGIN, Verdict, heldout_rms
 from analysis.extensions import NONE, cause
 from analysis.identify.result import Estimate
 from analysis.records import Record
@@ -91,6 +91,13 @@ class Analysis:
                 "structure outside the named causes (or a fit caught in a local minimum) "
                 "remains; treat the named cause as the best of the candidates, not the whole story"
             )
+        for c in self.ranked():
+            if c.verdict.information_criterion_delta <= BIC_MARGIN or c.cause == self.chosen:
+                break
+            if c.verdict.implausible:
+                out.append(f"{c.cause} fits the record better (BIC gain "
+                           f"{c.verdict.information_criterion_delta:.3g}) but is no explanation: "
+                           f"{c.verdict.implausible}")
         return out
 
     def ranked(self) -> list[CandidateOutcome]:
@@ -115,6 +122,7 @@ class Analysis:
                 "invariant_ratio": c.verdict.invariant_ratio,
                 "rms_residual": c.full.rms,
                 "earns_keep": c.verdict.earns_keep,
+                "implausible": c.verdict.implausible,
                 "verdict": c.verdict.why,
             }
             for c in self.ranked()
