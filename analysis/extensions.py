@@ -59,10 +59,39 @@ class ParameterSpec:
         return None
 
 
+@dataclass(frozen=True)
+class RecordScale:
+    """Magnitudes of the record and its baseline fit that set steps and start values."""
+
+    amplitude_rad: float  # largest swing
+    omega_rad_s: float
+    zeta: float
+    duration_s: float
+    dt_s: float
+    inertia_kg_m2: float  # m L^2
+    stiffness: float  # baseline K [N / m^1.5]
+    mu0_s_per_m: float
+    penetration_m: float  # typical largest penetration of the baseline's contacts (0: none)
+
+
+@dataclass(frozen=True)
+class ParameterPlan:
+    """How one parameter is fitted: start value, finite-difference step, log scale or not."""
+
+    start: float
+    step: float
+    log: bool = False
+
+
+PlanMaker = Callable[[RecordScale], Mapping[str, ParameterPlan]]
+
+
 DynamicsHook = Callable[["Model", Mapping[str, float], np.ndarray], None]
-# (times, true angle, values, rate at the first sample or None) -> measured angle
-MeasurementHook = Callable[[np.ndarray, np.ndarray, Mapping[str, float], float | None],
-                           np.ndarray]
+# (times, true angle, values, rate at the first sample or None, carry or None) -> measured
+# angle; ``carry`` is a dict a caller that measures one signal block after block keeps
+# between the blocks, for causes with a state (a filter's output)
+MeasurementHook = Callable[[np.ndarray, np.ndarray, Mapping[str, float], float | None,
+                            dict[str, float] | None], np.ndarray]
 
 
 @dataclass(frozen=True)
@@ -78,6 +107,11 @@ class Cause:
     # what a record needs for this cause to show in it (analysis.experiments: "barrier",
     # "drive", "harmonics"); the experiment kind says why it cannot where one is missing
     needs: frozenset[str] = frozenset()
+    # how a fit of its parameters starts and steps, scaled to the record at hand (None: at
+    # the defaults, steps of 1e-6 of the range)
+    plan: PlanMaker | None = None
+    # baseline parameters it makes redundant: its own parameters play their part
+    replaces: tuple[str, ...] = ()
 
     def implausibility(self, values: Mapping[str, float]) -> str | None:
         """Why these fitted values are no explanation a real rig can have, or None."""
@@ -193,30 +227,89 @@ def _amplitude(model: Model, v: Mapping[str, float], p: np.ndarray) -> None:
 
 
 def _offset(t: np.ndarray, theta: np.ndarray, v: Mapping[str, float],
-            theta_dot0: float | None = None) -> np.ndarray:
+            theta_dot0: float | None = None, carry: dict[str, float] | None = None,
+            ) -> np.ndarray:
     return theta + v["offset_rad"]
 
 
 def _nonlinearity(t: np.ndarray, theta: np.ndarray, v: Mapping[str, float],
-                  theta_dot0: float | None = None) -> np.ndarray:
+                  theta_dot0: float | None = None, carry: dict[str, float] | None = None,
+                  ) -> np.ndarray:
     return theta + v["k3"] * theta**3
 
 
 def _lag(t: np.ndarray, theta: np.ndarray, v: Mapping[str, float],
-         theta_dot0: float | None = None) -> np.ndarray:
+         theta_dot0: float | None = None, carry: dict[str, float] | None = None,
+         ) -> np.ndarray:
     """First-order low pass, exact for an input held between uniform samples.
 
     The filter starts settled: on a constant input, or, given the rate ``theta_dot0`` at
     the first sample, on a ramp, whose lagged copy trails it by tau theta' (a record cut
-    out of a moving signal, as a fit's segments are).
+    out of a moving signal, as a fit's segments are).  With ``carry`` it starts where the
+    previous block ended (a live stream).
     """
-    if theta.size < 2 or v["tau_s"] == 0.0:
+    if theta.size == 0 or v["tau_s"] == 0.0:
         return theta
-    dt = float(t[1] - t[0])
+    dt = float(t[1] - t[0]) if t.size >= 2 else (carry or {}).get("dt_s")
+    if dt is None:
+        return theta
     a = math.exp(-dt / v["tau_s"])
-    first = theta[0] - (v["tau_s"] * theta_dot0 if theta_dot0 is not None else 0.0)
+    if carry is not None and "output" in carry:
+        first = carry["output"]
+    else:
+        first = theta[0] - (v["tau_s"] * theta_dot0 if theta_dot0 is not None else 0.0)
     filtered, _ = lfilter([1.0 - a], [1.0, -a], theta, zi=[a * first])
+    if carry is not None:
+        carry.update(output=float(filtered[-1]), dt_s=dt)
     return filtered
+
+
+
+def _plan_coulomb(s: RecordScale) -> dict[str, ParameterPlan]:
+    # A friction torque of 1e-4 of the largest gravity torque is already a small effect.
+    torque = s.inertia_kg_m2 * s.omega_rad_s**2 * max(s.amplitude_rad, 1e-3)
+    return {"Tc_N_m": ParameterPlan(0.0, 1e-4 * torque)}
+
+
+def _plan_drag(s: RecordScale) -> dict[str, ParameterPlan]:
+    # c2 theta'|theta'| equals the viscous term 2 zeta omega theta' at c2 ~ 2 zeta / amplitude.
+    return {"c2_per_rad": ParameterPlan(0.0, 1e-3 * max(s.zeta, 1e-3) / max(s.amplitude_rad, 1e-3))}
+
+
+def _plan_barrier(s: RecordScale) -> dict[str, ParameterPlan]:
+    return {"theta_b_rad": ParameterPlan(0.0, 1e-5 * max(s.amplitude_rad, 1e-2))}
+
+
+def _plan_exponent(s: RecordScale) -> dict[str, ParameterPlan]:
+    return {"n": ParameterPlan(1.5, 1e-3), "K_n": ParameterPlan(s.stiffness, 1e-3, log=True)}
+
+
+def _plan_kelvin_voigt(s: RecordScale) -> dict[str, ParameterPlan]:
+    # Same dissipation per impact as the Hunt-Crossley term at half the largest penetration.
+    c = s.stiffness * s.mu0_s_per_m * (0.5 * max(s.penetration_m, 1e-7)) ** 1.5
+    return {"c_N_s_per_m": ParameterPlan(max(c, 1e-6), 1e-3, log=True)}
+
+
+def _plan_offset(s: RecordScale) -> dict[str, ParameterPlan]:
+    return {"offset_rad": ParameterPlan(0.0, 1e-6 * max(s.amplitude_rad, 1e-2))}
+
+
+def _plan_nonlinearity(s: RecordScale) -> dict[str, ParameterPlan]:
+    return {"k3": ParameterPlan(0.0, 1e-4)}
+
+
+def _plan_lag(s: RecordScale) -> dict[str, ParameterPlan]:
+    # A sampled first-order lag with tau << dt is the identity to exp(-dt/tau): no gradient
+    # there. Start at half a sample period, where the fit can move either way.
+    return {"tau_s": ParameterPlan(0.5 * s.dt_s, 1e-2 * s.dt_s)}
+
+
+def _plan_distortion(s: RecordScale) -> dict[str, ParameterPlan]:
+    return {"h2": ParameterPlan(0.02, 1e-4), "phi2_rad": ParameterPlan(0.0, 1e-3)}
+
+
+def _plan_amplitude(s: RecordScale) -> dict[str, ParameterPlan]:
+    return {"eps": ParameterPlan(0.0, 1e-4)}
 
 
 register(
@@ -227,6 +320,7 @@ register(
                        (0.0, 0.05)),),
         "Dry friction at the pivot with stiction: + Tc/(m L^2) sign(theta').",
         dynamics=_coulomb,
+        plan=_plan_coulomb,
     )
 )
 register(
@@ -237,6 +331,7 @@ register(
                        (0.0, 50.0)),),
         "Aerodynamic drag: + c2 theta' |theta'|.",
         dynamics=_drag,
+        plan=_plan_drag,
     )
 )
 register(
@@ -248,6 +343,7 @@ register(
         "Barrier surface not at theta = 0: contact while theta > theta_b.",
         dynamics=_barrier_offset,
         needs=frozenset({"barrier"}),
+        plan=_plan_barrier,
     )
 )
 register(
@@ -261,6 +357,8 @@ register(
         "Force-penetration law K_n delta^n instead of Hertz's delta^(3/2).",
         dynamics=_contact_exponent,
         needs=frozenset({"barrier"}),
+        plan=_plan_exponent,
+        replaces=("K_N_per_m1.5",),
     )
 )
 register(
@@ -272,6 +370,8 @@ register(
         "Kelvin-Voigt contact dissipation K delta^(3/2) + c deltadot instead of Hunt-Crossley.",
         dynamics=_kelvin_voigt,
         needs=frozenset({"barrier"}),
+        plan=_plan_kelvin_voigt,
+        replaces=("mu0_s_per_m",),
     )
 )
 register(
@@ -285,6 +385,7 @@ register(
         "Table motion with a second harmonic: A h2 sin(2 Omega t + phi2).",
         dynamics=_distortion,
         needs=frozenset({"drive"}),
+        plan=_plan_distortion,
     )
 )
 register(
@@ -296,6 +397,7 @@ register(
         "True table amplitude A (1 + eps).",
         dynamics=_amplitude,
         needs=frozenset({"drive"}),
+        plan=_plan_amplitude,
     )
 )
 register(
@@ -305,6 +407,7 @@ register(
         (ParameterSpec("offset_rad", 0.0, -1.0, 1.0, "sensor zero offset, rad", (-0.3, 0.3)),),
         "Angle sensor zero not at the hanging position: measured = theta + offset.",
         measurement=_offset,
+        plan=_plan_offset,
     )
 )
 register(
@@ -314,6 +417,7 @@ register(
         (ParameterSpec("k3", 0.0, -10.0, 10.0, "cubic linearity error, 1/rad^2", (-3.0, 3.0)),),
         "Angle sensor linearity error: measured = theta + k3 theta^3.",
         measurement=_nonlinearity,
+        plan=_plan_nonlinearity,
     )
 )
 register(
@@ -325,5 +429,6 @@ register(
         "Angle channel low-pass filtered with time constant tau.",
         measurement=_lag,
         needs=frozenset({"harmonics"}),
+        plan=_plan_lag,
     )
 )

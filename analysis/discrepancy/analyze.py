@@ -21,7 +21,7 @@ from typing import Any
 
 import numpy as np
 
-from analysis.discrepancy.candidates import RecordScale, candidates_for, excluded_for
+from analysis.discrepancy.candidates import candidates_for, excluded_for
 from analysis.discrepancy.fitting import FitData, FitResult, fit, predict
 from analysis.discrepancy.forced import analyze_forced
 from analysis.discrepancy.localize import localize, motion_of
@@ -33,7 +33,7 @@ from analysis.discrepancy.selection import (
     heldout_rms,
     information_criterion_delta,
 )
-from analysis.extensions import NONE, cause
+from analysis.extensions import NONE, RecordScale, cause
 from analysis.identify import IdentificationError, fit_free_decay, fit_impact_decay
 from analysis.identify.impact_decay import impact_events
 from analysis.identify.preprocess import prepare

@@ -10,10 +10,10 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from analysis.discrepancy.candidates import REPLACES, RecordScale, plan_for
+from analysis.discrepancy.candidates import plan_for
 from analysis.discrepancy.fitting import FitData, FitResult
 from analysis.experiments import FORCED
-from analysis.extensions import NONE, cause
+from analysis.extensions import NONE, RecordScale, cause
 from analysis.identify.forced import (
     BASELINE_PLANS,
     ForcedData,
@@ -119,7 +119,7 @@ def cause_hints(ident: ForcedIdentification) -> dict[str, float]:
 
 def baseline_names(data: ForcedData, cause_name: str) -> list[str]:
     """The baseline parameters a fit adjusts (a cause may take over one's role)."""
-    replaced = REPLACES.get(cause_name, ())
+    replaced = () if cause_name == NONE else cause(cause_name).replaces
     return [n for n in BASELINE_PLANS if n not in replaced]
 
 
