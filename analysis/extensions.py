@@ -154,6 +154,25 @@ def register(cause: Cause) -> Cause:
     return cause
 
 
+JOINED = "+"  # a model of several causes is named by theirs joined: "coulomb_friction+..."
+
+
+def causes_in(model_name: str) -> tuple[str, ...]:
+    """The causes of a model named ``none``, a cause's name, or causes joined by JOINED."""
+    return () if model_name == NONE else tuple(model_name.split(JOINED))
+
+
+def model_name(causes: tuple[str, ...] | list[str]) -> str:
+    """The name of the baseline extended by ``causes`` (``none`` for none)."""
+    return JOINED.join(causes) if causes else NONE
+
+
+def implausibility(model: str, values: Mapping[str, float]) -> str | None:
+    """Why model ``model``'s fitted values are no explanation a real rig can have, or None."""
+    reasons = [r for c in causes_in(model) if (r := cause(c).implausibility(values))]
+    return "; ".join(reasons) or None
+
+
 def cause(name: str) -> Cause:
     """The registered cause called ``name``, with a clear error otherwise."""
     try:

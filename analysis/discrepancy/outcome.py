@@ -12,7 +12,7 @@ import numpy as np
 from analysis.discrepancy.fitting import FitData, FitResult
 from analysis.discrepancy.localize import Localization
 from analysis.discrepancy.selection import BIC_MARGIN, Verdict, heldout_rms
-from analysis.extensions import NONE, cause
+from analysis.extensions import NONE, cause, causes_in
 from analysis.identify.result import Estimate
 from analysis.records import Record
 
@@ -62,6 +62,12 @@ class Analysis:
     baseline_heldout_rms: float | None = None
     curves: tuple[np.ndarray, np.ndarray | None] | None = None
     heldout_description: str | None = None
+    # forced records: the forward selection's steps (each cause added, with the verdict of
+    # its step against the model before it), the final model when it has several causes,
+    # and pairs of causes the record cannot tell apart
+    steps: list[tuple[str, Verdict]] = field(default_factory=list)
+    final: CandidateOutcome | None = None
+    indistinct: list[dict[str, Any]] = field(default_factory=list)
 
     @property
     def chosen_outcome(self) -> CandidateOutcome | None:
@@ -72,16 +78,21 @@ class Analysis:
         return None
 
     @property
+    def final_outcome(self) -> CandidateOutcome | None:
+        """The model the analysis ends with: several causes, the chosen one, or None."""
+        return self.final if self.final is not None else self.chosen_outcome
+
+    @property
     def unexplained(self) -> bool:
         """True when the chosen model still misses the record by far more than its noise."""
-        best = self.chosen_outcome
+        best = self.final_outcome
         final = best.full if best is not None else self.baseline
         return final.rms > UNEXPLAINED_RATIO * self.data.noise_rad
 
     def warnings(self) -> list[str]:
         """Caveats on the finding: what the chosen model still leaves unexplained."""
         out = []
-        best = self.chosen_outcome
+        best = self.final_outcome
         final = best.full if best is not None else self.baseline
         ratio = final.rms / max(self.data.noise_rad, 1e-300)
         if self.unexplained:
@@ -104,10 +115,31 @@ class Analysis:
         """Candidates by score (information-criterion gain), best first."""
         return sorted(self.candidates, key=lambda c: -c.verdict.information_criterion_delta)
 
+    def selected(self) -> list[dict[str, Any]]:
+        """The causes adopted, in the order they entered: each with its parameters (from the
+        final model) and the gain of its step."""
+        best = self.final_outcome
+        if best is None:
+            return []
+        steps = self.steps or [(self.chosen, best.verdict)]
+        return [
+            {
+                "cause": name,
+                "parameters": cause_parameters(best.full, name),
+                "gain": {
+                    "information_criterion_delta": verdict.information_criterion_delta,
+                    "heldout_ratio": verdict.heldout_ratio,
+                    "invariant_ratio": verdict.invariant_ratio,
+                },
+                "verdict": verdict.why,
+            }
+            for name, verdict in steps
+        ]
+
     def as_json(self) -> dict[str, Any]:
         """The report of docs/MODEL.md section 6, parameters keyed as section 7."""
         rig = self.data.rig
-        best = self.chosen_outcome
+        best = self.final_outcome
         extended = best.full if best is not None else self.baseline
         baseline_heldout = self.baseline_heldout_rms if self.baseline_heldout_rms is not None \
             else heldout_rms(self.baseline_prediction, self.data.y, self.data.valid, self.n_train)
@@ -130,7 +162,8 @@ class Analysis:
         out: dict[str, Any] = {
             "experiment": self.data.experiment,
             "cause": self.chosen,
-            "causes": [] if best is None else [best.cause],
+            "causes": self.selected(),
+            "indistinct": self.indistinct,
             "unexplained": self.unexplained,
             "ranking": ranking,
             "baseline": {
@@ -138,7 +171,7 @@ class Analysis:
                 "rms_residual": self.baseline.rms,
             },
             "extended": {
-                "cause": self.chosen,
+                "cause": best.cause if best is not None else NONE,
                 "parameters": report_parameters(extended, rig),
                 "rms_residual": extended.rms,
             },
@@ -179,13 +212,13 @@ class Analysis:
         return out
 
 
-def cause_parameters(result: FitResult) -> dict[str, Any]:
-    """The cause's own parameters of an extended fit, as {value, ci95}."""
-    if result.cause == NONE:
-        return {}
+def cause_parameters(result: FitResult, name: str | None = None) -> dict[str, Any]:
+    """The own parameters of cause ``name`` (default: every cause of the fit's model) in an
+    extended fit, as {value, ci95}."""
     return {
         spec.name: result.estimates[spec.name].as_json()
-        for spec in cause(result.cause).parameters
+        for c in ((name,) if name is not None else causes_in(result.cause))
+        for spec in cause(c).parameters
         if spec.name in result.estimates
     }
 
