@@ -277,6 +277,12 @@ def draw_forced_case(
     )
 
 
+def draw_pair(seed: int) -> tuple[str, str]:
+    """Two different registered causes drawn from ``seed`` (in name order)."""
+    rng = np.random.default_rng([seed, 2])
+    return tuple(sorted(str(c) for c in rng.choice(CAUSES, 2, replace=False)))
+
+
 def _check_request(
     seed: int,
     cause: str | tuple[str, ...] | None,
