@@ -216,9 +216,9 @@ def extend(data: ForcedData, parent: str, parent_fit: ShootingFit, cause_name: s
            segments: Segments, threads: int | None,
            max_iterations: int = REFINE_ITERATIONS) -> ShootingFit:
     """Model ``parent`` extended by ``cause_name``, fitted over ``segments`` (the layout of
-    ``parent_fit``) from the parent's own solution with the new cause neutral: it can only
-    end at least as close to the record as the parent (a nested model from its parent's
-    optimum).  From the baseline it is the fallback when a fit from the cause's screening
+    ``parent_fit``) from the parent's own solution with the new cause (nearly) neutral: it
+    ends about as close to the record as the parent or closer (a nested model from its
+    parent's optimum).  From the baseline it is the fallback when a fit from the cause's screening
     values ends in a worse basin (chaotic records have many); from a model with causes, it
     is a step of the forward selection.  ``cause_name`` None continues the parent itself
     for as many iterations: the fair yardstick of a step (a gain the parent would have
@@ -226,11 +226,11 @@ def extend(data: ForcedData, parent: str, parent_fit: ShootingFit, cause_name: s
     name = model_name([*causes_in(parent), *([cause_name] if cause_name else [])])
     model = ForcedModel(data, causes_in(name))
     scale = record_scale(data, parent_fit.values)
+    # the new cause at its plan's start: neutral, or next to it where the neutral value
+    # gives the fit no gradient (a lag of 0, a second harmonic of 0 with its phase)
     neutral: dict[str, float] = {}
     if cause_name:
-        neutral = {s.name: s.default for s in cause(cause_name).parameters}
-        plans = plan_for(cause(cause_name), scale)
-        neutral.update({k: plans[k].start for k in neutral if plans[k].log})  # log: > 0
+        neutral = {k: plan.start for k, plan in plan_for(cause(cause_name), scale).items()}
     start = {**parent_fit.values, **neutral}
     free = [replace(p, start=start[p.name])
             for p in candidate_parameters(data, name, start, scale, neutral)]
