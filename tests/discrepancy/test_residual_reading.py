@@ -12,6 +12,7 @@ import pytest
 from analysis.discrepancy.residual_reading import (
     FALSE_ALARM,
     MIN_STRUCTURE,
+    backbone_finding,
     drive_frequency_finding,
     read_residual,
     timing_finding,
@@ -249,3 +250,45 @@ def test_a_tach_two_milliseconds_late_is_a_timing_finding_with_its_delay():
         assert finding.numbers["delay_s"] == pytest.approx(0.002, abs=0.5e-3)
         assert finding.numbers["phase_gap_rad"] == pytest.approx(
             2 * np.pi * DRIVE_HZ * finding.numbers["delay_s"])
+
+
+# --- a decay's backbone ----------------------------------------------------------------
+
+
+def _decay(seed: int, kappa: float, *, amplitude_rad: float = 0.35, duration_s: float = 40.0):
+    """A pendulum's decay whose frequency rises as the swing shrinks, by kappa A^2 / 16
+    (kappa = 1 for a pendulum), in closed form: amplitude A0 e^(-zeta w t), phase the
+    integral of w (1 - kappa A^2 / 16)."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(round(duration_s * FS_HZ)) / FS_HZ
+    omega, zeta = rng.uniform(12.0, 16.0), rng.uniform(0.003, 0.006)
+    envelope = amplitude_rad * np.exp(-zeta * omega * t)
+    phase = omega * t - kappa * amplitude_rad**2 / (32 * zeta) * (1 - np.exp(-2 * zeta * omega * t))
+    return t, 0.01 + envelope * np.cos(phase + rng.uniform(0, 2 * np.pi)), rng
+
+
+def _noisy(curve: np.ndarray, rng: np.random.Generator, noise_rad: float):
+    valid = rng.random(curve.size) >= 0.02
+    return np.where(valid, curve + rng.normal(0.0, noise_rad, curve.size), np.nan), valid
+
+
+def test_a_decay_with_the_models_backbone_gives_no_backbone_finding():
+    for seed in range(6):
+        t, model, rng = _decay(9000 + seed, 1.0)
+        angle, valid = _noisy(model, rng, 5e-4)
+        assert backbone_finding(t, angle, model, valid, 5e-4) is None
+
+
+def test_a_decay_stiffening_faster_than_the_model_is_a_backbone_finding():
+    for seed, kappa in ((9100, 1.3), (9101, 0.6)):
+        t, model, rng = _decay(seed, 1.0)
+        _, truth, _ = _decay(seed, kappa)
+        angle, valid = _noisy(truth, rng, 5e-4)
+        finding = backbone_finding(t, angle, model, valid, 5e-4)
+        assert finding is not None and finding.kind == "backbone"
+        n = finding.numbers
+        span = (n["amplitude_high_rad"] ** 2 - n["amplitude_low_rad"] ** 2) / 16.0
+        # the frequency rises by kappa (A_high^2 - A_low^2) / 16 as the swing decays
+        assert n["model_frequency_change"] == pytest.approx(span, rel=0.03)
+        assert n["record_frequency_change"] == pytest.approx(kappa * span, rel=0.05)
+        assert n["mismatch"] == pytest.approx((kappa - 1.0) * span, rel=0.15)
