@@ -4,10 +4,11 @@ and the structure that says what the model misses (docs/MODEL.md section 6,
 
 :func:`read_residual` judges the residual (``model - data``, NaN or not ``valid`` where
 not fitted) and names what it finds in it: a spectral ``line`` off the drive's harmonics,
-a ``trend`` of offset or gain over the record, heavy-tailed noise (``outliers``).  Two
-findings need the other channels: :func:`drive_frequency_finding` (the tach's clock
-against the stated frequency) and :func:`timing_finding` (the table channel's phase at
-the tach pulses).
+a ``trend`` of offset or gain over the record, heavy-tailed noise (``outliers``).  The
+other findings need more than the residual: :func:`drive_frequency_finding` (the tach's
+clock against the stated frequency), :func:`timing_finding` (the table channel's phase at
+the tach pulses) and :func:`backbone_finding` (a decay's frequency against its swing,
+the record's and the model's curve's).
 
 Every check controls its false alarms the same way: on a residual of white noise a
 finding shows with a chance of at most FALSE_ALARM, whatever the record's length; and
@@ -44,7 +45,7 @@ Z_FINDING = float(stats.norm.isf(FALSE_ALARM / 2.0))  # two-sided: 3.89
 # to the residual's rms; a fit's own imperfections (parameters off by their standard
 # error, quantisation, integrator tolerance) leave far less, and at 60 000 samples the
 # residual's structured power is measured to about 0.013 of the noise power (its
-# standard error, EXCESS below), so 0.2^2 = 0.04 stands 3 standard errors clear of it.
+# standard error, ``excess_se`` in read_residual), so 0.2^2 = 0.04 stands 3 of them clear.
 MIN_STRUCTURE = 0.2
 # The residual's sample-to-sample scatter (the robust estimator the record's noise comes
 # from) may exceed the record's noise by this factor before the residual counts as
@@ -61,17 +62,17 @@ HARMONIC_GUARD_BINS = 6  # a peak this close to a drive harmonic is the harmonic
 LINE_MIN_CYCLES = 10  # a line makes at least this many cycles over the record (else: trend)
 MAX_LINES = 5
 CLEAN_ROUNDS = 6  # fit-and-subtract rounds (gaps in the record leak a strong line's power)
-LEAK_SAFETY = 10.0
+LEAK_SAFETY = 10.0  # a peak is a line only this far above what the gaps leak from the strongest
 # Heavy tails: beyond 5 sigma a Gaussian puts 5.7e-7 of its samples; the finding needs
 # significantly more, carrying at least this share of the squared detail (least squares
 # then spends that much of its attention on a few samples).
 OUTLIER_SIGMA = 5.0
 OUTLIER_SHARE = 0.01
-PHASE_HARMONICS = 8
+PHASE_HARMONICS = 8  # spikes locked to any of these harmonics of the drive are a misfit
 # Backbone: a mismatch of the frequency's change across the swing's amplitudes this large
 # (a pendulum's own backbone, A^2 / 16, moves it 0.1 % at 0.13 rad) is worth naming.
 BACKBONE_MIN = 1e-3
-BACKBONE_BANDS = 4  # at least twice this many whole periods plus one to judge a slope
+BACKBONE_PERIODS = 9  # whole periods a slope of frequency against amplitude needs
 # Drive clocks: the generator's and the data logger's quartz each hold tens of ppm.
 DRIVE_TOLERANCE_PPM = 100.0
 # A tach pulse is marked on the first sample at or after it and taken half a sample
@@ -88,6 +89,10 @@ class Finding:
     kind: str
     sentence: str
     numbers: dict[str, float] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if self.kind not in KINDS:
+            raise ValueError(f"finding kind {self.kind!r}: not one of {', '.join(KINDS)}")
 
     def as_json(self) -> dict[str, Any]:
         """``{"kind", "text", **numbers}``, an entry of the report's ``residual_findings``."""
@@ -287,7 +292,7 @@ def backbone_finding(
     centre = float(np.median(model))
     above = model > centre
     ups = np.flatnonzero(~above[:-1] & above[1:])
-    if ups.size < 2 * BACKBONE_BANDS + 1:
+    if ups.size < BACKBONE_PERIODS + 1:
         return None
     dt = float(t[1] - t[0])
     # the model's crossing times (linear between the samples either side)
@@ -323,7 +328,7 @@ def backbone_finding(
     data_period = np.diff(data_cross)
     # a window that slid to a neighbouring crossing times no period
     good = np.isfinite(data_period) & (np.abs(data_period / model_period - 1.0) < 0.25)
-    if np.count_nonzero(good) < 2 * BACKBONE_BANDS + 1:
+    if np.count_nonzero(good) < BACKBONE_PERIODS:
         return None
     a2 = amplitude[good] ** 2
     mismatch = model_period[good] / data_period[good] - 1.0  # record's frequency over model's
