@@ -666,7 +666,7 @@ def _why(structured, nonwhite, broadband, structured_rms, floor, noise, p, scatt
     if nonwhite:
         parts.append(f"{1e3 * structured_rms:.3g} mrad rms of structure above the residual's "
                      f"white floor ({structured_rms / floor:.2g} x the noise; Ljung-Box "
-                     f"p = {p:.2g})")
+                     f"p {'< 1e-15' if p < 1e-15 else f'= {p:.2g}'})")
     if broadband:
         parts.append(f"a sample-to-sample scatter {scatter:.3g} x the record's noise")
     text = " and ".join(parts)
