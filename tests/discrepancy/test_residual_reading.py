@@ -51,7 +51,8 @@ def _record(seed: int, *, duration_s: float = 30.0, fs_hz: float = FS_HZ, gaps: 
 CLEAN = [
     {"gaps": 0.0},
     {"gaps": 0.03, "step_rad": math.pi / 2**16},  # 16-bit converter over +-pi/2
-    {"gaps": 0.02, "step_rad": 4e-4},  # a coarse converter: steps about the noise's size
+    # a coarse converter, steps about the noise's size: the record's noise reads low
+    {"gaps": 0.02, "step_rad": 4e-4},
     {"gaps": 0.03, "fs_hz": 200.0, "duration_s": 60.0},
 ]
 
@@ -158,9 +159,9 @@ def test_heavy_tailed_noise_is_outliers_not_structure():
 
 def test_white_residual_well_above_the_record_noise_is_structure():
     t, residual, valid, noise_rad, _, rng = _record(6000, gaps=0.02)
-    louder = residual + rng.normal(0.0, 1.5 * noise_rad, t.size)
+    louder = residual + rng.normal(0.0, 2.5 * noise_rad, t.size)
     reading = read_residual(t, louder, valid, noise_rad)
-    assert reading.structured and reading.scatter_ratio > 1.5
+    assert reading.structured and reading.scatter_ratio > 2.4
     assert "scatter" in reading.why
 
 
