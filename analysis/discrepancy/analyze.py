@@ -336,6 +336,7 @@ def analyze_decay(
         say("constant coefficient of restitution against Hunt-Crossley")
         analysis.restitution = compare_restitution(data, n_train, baseline, baseline_heldout,
                                                    base_sim)
+    analysis.read()
     timings["total"] = time.perf_counter() - clock
     say(f"cause: {chosen} ({timings['total']:.1f} s)")
     return analysis

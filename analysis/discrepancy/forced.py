@@ -45,6 +45,11 @@ from analysis.discrepancy.forced_models import (
 from analysis.discrepancy.invariants import Invariants, invariants
 from analysis.discrepancy.localize import localize
 from analysis.discrepancy.outcome import Analysis, AnalysisError, CandidateOutcome
+from analysis.discrepancy.residual_reading import (
+    Finding,
+    drive_frequency_finding,
+    timing_finding,
+)
 from analysis.discrepancy.selection import (
     BIC_MARGIN,
     Verdict,
@@ -400,7 +405,7 @@ def analyze_forced(
     timings = {"regime": judge_time, **out.timings, "total": time.perf_counter() - clock}
     adopted = ", ".join(name for name, _ in out.steps) or chosen
     say(f"cause{'s' if len(out.steps) > 1 else ''}: {adopted} ({timings['total']:.1f} s)")
-    return Analysis(
+    analysis = Analysis(
         record=record, data=view, n_train=view.t.size,
         baseline_train=as_fit_result(base.train if base.train is not None else base.full, NONE),
         baseline=baseline, baseline_prediction=base.full.prediction, candidates=candidates,
@@ -415,7 +420,22 @@ def analyze_forced(
             f"{data.segment_s:g} s, "
             "from the state fitted at that stretch's start"
         ),
+        drive_findings=_drive_findings(record, data),
     )
+    return analysis.read()
+
+
+def _drive_findings(record: Record, data: ForcedData) -> list[Finding]:
+    """What the drive channels say against the stated drive: the tach's frequency, and the
+    table channel's phase at the tach pulses."""
+    clock = data.drive.clock
+    if clock is None or clock.source != "tach":
+        return []
+    found = [drive_frequency_finding(clock, data.drive.stated_frequency_hz)]
+    if record.table_m is not None:
+        found.append(timing_finding(np.arange(record.table_m.size) / record.sample_rate_hz,
+                                    record.table_m, clock))
+    return [f for f in found if f is not None]
 
 
 def _widened(mask: np.ndarray, guard: int = 2) -> np.ndarray:

@@ -11,6 +11,7 @@ import numpy as np
 
 from analysis.discrepancy.fitting import FitData, FitResult
 from analysis.discrepancy.localize import Localization
+from analysis.discrepancy.residual_reading import Finding, ResidualReading, read_residual
 from analysis.discrepancy.selection import BIC_MARGIN, Verdict, heldout_rms
 from analysis.extensions import NONE, cause, causes_in
 from analysis.identify.result import Estimate
@@ -68,6 +69,9 @@ class Analysis:
     steps: list[tuple[str, Verdict]] = field(default_factory=list)
     final: CandidateOutcome | None = None
     indistinct: list[dict[str, Any]] = field(default_factory=list)
+    # the final model's residual read for structure, and what the drive channels say
+    reading: ResidualReading | None = None
+    drive_findings: list[Finding] = field(default_factory=list)
 
     @property
     def chosen_outcome(self) -> CandidateOutcome | None:
@@ -84,10 +88,32 @@ class Analysis:
 
     @property
     def unexplained(self) -> bool:
-        """True when the chosen model still misses the record by far more than its noise."""
+        """True when structure is left in the final model's residual beyond the noise."""
+        if self.reading is not None:
+            return self.reading.structured
         best = self.final_outcome
         final = best.full if best is not None else self.baseline
         return final.rms > UNEXPLAINED_RATIO * self.data.noise_rad
+
+    @property
+    def residual_findings(self) -> list[Finding]:
+        """What the residual and the drive channels show: lines, trends, outliers, a drive
+        frequency or timing off."""
+        return [*(self.reading.findings if self.reading is not None else ()),
+                *self.drive_findings]
+
+    def read(self) -> Analysis:
+        """Read the final model's residual (and keep the findings already made)."""
+        best = self.final_outcome
+        final = best.full if best is not None else self.baseline
+        curve = self.curves[1] if self.curves is not None and best is not None else \
+            self.curves[0] if self.curves is not None else None
+        period = (self.regime or {}).get("period") or 1
+        self.reading = read_residual(
+            self.data.t, final.residual, self.data.valid, self.data.noise_rad,
+            drive_frequency_hz=(self.drive or {}).get("frequency_hz"), subharmonic=period,
+            model_rad=curve)
+        return self
 
     def warnings(self) -> list[str]:
         """Caveats on the finding: what the chosen model still leaves unexplained."""
@@ -96,11 +122,14 @@ class Analysis:
         final = best.full if best is not None else self.baseline
         ratio = final.rms / max(self.data.noise_rad, 1e-300)
         if self.unexplained:
-            what = f"the baseline extended by {best.cause}" if best is not None else "the baseline"
+            what = f"the baseline extended by {' and '.join(causes_in(best.cause))}" \
+                if best is not None else "the baseline"
+            seen = self.reading.why if self.reading is not None else \
+                f"{final.rms:.3g} rad rms is left, {ratio:.3g} x the noise"
             out.append(
-                f"{what} still leaves {final.rms:.3g} rad rms, {ratio:.3g} x the noise: "
-                "structure outside the named causes (or a fit caught in a local minimum) "
-                "remains; treat the named cause as the best of the candidates, not the whole story"
+                f"the model still misses something: {seen} ({what}; structure outside the "
+                "named causes, or a fit caught in a local minimum; treat any named cause as "
+                "the best of the candidates, not the whole story)"
             )
         for c in self.ranked():
             if c.verdict.information_criterion_delta <= BIC_MARGIN or c.cause == self.chosen:
@@ -165,6 +194,8 @@ class Analysis:
             "causes": self.selected(),
             "indistinct": self.indistinct,
             "unexplained": self.unexplained,
+            "residual_findings": [f.as_json() for f in self.residual_findings],
+            "residual_reading": self.reading.as_json() if self.reading is not None else None,
             "ranking": ranking,
             "baseline": {
                 "parameters": report_parameters(self.baseline, rig),

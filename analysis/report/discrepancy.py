@@ -169,6 +169,8 @@ def write_report(analysis: Analysis, directory: str | Path, name: str = "report"
         )
     lines += [f"- **caution:** {w}" for w in js.get("warnings", [])]
     lines += [f"- **cannot tell apart:** {pair['why']}" for pair in js.get("indistinct", [])]
+    lines += [f"- residual finding ({f['kind']}): {f['text']}"
+              for f in js.get("residual_findings", [])]
     gain = js["gain"]
     if gain["heldout_rms_baseline"] is not None:
         lines.append(

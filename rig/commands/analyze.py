@@ -135,6 +135,8 @@ def run(args: argparse.Namespace) -> int:
             print(f"cause: {js['cause']}")
         for pair in js.get("indistinct", []):
             print(f"cannot tell apart: {pair['why']}")
+        for finding in js.get("residual_findings", []):
+            print(f"residual finding ({finding['kind']}): {finding['text']}")
         print(f"where the baseline fails: {js['localization']}")
         for warning in js["warnings"]:
             print(f"caution: {warning}")
