@@ -61,6 +61,13 @@ def test_a_forced_record_is_explained_from_the_record_alone(name, tmp_path):
     # and nothing beside it: the forward selection adds no cause the record lacks
     assert [c["cause"] for c in report["causes"]] == ([] if case.cause == "none"
                                                       else [case.cause])
+    # the final model leaves white noise, and the residual shows nothing; the tach's drive,
+    # parts in 1e4 off the stated one, is reported with the true frequency
+    assert report["unexplained"] is False, report["residual_reading"]["why"]
+    for finding in report["residual_findings"]:
+        assert finding["kind"] == "drive_frequency", finding
+        assert finding["measured_frequency_hz"] == pytest.approx(case.drive.frequency_hz,
+                                                                 rel=2e-5)
     if case.cause == "none":
         # the baseline explains a clean record down to its noise, and nothing is named
         assert report["baseline"]["rms_residual"] < 1.5 * noise
