@@ -24,21 +24,74 @@ if TYPE_CHECKING:
 NONE = "none"
 
 
+AT_BOUND = 1e-6  # an estimate this close to a bound (relative to it and the range) sits on it
+
+
 @dataclass(frozen=True)
 class ParameterSpec:
-    """One parameter of a cause: its JSON key (SI unit in the name), default and bounds."""
+    """One parameter of a cause: its JSON key (SI unit in the name), default, the bounds a
+    fit may explore, and the range a real rig can have (None: the bounds)."""
 
     name: str
     default: float
     lower: float
     upper: float
     doc: str
+    plausible: tuple[float, float] | None = None
+
+    def implausibility(self, value: float) -> str | None:
+        """Why ``value`` cannot be a real rig's (outside the plausible range, or on a bound
+        of the fit, where the fit stopped rather than found it), or None."""
+        if not math.isfinite(value):
+            return f"{self.name} = {value!r} is not a number"
+        span = self.upper - self.lower
+        for bound in (self.lower, self.upper):
+            # a bound at the parameter's neutral value (no friction, no lag) is where an
+            # absent effect rests, not a stop
+            gap = abs(value - bound)
+            if bound != self.default and gap <= AT_BOUND * span and gap <= AT_BOUND * abs(bound):
+                return f"{self.name} = {value:.4g} sits on the fit's bound {bound:g}"
+        if self.plausible is not None:
+            low, high = self.plausible
+            if not low <= value <= high:
+                return (f"{self.name} = {value:.4g} is outside what a real rig can have "
+                        f"[{low:g}, {high:g}] ({self.doc})")
+        return None
+
+
+@dataclass(frozen=True)
+class RecordScale:
+    """Magnitudes of the record and its baseline fit that set steps and start values."""
+
+    amplitude_rad: float  # largest swing
+    omega_rad_s: float
+    zeta: float
+    duration_s: float
+    dt_s: float
+    inertia_kg_m2: float  # m L^2
+    stiffness: float  # baseline K [N / m^1.5]
+    mu0_s_per_m: float
+    penetration_m: float  # typical largest penetration of the baseline's contacts (0: none)
+
+
+@dataclass(frozen=True)
+class ParameterPlan:
+    """How one parameter is fitted: start value, finite-difference step, log scale or not."""
+
+    start: float
+    step: float
+    log: bool = False
+
+
+PlanMaker = Callable[[RecordScale], Mapping[str, ParameterPlan]]
 
 
 DynamicsHook = Callable[["Model", Mapping[str, float], np.ndarray], None]
-# (times, true angle, values, rate at the first sample or None) -> measured angle
-MeasurementHook = Callable[[np.ndarray, np.ndarray, Mapping[str, float], float | None],
-                           np.ndarray]
+# (times, true angle, values, rate at the first sample or None, carry or None) -> measured
+# angle; ``carry`` is a dict a caller that measures one signal block after block keeps
+# between the blocks, for causes with a state (a filter's output)
+MeasurementHook = Callable[[np.ndarray, np.ndarray, Mapping[str, float], float | None,
+                            dict[str, float] | None], np.ndarray]
 
 
 @dataclass(frozen=True)
@@ -54,6 +107,17 @@ class Cause:
     # what a record needs for this cause to show in it (analysis.experiments: "barrier",
     # "drive", "harmonics"); the experiment kind says why it cannot where one is missing
     needs: frozenset[str] = frozenset()
+    # how a fit of its parameters starts and steps, scaled to the record at hand (None: at
+    # the defaults, steps of 1e-6 of the range)
+    plan: PlanMaker | None = None
+    # baseline parameters it makes redundant: its own parameters play their part
+    replaces: tuple[str, ...] = ()
+
+    def implausibility(self, values: Mapping[str, float]) -> str | None:
+        """Why these fitted values are no explanation a real rig can have, or None."""
+        reasons = [r for spec in self.parameters if spec.name in values
+                   if (r := spec.implausibility(float(values[spec.name]))) is not None]
+        return "; ".join(reasons) or None
 
     def values(self, given: Mapping[str, float]) -> dict[str, float]:
         """Complete, validated parameter values (defaults filled in)."""
@@ -88,6 +152,25 @@ def register(cause: Cause) -> Cause:
         raise ValueError(f"cause {cause.name!r}: give exactly the hook matching acts_on")
     CAUSES[cause.name] = cause
     return cause
+
+
+JOINED = "+"  # a model of several causes is named by theirs joined: "coulomb_friction+..."
+
+
+def causes_in(model_name: str) -> tuple[str, ...]:
+    """The causes of a model named ``none``, a cause's name, or causes joined by JOINED."""
+    return () if model_name == NONE else tuple(model_name.split(JOINED))
+
+
+def model_name(causes: tuple[str, ...] | list[str]) -> str:
+    """The name of the baseline extended by ``causes`` (``none`` for none)."""
+    return JOINED.join(causes) if causes else NONE
+
+
+def implausibility(model: str, values: Mapping[str, float]) -> str | None:
+    """Why model ``model``'s fitted values are no explanation a real rig can have, or None."""
+    reasons = [r for c in causes_in(model) if (r := cause(c).implausibility(values))]
+    return "; ".join(reasons) or None
 
 
 def cause(name: str) -> Cause:
@@ -163,58 +246,123 @@ def _amplitude(model: Model, v: Mapping[str, float], p: np.ndarray) -> None:
 
 
 def _offset(t: np.ndarray, theta: np.ndarray, v: Mapping[str, float],
-            theta_dot0: float | None = None) -> np.ndarray:
+            theta_dot0: float | None = None, carry: dict[str, float] | None = None,
+            ) -> np.ndarray:
     return theta + v["offset_rad"]
 
 
 def _nonlinearity(t: np.ndarray, theta: np.ndarray, v: Mapping[str, float],
-                  theta_dot0: float | None = None) -> np.ndarray:
+                  theta_dot0: float | None = None, carry: dict[str, float] | None = None,
+                  ) -> np.ndarray:
     return theta + v["k3"] * theta**3
 
 
 def _lag(t: np.ndarray, theta: np.ndarray, v: Mapping[str, float],
-         theta_dot0: float | None = None) -> np.ndarray:
+         theta_dot0: float | None = None, carry: dict[str, float] | None = None,
+         ) -> np.ndarray:
     """First-order low pass, exact for an input held between uniform samples.
 
     The filter starts settled: on a constant input, or, given the rate ``theta_dot0`` at
     the first sample, on a ramp, whose lagged copy trails it by tau theta' (a record cut
-    out of a moving signal, as a fit's segments are).
+    out of a moving signal, as a fit's segments are).  With ``carry`` it starts where the
+    previous block ended (a live stream).
     """
-    if theta.size < 2 or v["tau_s"] == 0.0:
+    if theta.size == 0 or v["tau_s"] == 0.0:
         return theta
-    dt = float(t[1] - t[0])
+    dt = float(t[1] - t[0]) if t.size >= 2 else (carry or {}).get("dt_s")
+    if dt is None:
+        return theta
     a = math.exp(-dt / v["tau_s"])
-    first = theta[0] - (v["tau_s"] * theta_dot0 if theta_dot0 is not None else 0.0)
+    if carry is not None and "output" in carry:
+        first = carry["output"]
+    else:
+        first = theta[0] - (v["tau_s"] * theta_dot0 if theta_dot0 is not None else 0.0)
     filtered, _ = lfilter([1.0 - a], [1.0, -a], theta, zi=[a * first])
+    if carry is not None:
+        carry.update(output=float(filtered[-1]), dt_s=dt)
     return filtered
+
+
+
+def _plan_coulomb(s: RecordScale) -> dict[str, ParameterPlan]:
+    # A friction torque of 1e-4 of the largest gravity torque is already a small effect.
+    torque = s.inertia_kg_m2 * s.omega_rad_s**2 * max(s.amplitude_rad, 1e-3)
+    return {"Tc_N_m": ParameterPlan(0.0, 1e-4 * torque)}
+
+
+def _plan_drag(s: RecordScale) -> dict[str, ParameterPlan]:
+    # c2 theta'|theta'| equals the viscous term 2 zeta omega theta' at c2 ~ 2 zeta / amplitude.
+    return {"c2_per_rad": ParameterPlan(0.0, 1e-3 * max(s.zeta, 1e-3) / max(s.amplitude_rad, 1e-3))}
+
+
+def _plan_barrier(s: RecordScale) -> dict[str, ParameterPlan]:
+    return {"theta_b_rad": ParameterPlan(0.0, 1e-5 * max(s.amplitude_rad, 1e-2))}
+
+
+def _plan_exponent(s: RecordScale) -> dict[str, ParameterPlan]:
+    return {"n": ParameterPlan(1.5, 1e-3), "K_n": ParameterPlan(s.stiffness, 1e-3, log=True)}
+
+
+def _plan_kelvin_voigt(s: RecordScale) -> dict[str, ParameterPlan]:
+    # Same dissipation per impact as the Hunt-Crossley term at half the largest penetration.
+    c = s.stiffness * s.mu0_s_per_m * (0.5 * max(s.penetration_m, 1e-7)) ** 1.5
+    return {"c_N_s_per_m": ParameterPlan(max(c, 1e-6), 1e-3, log=True)}
+
+
+def _plan_offset(s: RecordScale) -> dict[str, ParameterPlan]:
+    return {"offset_rad": ParameterPlan(0.0, 1e-6 * max(s.amplitude_rad, 1e-2))}
+
+
+def _plan_nonlinearity(s: RecordScale) -> dict[str, ParameterPlan]:
+    return {"k3": ParameterPlan(0.0, 1e-4)}
+
+
+def _plan_lag(s: RecordScale) -> dict[str, ParameterPlan]:
+    # A sampled first-order lag with tau << dt is the identity to exp(-dt/tau): no gradient
+    # there. Start at half a sample period, where the fit can move either way.
+    return {"tau_s": ParameterPlan(0.5 * s.dt_s, 1e-2 * s.dt_s)}
+
+
+def _plan_distortion(s: RecordScale) -> dict[str, ParameterPlan]:
+    return {"h2": ParameterPlan(0.02, 1e-4), "phi2_rad": ParameterPlan(0.0, 1e-3)}
+
+
+def _plan_amplitude(s: RecordScale) -> dict[str, ParameterPlan]:
+    return {"eps": ParameterPlan(0.0, 1e-4)}
 
 
 register(
     Cause(
         "coulomb_friction",
         "dynamics",
-        (ParameterSpec("Tc_N_m", 0.0, 0.0, 1.0, "pivot dry-friction torque, N m"),),
+        (ParameterSpec("Tc_N_m", 0.0, 0.0, 1.0, "pivot dry-friction torque, N m",
+                       (0.0, 0.05)),),
         "Dry friction at the pivot with stiction: + Tc/(m L^2) sign(theta').",
         dynamics=_coulomb,
+        plan=_plan_coulomb,
     )
 )
 register(
     Cause(
         "quadratic_drag",
         "dynamics",
-        (ParameterSpec("c2_per_rad", 0.0, 0.0, 100.0, "aerodynamic drag coefficient, 1/rad"),),
+        (ParameterSpec("c2_per_rad", 0.0, 0.0, 100.0, "aerodynamic drag coefficient, 1/rad",
+                       (0.0, 50.0)),),
         "Aerodynamic drag: + c2 theta' |theta'|.",
         dynamics=_drag,
+        plan=_plan_drag,
     )
 )
 register(
     Cause(
         "barrier_offset",
         "dynamics",
-        (ParameterSpec("theta_b_rad", 0.0, -0.5, 0.5, "barrier surface angle, rad"),),
+        (ParameterSpec("theta_b_rad", 0.0, -0.5, 0.5, "barrier surface angle, rad",
+                       (-0.2, 0.2)),),
         "Barrier surface not at theta = 0: contact while theta > theta_b.",
         dynamics=_barrier_offset,
         needs=frozenset({"barrier"}),
+        plan=_plan_barrier,
     )
 )
 register(
@@ -222,22 +370,27 @@ register(
         "contact_exponent",
         "dynamics",
         (
-            ParameterSpec("n", 1.5, 0.5, 3.0, "force-penetration exponent"),
+            ParameterSpec("n", 1.5, 0.5, 3.0, "force-penetration exponent", (0.9, 2.6)),
             ParameterSpec("K_n", 1.0e5, 1.0e-3, 1.0e12, "contact stiffness, N/m^n"),
         ),
         "Force-penetration law K_n delta^n instead of Hertz's delta^(3/2).",
         dynamics=_contact_exponent,
         needs=frozenset({"barrier"}),
+        plan=_plan_exponent,
+        replaces=("K_N_per_m1.5",),
     )
 )
 register(
     Cause(
         "contact_damping_law",
         "dynamics",
-        (ParameterSpec("c_N_s_per_m", 0.0, 0.0, 1.0e4, "Kelvin-Voigt contact damping, N s/m"),),
+        (ParameterSpec("c_N_s_per_m", 0.0, 0.0, 1.0e4, "Kelvin-Voigt contact damping, N s/m",
+                       (0.0, 1.0e3)),),
         "Kelvin-Voigt contact dissipation K delta^(3/2) + c deltadot instead of Hunt-Crossley.",
         dynamics=_kelvin_voigt,
         needs=frozenset({"barrier"}),
+        plan=_plan_kelvin_voigt,
+        replaces=("mu0_s_per_m",),
     )
 )
 register(
@@ -245,49 +398,56 @@ register(
         "excitation_distortion",
         "dynamics",
         (
-            ParameterSpec("h2", 0.0, 0.0, 1.0, "second-harmonic amplitude ratio"),
+            ParameterSpec("h2", 0.0, 0.0, 1.0, "second-harmonic amplitude ratio", (0.0, 0.5)),
             ParameterSpec("phi2_rad", 0.0, -2 * math.pi, 2 * math.pi, "second-harmonic phase"),
         ),
         "Table motion with a second harmonic: A h2 sin(2 Omega t + phi2).",
         dynamics=_distortion,
         needs=frozenset({"drive"}),
+        plan=_plan_distortion,
     )
 )
 register(
     Cause(
         "excitation_amplitude",
         "dynamics",
-        (ParameterSpec("eps", 0.0, -0.9, 9.0, "relative error of the stated amplitude"),),
+        (ParameterSpec("eps", 0.0, -0.9, 9.0, "relative error of the stated amplitude",
+                       (-0.5, 0.5)),),
         "True table amplitude A (1 + eps).",
         dynamics=_amplitude,
         needs=frozenset({"drive"}),
+        plan=_plan_amplitude,
     )
 )
 register(
     Cause(
         "sensor_offset",
         "measurement",
-        (ParameterSpec("offset_rad", 0.0, -1.0, 1.0, "sensor zero offset, rad"),),
+        (ParameterSpec("offset_rad", 0.0, -1.0, 1.0, "sensor zero offset, rad", (-0.3, 0.3)),),
         "Angle sensor zero not at the hanging position: measured = theta + offset.",
         measurement=_offset,
+        plan=_plan_offset,
     )
 )
 register(
     Cause(
         "sensor_nonlinearity",
         "measurement",
-        (ParameterSpec("k3", 0.0, -10.0, 10.0, "cubic linearity error, 1/rad^2"),),
+        (ParameterSpec("k3", 0.0, -10.0, 10.0, "cubic linearity error, 1/rad^2", (-3.0, 3.0)),),
         "Angle sensor linearity error: measured = theta + k3 theta^3.",
         measurement=_nonlinearity,
+        plan=_plan_nonlinearity,
     )
 )
 register(
     Cause(
         "sensor_lag",
         "measurement",
-        (ParameterSpec("tau_s", 0.0, 0.0, 1.0, "first-order low-pass time constant, s"),),
+        (ParameterSpec("tau_s", 0.0, 0.0, 1.0, "first-order low-pass time constant, s",
+                       (0.0, 0.05)),),
         "Angle channel low-pass filtered with time constant tau.",
         measurement=_lag,
         needs=frozenset({"harmonics"}),
+        plan=_plan_lag,
     )
 )

@@ -18,7 +18,6 @@ import threading
 from dataclasses import dataclass, field, replace
 
 import numpy as np
-from scipy.signal import lfilter
 
 from analysis.extensions import cause
 from analysis.model import Drive, Model, P
@@ -161,7 +160,7 @@ class VirtualRig:
         self._omega = 0.0
         self._phase0 = 0.0
         self._amplitude_m = 0.0
-        self._lag_state: dict[str, float] = {}
+        self._measurement_carry: dict[str, dict[str, float]] = {}
         self._p = self._base_p.copy()
         self._output = self.shaker.output()
 
@@ -360,11 +359,9 @@ class VirtualRig:
             c = cause(name)
             if c.measurement is None:
                 continue
-            values = c.values(given)
-            if name == "sensor_lag":
-                measured = self._lag(measured, values["tau_s"])
-            else:
-                measured = c.measurement(t, measured, values)
+            # a cause with a state (a filter) carries it from one block to the next
+            measured = c.measurement(t, measured, c.values(given), None,
+                                     self._measurement_carry.setdefault(name, {}))
         if s.angle_noise_rad > 0:
             measured = measured + self._angle_rng.normal(0.0, s.angle_noise_rad, measured.size)
         return s.adc.counts(s.potentiometer.volts(measured))
@@ -374,16 +371,6 @@ class VirtualRig:
         if s.table_noise_m > 0:
             x = x + self._table_rng.normal(0.0, s.table_noise_m, x.size)
         return s.adc.counts(s.laser.volts(x))
-
-    def _lag(self, theta: np.ndarray, tau_s: float) -> np.ndarray:
-        """First-order low pass whose state carries over from one block to the next."""
-        if theta.size == 0 or tau_s == 0.0:
-            return theta
-        a = math.exp(-1.0 / (self._fs * tau_s))
-        previous = self._lag_state.get("sensor_lag", float(theta[0]))
-        filtered, _ = lfilter([1.0 - a], [1.0, -a], theta, zi=[a * previous])
-        self._lag_state["sensor_lag"] = float(filtered[-1])
-        return filtered
 
 
 # The former names, which read like the drivers' (opposite) calibrations; rig/devices.py

@@ -21,7 +21,7 @@ from typing import Any
 
 import numpy as np
 
-from analysis.discrepancy.candidates import RecordScale, candidates_for, excluded_for
+from analysis.discrepancy.candidates import candidates_for, excluded_for
 from analysis.discrepancy.fitting import FitData, FitResult, fit, predict
 from analysis.discrepancy.forced import analyze_forced
 from analysis.discrepancy.localize import localize, motion_of
@@ -33,7 +33,7 @@ from analysis.discrepancy.selection import (
     heldout_rms,
     information_criterion_delta,
 )
-from analysis.extensions import NONE, cause
+from analysis.extensions import NONE, RecordScale, cause
 from analysis.identify import IdentificationError, fit_free_decay, fit_impact_decay
 from analysis.identify.impact_decay import impact_events
 from analysis.identify.preprocess import prepare
@@ -205,6 +205,7 @@ def assess_candidate(
         rms_extended=full.rms,
         noise_rad=data.noise_rad,
         n_heldout=int(np.count_nonzero(data.valid[n_train:])),
+        implausible=cause(cause_name).implausibility(full.values),
     )
     rival = None
     if verdict.earns_keep:
@@ -335,6 +336,7 @@ def analyze_decay(
         say("constant coefficient of restitution against Hunt-Crossley")
         analysis.restitution = compare_restitution(data, n_train, baseline, baseline_heldout,
                                                    base_sim)
+    analysis.read()
     timings["total"] = time.perf_counter() - clock
     say(f"cause: {chosen} ({timings['total']:.1f} s)")
     return analysis

@@ -18,8 +18,8 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from scipy.optimize import least_squares
 
-from analysis.discrepancy.candidates import REPLACES, ParameterPlan, RecordScale, plan_for
-from analysis.extensions import NONE, cause
+from analysis.discrepancy.candidates import plan_for
+from analysis.extensions import NONE, ParameterPlan, RecordScale, cause
 from analysis.identify.intervals import Z95, sandwich_covariance
 from analysis.identify.result import Estimate, Residuals
 from analysis.model import Drive, Model, RigParameters
@@ -118,7 +118,7 @@ def free_parameters(
     data: FitData, cause_name: str, scale: RecordScale, start: Mapping[str, float]
 ) -> dict[str, tuple[float, ParameterPlan, float, float]]:
     """name -> (start value, plan, lower, upper) of every parameter the fit adjusts."""
-    replaced = REPLACES.get(cause_name, ())
+    replaced = () if cause_name == NONE else cause(cause_name).replaces
     out: dict[str, tuple[float, ParameterPlan, float, float]] = {}
     for name in SWING_PARAMETERS + (CONTACT_PARAMETERS if data.barrier else ()):
         if name in replaced:

@@ -20,9 +20,10 @@
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -30,19 +31,25 @@ import numpy as np
 from analysis.discrepancy.candidates import candidates_for, excluded_for
 from analysis.discrepancy.forced_judges import model_invariants_distance, verdict_of
 from analysis.discrepancy.forced_models import (
+    Layouts,
     ModelFits,
     as_fit_result,
     cause_hints,
-    extend_baseline,
+    extend,
     fit_cause,
     fit_data_view,
     layouts,
     refit,
     screen_cause,
 )
-from analysis.discrepancy.invariants import invariants
+from analysis.discrepancy.invariants import Invariants, invariants
 from analysis.discrepancy.localize import localize
 from analysis.discrepancy.outcome import Analysis, AnalysisError, CandidateOutcome
+from analysis.discrepancy.residual_reading import (
+    Finding,
+    drive_frequency_finding,
+    timing_finding,
+)
 from analysis.discrepancy.selection import (
     BIC_MARGIN,
     Verdict,
@@ -51,7 +58,7 @@ from analysis.discrepancy.selection import (
 )
 from analysis.dynamics.regime import Regime
 from analysis.experiments import FORCED
-from analysis.extensions import NONE
+from analysis.extensions import NONE, cause, causes_in, implausibility, model_name
 from analysis.identify.forced import (
     ForcedData,
     ForcedIdentification,
@@ -65,6 +72,13 @@ from analysis.records import Record
 
 REFINED = 4  # candidates refined beyond the screening (those that gained), best first
 SEED_RMS = 1.2  # a full fit this close to the noise lends its segment states
+MAX_CAUSES = 3  # the forward selection stops at this many causes
+ADDED = 2  # causes fitted over the record as the next step, best screened first
+STEP_SCREEN_ITERATIONS = 6  # a step's screening: each cause added to the current model
+# two causes whose effects on the record correlate this much, and which explain it nearly
+# as well as each other, cannot be told apart on it
+INDISTINCT_CORRELATION = 0.9
+INDISTINCT_BIC = 0.9
 
 Progress = Callable[[str], None]
 
@@ -80,6 +94,12 @@ class ForcedOutcome:
     chaotic: bool
     timings: dict[str, float]
     notes: list[str]
+    # the forward selection: each cause added, with the verdict of its step against the
+    # model before it (the first step's against the baseline), and the final model
+    layouts: Layouts
+    steps: list[tuple[str, Verdict]] = field(default_factory=list)
+    final: ModelFits | None = None
+    indistinct: list[dict[str, Any]] = field(default_factory=list)
 
 
 def analyze_forced_fits(
@@ -128,7 +148,7 @@ def analyze_forced_fits(
         # baseline's optimum, then (when the first start was another model's states) from
         # its own states drawn onto the data afresh
         if fits[name].rss > base_full.rss:
-            fits[name] = min(fits[name], extend_baseline(data, name, base_full, lay, threads),
+            fits[name] = min(fits[name], extend(data, NONE, base_full, name, lay.full, threads),
                              key=lambda f: f.rss)
         if fits[name].rss > base_full.rss and seed is not None:
             fits[name] = min(fits[name], fit_cause(data, name, screened[name], lay, threads),
@@ -141,7 +161,10 @@ def analyze_forced_fits(
     # The judges, best information criterion first: forecasts over the training stretches
     # (and, on a chaotic record, the invariant statistics of the model's own long run); the
     # first cause they accept is the finding, and the rest need no training fits.
-    passing = sorted((n for n in names if bic[n] > BIC_MARGIN), key=lambda n: -bic[n])
+    # (a cause whose values no real rig can have explains nothing: it needs no forecasts)
+    passing = sorted((n for n in names if bic[n] > BIC_MARGIN
+                      and not (n in fits and implausibility(n, fits[n].values))),
+                     key=lambda n: -bic[n])
     measured = base_distance = None
     if passing:
         base = ModelFits(NONE, base_full, refit(data, NONE, base_full, lay, threads,
@@ -168,6 +191,15 @@ def analyze_forced_fits(
                                   distances)
         if judged[name].earns_keep:
             accepted = name
+    steps: list[tuple[str, Verdict]] = []
+    final = indistinct = None
+    if accepted is not None:
+        steps.append((accepted, judged[accepted]))
+        final, more = _forward_selection(
+            data, ident, ModelFits(accepted, fits[accepted], trains[accepted]), screened, fits,
+            lay, threads, measured, say)
+        steps += more
+        indistinct = _indistinct(data, base.full, accepted, fits, bic, final)
     outcomes = []
     for name in names:
         model_fits = ModelFits(name, fits.get(name, screened[name]), trains.get(name))
@@ -176,7 +208,126 @@ def analyze_forced_fits(
         say(f"  {name}: {verdict.why}")
         outcomes.append((model_fits, verdict))
     timings["fits"] = time.perf_counter() - clock - sum(timings.values())
-    return ForcedOutcome(data, ident, base, outcomes, chaotic, timings, notes)
+    return ForcedOutcome(data, ident, base, outcomes, chaotic, timings, notes, lay, steps,
+                         final, indistinct or [])
+
+
+def _forward_selection(
+    data: ForcedData, ident: ForcedIdentification, current: ModelFits,
+    screened: Mapping[str, ShootingFit], fits: Mapping[str, ShootingFit], lay: Layouts,
+    threads: int | None, measured: Invariants | None, say: Progress,
+) -> tuple[ModelFits, list[tuple[str, Verdict]]]:
+    """Add causes to the accepted one while a step earns its place by the same judges
+    (information criterion, then forecasts, and on a chaotic record the invariants' veto).
+
+    A step screens every cause not yet in on the short segments, each added to the current
+    model's screening solution and fitted a few iterations, against the current model
+    continued as long (a cause the first one masked gains here, where it could not against
+    the baseline); the best that gains is fitted over the record from the current model's
+    optimum, again against the current model continued as long.  Its own size must be
+    known to differ from none (its first parameter's interval excludes the neutral value).
+    After a step, a backward check drops an earlier cause the new one makes redundant (by
+    the information criterion against the model without it, when that fit is at hand)."""
+    steps: list[tuple[str, Verdict]] = []
+    short = screened[current.cause]
+    distance = None
+    names = [n for n in screened if n != NONE]
+    while len(causes_in(current.cause)) < MAX_CAUSES:
+        present = causes_in(current.cause)
+        yardstick = extend(data, current.cause, short, None, ident.short, threads,
+                           STEP_SCREEN_ITERATIONS)
+        gains = {}
+        for name in (n for n in names if n not in present):
+            fit = extend(data, current.cause, short, name, ident.short, threads,
+                         STEP_SCREEN_ITERATIONS)
+            gains[name] = (_bic(data, ModelFits(current.cause, yardstick), fit), fit)
+        say(f"  screened beside {current.cause}: " + ", ".join(
+            f"{n} {g:.3g}" for n, (g, _) in sorted(gains.items(), key=lambda kv: -kv[1][0])))
+        pool = sorted((n for n in gains if gains[n][0] > BIC_MARGIN),
+                      key=lambda n: -gains[n][0])[:ADDED]
+        if not pool:
+            break
+        parent = refit(data, current.cause, current.full, lay, threads)
+        tried = []
+        for name in pool:
+            fit = extend(data, current.cause, current.full, name, lay.full, threads)
+            gain = _bic(data, ModelFits(current.cause, parent), fit)
+            model = model_name([*present, name])
+            why = implausibility(model, fit.values) or _indeterminate(fit, name)
+            say(f"  {model} over the record: BIC gain {gain:.3g} over {current.cause}"
+                + (f", but {why}" if why else ""))
+            if gain > BIC_MARGIN and not why:
+                tried.append((gain, name, fit))
+        if not tried:
+            break
+        _, name, fit = max(tried, key=lambda t: t[0])
+        model = model_name([*present, name])
+        train = refit(data, model, fit, lay, threads, heldout_s=data.segment_s)
+        distances: tuple[float | None, float | None] = (None, None)
+        if measured is not None:
+            if distance is None:
+                distance = model_invariants_distance(data, measured, current.cause, current.full)
+            distances = (distance, model_invariants_distance(data, measured, model, fit))
+        verdict = verdict_of(data, ModelFits(model, fit, train),
+                             ModelFits(current.cause, parent, current.train), lay, distances)
+        say(f"  adding {name}: {verdict.why}")
+        if not verdict.earns_keep:
+            break
+        current, distance = ModelFits(model, fit, train), distances[1]
+        short = gains[name][1]
+        steps.append((name, verdict))
+        for earlier in present:
+            rest = model_name([c for c in causes_in(model) if c != earlier])
+            if rest in fits and _bic(data, ModelFits(rest, fits[rest]), fit) <= BIC_MARGIN:
+                say(f"  {earlier} dropped: {rest} alone explains the record as well")
+                current, short = ModelFits(rest, fits[rest]), screened[rest]
+                steps = [(n, v) for n, v in steps if n != earlier]
+                break
+    return current, steps
+
+
+def _indeterminate(fit: ShootingFit, name: str) -> str | None:
+    """Why a cause's fitted size is not known to differ from none (its first parameter's
+    95 % interval holds the neutral value), or None."""
+    size = cause(name).parameters[0]
+    estimate = fit.estimates.get(size.name)
+    if estimate is None or estimate.ci95 is None:
+        return None
+    low, high = estimate.ci95
+    if low <= size.default <= high:
+        return (f"its {size.name} = {estimate.value:.3g} [{low:.3g}, {high:.3g}] does not "
+                f"differ from none ({size.default:g})")
+    return None
+
+
+def _indistinct(
+    data: ForcedData, base: ShootingFit, accepted: str, fits: Mapping[str, ShootingFit],
+    bic: Mapping[str, float], final: ModelFits,
+) -> list[dict[str, Any]]:
+    """Causes the record cannot tell from the accepted one: their effects on the model
+    curve (each fit's curve minus the baseline's) correlate by INDISTINCT_CORRELATION or
+    more, each explains the record nearly as well, and the forward selection did not keep
+    both."""
+    kept = causes_in(final.cause)
+    effect = fits[accepted].prediction - base.prediction
+    use = data.valid & np.isfinite(effect)
+    out = []
+    for name, fit in fits.items():
+        if name in kept or name == accepted or not bic[name] >= INDISTINCT_BIC * bic[accepted]:
+            continue
+        other = fit.prediction - base.prediction
+        both = use & np.isfinite(other)
+        a, b = effect[both], other[both]
+        r = float(a @ b / math.sqrt(max((a @ a) * (b @ b), 1e-300)))
+        if abs(r) >= INDISTINCT_CORRELATION:
+            out.append({
+                "causes": [accepted, name], "correlation": r,
+                "why": (f"{accepted} and {name} change the model's curve alike (correlation "
+                        f"{r:.3f}) and explain the record nearly as well (BIC gains "
+                        f"{bic[accepted]:.4g} and {bic[name]:.4g}): this record cannot tell "
+                        f"them apart; {accepted} is named for its slightly higher score"),
+            })
+    return out
 
 
 def _bic(data: ForcedData, base: ModelFits, fit: ShootingFit) -> float:
@@ -217,7 +368,7 @@ def analyze_forced(
     except IdentificationError as error:
         raise AnalysisError(f"{record.source or 'record'}: {error}") from error
     verdict = choose([v for _, v in out.candidates])
-    chosen = verdict.cause if verdict is not None else NONE
+    chosen = out.steps[0][0] if out.steps else verdict.cause if verdict is not None else NONE
     base = out.base
     view = fit_data_view(data)
     baseline = as_fit_result(base.full, NONE)
@@ -231,9 +382,18 @@ def analyze_forced(
         )
         for fits, v in out.candidates
     ]
+    final = None
+    if out.final is not None and len(causes_in(out.final.cause)) > 1:
+        f = out.final
+        final = CandidateOutcome(
+            cause=f.cause, train=as_fit_result(f.train if f.train is not None else f.full,
+                                               f.cause),
+            full=as_fit_result(f.full, f.cause), verdict=verdict_of(data, f, base, out.layouts),
+            prediction=(f.train if f.train is not None else f.full).prediction)
     in_contact = base.full.true_angle > 0.0
     localization = localize(view, baseline, base.full.rate, _widened(in_contact))
-    shown = next((f for f, _ in out.candidates if f.cause == chosen), None)
+    shown = out.final if final is not None else \
+        next((f for f, _ in out.candidates if f.cause == chosen), None)
     if shown is None and out.candidates:
         shown = max(out.candidates, key=lambda fv: fv[1].information_criterion_delta)[0]
     notes = [*out.notes]
@@ -243,8 +403,9 @@ def analyze_forced(
                      "run (Poincare section, turning points, spectral lines) closer to the "
                      "record's")
     timings = {"regime": judge_time, **out.timings, "total": time.perf_counter() - clock}
-    say(f"cause: {chosen} ({timings['total']:.1f} s)")
-    return Analysis(
+    adopted = ", ".join(name for name, _ in out.steps) or chosen
+    say(f"cause{'s' if len(out.steps) > 1 else ''}: {adopted} ({timings['total']:.1f} s)")
+    analysis = Analysis(
         record=record, data=view, n_train=view.t.size,
         baseline_train=as_fit_result(base.train if base.train is not None else base.full, NONE),
         baseline=baseline, baseline_prediction=base.full.prediction, candidates=candidates,
@@ -253,12 +414,28 @@ def analyze_forced(
         regime=regime_summary(regime), drive=data.drive.as_json(),
         baseline_heldout_rms=base.train.forecast_rms if base.train is not None else None,
         curves=(base.full.prediction, shown.full.prediction if shown is not None else None),
+        steps=out.steps, final=final, indistinct=out.indistinct,
         heldout_description=(
             f"forecasts over the {data.segment_s:g} s after each fitted stretch of "
             f"{data.segment_s:g} s, "
             "from the state fitted at that stretch's start"
         ),
+        drive_findings=_drive_findings(record, data),
     )
+    return analysis.read()
+
+
+def _drive_findings(record: Record, data: ForcedData) -> list[Finding]:
+    """What the drive channels say against the stated drive: the tach's frequency, and the
+    table channel's phase at the tach pulses."""
+    clock = data.drive.clock
+    if clock is None or clock.source != "tach":
+        return []
+    found = [drive_frequency_finding(clock, data.drive.stated_frequency_hz)]
+    if record.table_m is not None:
+        found.append(timing_finding(np.arange(record.table_m.size) / record.sample_rate_hz,
+                                    record.table_m, clock))
+    return [f for f in found if f is not None]
 
 
 def _widened(mask: np.ndarray, guard: int = 2) -> np.ndarray:

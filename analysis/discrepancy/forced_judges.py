@@ -11,7 +11,7 @@ import numpy as np
 from analysis.discrepancy.forced_models import Layouts, ModelFits, as_fit_result
 from analysis.discrepancy.invariants import Invariants, invariant_distance, invariants
 from analysis.discrepancy.selection import Verdict, information_criterion_delta
-from analysis.extensions import NONE
+from analysis.extensions import NONE, causes_in, implausibility
 from analysis.identify.forced import ForcedData
 from analysis.identify.shooting import Segments, ShootingFit
 from analysis.model_values import measured_angle, packed_from_values
@@ -25,7 +25,7 @@ def model_invariants_distance(
 ) -> float:
     """Distance between the record's invariants and those of the fitted model run from its
     first segment's state over MODEL_INVARIANT_SPAN times the record's length."""
-    causes = () if cause_name == NONE else (cause_name,)
+    causes = causes_in(cause_name)
     values = fit.values
     phase = values.get("drive_phase_rad", data.drive.phase0_rad)
     drive = data.drive.model_drive(values.get("drive_frequency_hz"))
@@ -84,4 +84,5 @@ def verdict_of(
         if base.train is not None else 0,
         forecast_z=forecast_z(base.train, candidate.train, lay.train) if judged else None,
         not_judged=not_judged,
+        implausible=implausibility(candidate.cause, candidate.full.values),
     )

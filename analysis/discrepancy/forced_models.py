@@ -10,10 +10,10 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from analysis.discrepancy.candidates import REPLACES, RecordScale, plan_for
+from analysis.discrepancy.candidates import plan_for
 from analysis.discrepancy.fitting import FitData, FitResult
 from analysis.experiments import FORCED
-from analysis.extensions import NONE, cause
+from analysis.extensions import RecordScale, cause, causes_in, model_name
 from analysis.identify.forced import (
     BASELINE_PLANS,
     ForcedData,
@@ -117,25 +117,25 @@ def cause_hints(ident: ForcedIdentification) -> dict[str, float]:
     return hints
 
 
-def baseline_names(data: ForcedData, cause_name: str) -> list[str]:
-    """The baseline parameters a fit adjusts (a cause may take over one's role)."""
-    replaced = REPLACES.get(cause_name, ())
+def baseline_names(data: ForcedData, name: str) -> list[str]:
+    """The baseline parameters a fit of model ``name`` adjusts (a cause may take over one's
+    role)."""
+    replaced = {r for c in causes_in(name) for r in cause(c).replaces}
     return [n for n in BASELINE_PLANS if n not in replaced]
 
 
 def candidate_parameters(
-    data: ForcedData, cause_name: str, start: Mapping[str, float], scale: RecordScale,
+    data: ForcedData, name: str, start: Mapping[str, float], scale: RecordScale,
     hints: Mapping[str, float],
 ) -> list[FreeParameter]:
-    """Free parameters of the baseline extended by ``cause_name``."""
+    """Free parameters of model ``name``: the baseline extended by its causes."""
     extra = []
     if not data.drive.timing_known:
         extra.append(clock_parameter(start["drive_frequency_hz"]))
         phase = start["drive_phase_rad"]
         extra.append(FreeParameter("drive_phase_rad", phase, 1e-5, False, phase - math.pi,
                                    phase + math.pi))
-    if cause_name != NONE:
-        c = cause(cause_name)
+    for c in map(cause, causes_in(name)):
         plans = plan_for(c, scale)
         for spec in c.parameters:
             plan = plans[spec.name]
@@ -145,22 +145,23 @@ def candidate_parameters(
                 value = max(value, spec.lower if spec.lower > 0 else 1e-12)
             extra.append(FreeParameter(spec.name, value, plan.step, plan.log, spec.lower,
                                        spec.upper))
-    return free_parameters(baseline_names(data, cause_name), start, extra)
+    return free_parameters(baseline_names(data, name), start, extra)
 
 
 def true_angle_states(
-    states: np.ndarray, cause_name: str, values: Mapping[str, float]
+    states: np.ndarray, name: str, values: Mapping[str, float]
 ) -> np.ndarray:
-    """Segment states of a model whose sensor reads through ``cause_name``, from states of
-    one that reads the angle directly: the measured angle is kept (a few fixed-point steps
-    through the measurement), the rate is not changed."""
+    """Segment states of model ``name``, whose sensor reads through its causes, from states
+    whose first column is the measured angle: the measured angle is kept (a few fixed-point
+    steps through the measurement), the rate is not changed."""
     out = states.copy()
-    if cause_name == NONE or cause(cause_name).measurement is None:
+    causes = causes_in(name)
+    if not any(cause(c).measurement is not None for c in causes):
         return out
     measured = states[:, 0]
     theta = measured.copy()
     for _ in range(4):
-        seen = measured_angle((cause_name,), values, np.zeros(theta.size), theta)
+        seen = measured_angle(causes, values, np.zeros(theta.size), theta)
         theta = theta - (seen - measured)
     out[:, 0] = theta
     return out
@@ -178,7 +179,7 @@ def screen_cause(
     own free barrier, sensor zero and phase made for an effect it lacks.)  The segments'
     states are drawn onto the data for each model: its own sensor and dynamics at its start
     values decide where they must begin."""
-    model = ForcedModel(data, () if cause_name == NONE else (cause_name,))
+    model = ForcedModel(data, causes_in(cause_name))
     timing = ("drive_phase_rad", "drive_frequency_hz") if not data.drive.timing_known else ()
     start = {k: v for k, v in ident.start.items() if k in BASELINE_PLANS or k in timing}
     free = candidate_parameters(data, cause_name, start, record_scale(data, start), hints)
@@ -196,7 +197,7 @@ def fit_cause(
     states come from ``seed`` (a full-layout fit of another model that fits the record
     well, its states read through this cause's sensor), or else are drawn onto the data
     over half-length segments first, as the identification does."""
-    model = ForcedModel(data, () if cause_name == NONE else (cause_name,))
+    model = ForcedModel(data, causes_in(cause_name))
     scale = record_scale(data, screened.values)
     free = [replace(p, start=screened.values[p.name]) for p in
             candidate_parameters(data, cause_name, screened.values, scale, screened.values)]
@@ -211,24 +212,33 @@ def fit_cause(
     return full
 
 
-def extend_baseline(data: ForcedData, cause_name: str, base: ShootingFit, lay: Layouts,
-                    threads: int | None) -> ShootingFit:
-    """A cause fitted over the whole record from the baseline's own solution, the cause
-    neutral: it can only end at least as close to the record as the baseline (a nested
-    model from its parent's optimum), the fallback when a fit from the cause's screening
-    values ends in a worse basin (chaotic records have many)."""
-    model = ForcedModel(data, () if cause_name == NONE else (cause_name,))
-    scale = record_scale(data, base.values)
-    neutral = {s.name: s.default for s in cause(cause_name).parameters}
-    plans = plan_for(cause(cause_name), scale)
-    neutral.update({k: plans[k].start for k in neutral if plans[k].log})  # log scales need > 0
-    start = {**base.values, **neutral}
-    free = candidate_parameters(data, cause_name, start, scale, neutral)
-    states = true_angle_states(base.prediction[lay.full.start, None] * np.array([1.0, 0.0])
-                               + base.states * np.array([0.0, 1.0]), cause_name, start)
-    out, _ = fit_over_record(model, free, {}, threads=threads,
-                             start_from=(replace(base, states=states), lay.full),
-                             max_iterations=REFINE_ITERATIONS)
+def extend(data: ForcedData, parent: str, parent_fit: ShootingFit, cause_name: str | None,
+           segments: Segments, threads: int | None,
+           max_iterations: int = REFINE_ITERATIONS) -> ShootingFit:
+    """Model ``parent`` extended by ``cause_name``, fitted over ``segments`` (the layout of
+    ``parent_fit``) from the parent's own solution with the new cause (nearly) neutral: it
+    ends about as close to the record as the parent or closer (a nested model from its
+    parent's optimum).  From the baseline it is the fallback when a fit from the cause's screening
+    values ends in a worse basin (chaotic records have many); from a model with causes, it
+    is a step of the forward selection.  ``cause_name`` None continues the parent itself
+    for as many iterations: the fair yardstick of a step (a gain the parent would have
+    made by iterating on is not the new cause's)."""
+    name = model_name([*causes_in(parent), *([cause_name] if cause_name else [])])
+    model = ForcedModel(data, causes_in(name))
+    scale = record_scale(data, parent_fit.values)
+    # the new cause at its plan's start: neutral, or next to it where the neutral value
+    # gives the fit no gradient (a lag of 0, a second harmonic of 0 with its phase)
+    neutral: dict[str, float] = {}
+    if cause_name:
+        neutral = {k: plan.start for k, plan in plan_for(cause(cause_name), scale).items()}
+    start = {**parent_fit.values, **neutral}
+    free = [replace(p, start=start[p.name])
+            for p in candidate_parameters(data, name, start, scale, neutral)]
+    states = true_angle_states(
+        np.column_stack([parent_fit.prediction[segments.start], parent_fit.states[:, 1]]),
+        name, start)
+    out, _ = fit_model(model, segments, free, {}, states, warm_states=False, threads=threads,
+                       max_iterations=max_iterations)
     return out
 
 
@@ -237,7 +247,7 @@ def refit(data: ForcedData, cause_name: str, fit: ShootingFit, lay: Layouts,
           max_iterations: int = REFINE_ITERATIONS) -> ShootingFit:
     """Continue a full-layout fit (to convergence), or fit the training stretches
     (``heldout_s`` > 0) from it: the same free parameters, started at its solution."""
-    model = ForcedModel(data, () if cause_name == NONE else (cause_name,))
+    model = ForcedModel(data, causes_in(cause_name))
     scale = record_scale(data, fit.values)
     free = [replace(p, start=fit.values[p.name])
             for p in candidate_parameters(data, cause_name, fit.values, scale, fit.values)]

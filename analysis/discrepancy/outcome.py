@@ -11,8 +11,9 @@ import numpy as np
 
 from analysis.discrepancy.fitting import FitData, FitResult
 from analysis.discrepancy.localize import Localization
-from analysis.discrepancy.selection import Verdict, heldout_rms
-from analysis.extensions import NONE, cause
+from analysis.discrepancy.residual_reading import Finding, ResidualReading, read_residual
+from analysis.discrepancy.selection import BIC_MARGIN, Verdict, heldout_rms
+from analysis.extensions import NONE, cause, causes_in
 from analysis.identify.result import Estimate
 from analysis.records import Record
 
@@ -62,6 +63,15 @@ class Analysis:
     baseline_heldout_rms: float | None = None
     curves: tuple[np.ndarray, np.ndarray | None] | None = None
     heldout_description: str | None = None
+    # forced records: the forward selection's steps (each cause added, with the verdict of
+    # its step against the model before it), the final model when it has several causes,
+    # and pairs of causes the record cannot tell apart
+    steps: list[tuple[str, Verdict]] = field(default_factory=list)
+    final: CandidateOutcome | None = None
+    indistinct: list[dict[str, Any]] = field(default_factory=list)
+    # the final model's residual read for structure, and what the drive channels say
+    reading: ResidualReading | None = None
+    drive_findings: list[Finding] = field(default_factory=list)
 
     @property
     def chosen_outcome(self) -> CandidateOutcome | None:
@@ -72,35 +82,93 @@ class Analysis:
         return None
 
     @property
+    def final_outcome(self) -> CandidateOutcome | None:
+        """The model the analysis ends with: several causes, the chosen one, or None."""
+        return self.final if self.final is not None else self.chosen_outcome
+
+    @property
     def unexplained(self) -> bool:
-        """True when the chosen model still misses the record by far more than its noise."""
-        best = self.chosen_outcome
+        """True when structure is left in the final model's residual beyond the noise."""
+        if self.reading is not None:
+            return self.reading.structured
+        best = self.final_outcome
         final = best.full if best is not None else self.baseline
         return final.rms > UNEXPLAINED_RATIO * self.data.noise_rad
+
+    @property
+    def residual_findings(self) -> list[Finding]:
+        """What the residual and the drive channels show: lines, trends, outliers, a drive
+        frequency or timing off."""
+        return [*(self.reading.findings if self.reading is not None else ()),
+                *self.drive_findings]
+
+    def read(self) -> Analysis:
+        """Read the final model's residual (and keep the findings already made)."""
+        best = self.final_outcome
+        final = best.full if best is not None else self.baseline
+        curve = self.curves[1] if self.curves is not None and best is not None else \
+            self.curves[0] if self.curves is not None else None
+        period = (self.regime or {}).get("period") or 1
+        self.reading = read_residual(
+            self.data.t, final.residual, self.data.valid, self.data.noise_rad,
+            drive_frequency_hz=(self.drive or {}).get("frequency_hz"), subharmonic=period,
+            model_rad=curve)
+        return self
 
     def warnings(self) -> list[str]:
         """Caveats on the finding: what the chosen model still leaves unexplained."""
         out = []
-        best = self.chosen_outcome
+        best = self.final_outcome
         final = best.full if best is not None else self.baseline
         ratio = final.rms / max(self.data.noise_rad, 1e-300)
         if self.unexplained:
-            what = f"the baseline extended by {best.cause}" if best is not None else "the baseline"
+            what = f"the baseline extended by {' and '.join(causes_in(best.cause))}" \
+                if best is not None else "the baseline"
+            seen = self.reading.why if self.reading is not None else \
+                f"{final.rms:.3g} rad rms is left, {ratio:.3g} x the noise"
             out.append(
-                f"{what} still leaves {final.rms:.3g} rad rms, {ratio:.3g} x the noise: "
-                "structure outside the named causes (or a fit caught in a local minimum) "
-                "remains; treat the named cause as the best of the candidates, not the whole story"
+                f"the model still misses something: {seen} ({what}; structure outside the "
+                "named causes, or a fit caught in a local minimum; treat any named cause as "
+                "the best of the candidates, not the whole story)"
             )
+        for c in self.ranked():
+            if c.verdict.information_criterion_delta <= BIC_MARGIN or c.cause == self.chosen:
+                break
+            if c.verdict.implausible:
+                out.append(f"{c.cause} fits the record better (BIC gain "
+                           f"{c.verdict.information_criterion_delta:.3g}) but is no explanation: "
+                           f"{c.verdict.implausible}")
         return out
 
     def ranked(self) -> list[CandidateOutcome]:
         """Candidates by score (information-criterion gain), best first."""
         return sorted(self.candidates, key=lambda c: -c.verdict.information_criterion_delta)
 
+    def selected(self) -> list[dict[str, Any]]:
+        """The causes adopted, in the order they entered: each with its parameters (from the
+        final model) and the gain of its step."""
+        best = self.final_outcome
+        if best is None:
+            return []
+        steps = self.steps or [(self.chosen, best.verdict)]
+        return [
+            {
+                "cause": name,
+                "parameters": cause_parameters(best.full, name),
+                "gain": {
+                    "information_criterion_delta": verdict.information_criterion_delta,
+                    "heldout_ratio": verdict.heldout_ratio,
+                    "invariant_ratio": verdict.invariant_ratio,
+                },
+                "verdict": verdict.why,
+            }
+            for name, verdict in steps
+        ]
+
     def as_json(self) -> dict[str, Any]:
         """The report of docs/MODEL.md section 6, parameters keyed as section 7."""
         rig = self.data.rig
-        best = self.chosen_outcome
+        best = self.final_outcome
         extended = best.full if best is not None else self.baseline
         baseline_heldout = self.baseline_heldout_rms if self.baseline_heldout_rms is not None \
             else heldout_rms(self.baseline_prediction, self.data.y, self.data.valid, self.n_train)
@@ -115,6 +183,7 @@ class Analysis:
                 "invariant_ratio": c.verdict.invariant_ratio,
                 "rms_residual": c.full.rms,
                 "earns_keep": c.verdict.earns_keep,
+                "implausible": c.verdict.implausible,
                 "verdict": c.verdict.why,
             }
             for c in self.ranked()
@@ -122,15 +191,18 @@ class Analysis:
         out: dict[str, Any] = {
             "experiment": self.data.experiment,
             "cause": self.chosen,
-            "causes": [] if best is None else [best.cause],
+            "causes": self.selected(),
+            "indistinct": self.indistinct,
             "unexplained": self.unexplained,
+            "residual_findings": [f.as_json() for f in self.residual_findings],
+            "residual_reading": self.reading.as_json() if self.reading is not None else None,
             "ranking": ranking,
             "baseline": {
                 "parameters": report_parameters(self.baseline, rig),
                 "rms_residual": self.baseline.rms,
             },
             "extended": {
-                "cause": self.chosen,
+                "cause": best.cause if best is not None else NONE,
                 "parameters": report_parameters(extended, rig),
                 "rms_residual": extended.rms,
             },
@@ -171,13 +243,13 @@ class Analysis:
         return out
 
 
-def cause_parameters(result: FitResult) -> dict[str, Any]:
-    """The cause's own parameters of an extended fit, as {value, ci95}."""
-    if result.cause == NONE:
-        return {}
+def cause_parameters(result: FitResult, name: str | None = None) -> dict[str, Any]:
+    """The own parameters of cause ``name`` (default: every cause of the fit's model) in an
+    extended fit, as {value, ci95}."""
     return {
         spec.name: result.estimates[spec.name].as_json()
-        for spec in cause(result.cause).parameters
+        for c in ((name,) if name is not None else causes_in(result.cause))
+        for spec in cause(c).parameters
         if spec.name in result.estimates
     }
 

@@ -58,6 +58,9 @@ class Verdict:
     # from the held-out stretches taken one by one (paired: both models see the same noise)
     forecast_z: float | None = None
     not_judged: str | None = None  # why the forecast judge was not run (a better cause won)
+    # why the fitted values are no explanation a real rig can have (outside the cause's
+    # plausible range, or on a bound of the fit): it then explains nothing, whatever it gains
+    implausible: str | None = None
 
     @property
     def heldout_ratio(self) -> float:
@@ -113,7 +116,7 @@ class Verdict:
         are noisy (a right cause's run came 1.4 times further away than the baseline's on
         a record whose forecasts it improved threefold): the veto needs the run further
         away by more than the factor the forecasts gain."""
-        if self.information_criterion_delta <= BIC_MARGIN:
+        if self.information_criterion_delta <= BIC_MARGIN or self.implausible:
             return False
         ratio = self.invariant_ratio
         if ratio is not None and self.forecast_z is None:
@@ -127,6 +130,9 @@ class Verdict:
         """One line on the verdict."""
         if self.not_judged:
             return f"BIC gain {self.information_criterion_delta:.3g}; {self.not_judged}"
+        if self.implausible:
+            return (f"BIC gain {self.information_criterion_delta:.3g}, but no explanation: "
+                    f"{self.implausible}")
         ic = self.information_criterion_delta
         ratio = self.heldout_ratio
         parts = [

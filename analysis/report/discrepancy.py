@@ -19,7 +19,7 @@ import numpy as np
 
 from analysis.discrepancy.fitting import predict
 from analysis.discrepancy.outcome import Analysis
-from analysis.extensions import NONE
+from analysis.extensions import NONE, causes_in
 
 
 def _plain(value: Any) -> Any:
@@ -57,7 +57,7 @@ def _curves(analysis: Analysis) -> tuple[np.ndarray, np.ndarray | None]:
         return analysis.curves
     data = analysis.data
     base, _ = predict(data, NONE, analysis.baseline.values)
-    best = analysis.chosen_outcome
+    best = analysis.final_outcome
     if best is None:
         ranked = analysis.ranked()
         best = ranked[0] if ranked else None
@@ -69,8 +69,8 @@ def figure_fit(analysis: Analysis, path: Path, dpi: int = 80) -> Path:
     """Record, baseline and extended model (top); residuals before and after (bottom)."""
     data = analysis.data
     base, ext = _curves(analysis)
-    best = analysis.chosen_outcome or (analysis.ranked()[0] if analysis.candidates else None)
-    label = best.cause if best is not None else "none"
+    best = analysis.final_outcome or (analysis.ranked()[0] if analysis.candidates else None)
+    label = " + ".join(causes_in(best.cause)) if best is not None else "none"
     fig, axes = plt.subplots(2, 1, figsize=(8, 5.2), sharex=True)
     t = data.t
     ax = axes[0]
@@ -83,7 +83,10 @@ def figure_fit(analysis: Analysis, path: Path, dpi: int = 80) -> Path:
     if analysis.n_train < t.size:
         for a in axes:
             a.axvline(t[analysis.n_train], color="0.6", lw=0.6, ls=":")
-    ax.set_title(f"{data.experiment}: cause = {analysis.chosen}", fontsize=10)
+    adopted = analysis.final_outcome
+    title = " + ".join(causes_in(adopted.cause)) if adopted is not None else NONE
+    ax.set_title(f"{data.experiment}: {'causes' if '+' in title else 'cause'} = {title}",
+                 fontsize=10)
     ax = axes[1]
     ax.plot(t, base - data.y, lw=0.6, color="tab:red", label="baseline residual")
     if ext is not None:
@@ -142,7 +145,10 @@ def write_report(analysis: Analysis, directory: str | Path, name: str = "report"
         f"# Discrepancy analysis: {Path(analysis.record.source).name or 'record'}",
         "",
         f"- experiment: `{js['experiment']}`",
-        f"- **cause: `{js['cause']}`**",
+        "- **causes: " + ", ".join(
+            f"`{c['cause']}` (BIC gain {c['gain']['information_criterion_delta']:.4g})"
+            for c in js["causes"]) + "**" if len(js["causes"]) > 1
+        else f"- **cause: `{js['cause']}`**",
         f"- where the baseline fails: {js['localization']}",
         f"- baseline rms residual {js['baseline']['rms_residual']:.3g} rad; extended "
         f"{js['extended']['rms_residual']:.3g} rad (noise {js['noise_rad']:.3g} rad)",
@@ -162,6 +168,9 @@ def write_report(analysis: Analysis, directory: str | Path, name: str = "report"
             "one's invariant-distance ratio"
         )
     lines += [f"- **caution:** {w}" for w in js.get("warnings", [])]
+    lines += [f"- **cannot tell apart:** {pair['why']}" for pair in js.get("indistinct", [])]
+    lines += [f"- residual finding ({f['kind']}): {f['text']}"
+              for f in js.get("residual_findings", [])]
     gain = js["gain"]
     if gain["heldout_rms_baseline"] is not None:
         lines.append(

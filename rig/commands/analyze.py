@@ -129,7 +129,14 @@ def run(args: argparse.Namespace) -> int:
     if not args.json_out:
         print(json.dumps(js, indent=2))
     else:
-        print(f"cause: {js['cause']}")
+        if len(js["causes"]) > 1:
+            print("causes: " + ", ".join(c["cause"] for c in js["causes"]))
+        else:
+            print(f"cause: {js['cause']}")
+        for pair in js.get("indistinct", []):
+            print(f"cannot tell apart: {pair['why']}")
+        for finding in js.get("residual_findings", []):
+            print(f"residual finding ({finding['kind']}): {finding['text']}")
         print(f"where the baseline fails: {js['localization']}")
         for warning in js["warnings"]:
             print(f"caution: {warning}")

@@ -19,7 +19,7 @@ import pytest
 
 from analysis.discrepancy import analyze_record
 from analysis.records import load_record
-from tests.reference.forced_records import draw_forced_case, write_forced_case
+from tests.reference.forced_records import draw_forced_case, draw_pair, write_forced_case
 
 DURATION_S = 30.0
 # name: (seed, cause, drive frequency, laser, regime asked of the generator)
@@ -58,6 +58,16 @@ def test_a_forced_record_is_explained_from_the_record_alone(name, tmp_path):
         "invariant statistics" if case.regime == "chaotic" else "point by point")
     noise = case.measurement.angle_noise_rad
     assert report["cause"] == case.cause, report["ranking"][:3]
+    # and nothing beside it: the forward selection adds no cause the record lacks
+    assert [c["cause"] for c in report["causes"]] == ([] if case.cause == "none"
+                                                      else [case.cause])
+    # the final model leaves white noise, and the residual shows nothing; the tach's drive,
+    # parts in 1e4 off the stated one, is reported with the true frequency
+    assert report["unexplained"] is False, report["residual_reading"]["why"]
+    for finding in report["residual_findings"]:
+        assert finding["kind"] == "drive_frequency", finding
+        assert finding["measured_frequency_hz"] == pytest.approx(case.drive.frequency_hz,
+                                                                 rel=2e-5)
     if case.cause == "none":
         # the baseline explains a clean record down to its noise, and nothing is named
         assert report["baseline"]["rms_residual"] < 1.5 * noise
@@ -91,3 +101,26 @@ def test_analyze_reports_the_regime_and_the_measured_drive(tmp_path):
     assert report["regime"]["label"].startswith(f"period-{case.period}")
     page = (tmp_path / "pages" / "record.md").read_text()
     assert "regime judged from the record" in page and "drive:" in page
+
+
+# two causes at once: the pair drawn from the seed among every registered cause (a 10 Hz
+# record without a laser, seed 5302, is a known miss: a 2 ms lag beside a drive harmonic is
+# named as a 1 % table amplitude error, see the README's benchmark of pairs)
+PAIR_SEEDS = {"2 Hz": (5301, 2.0)}
+
+
+@pytest.mark.parametrize("name", list(PAIR_SEEDS))
+def test_two_causes_at_once_are_both_named_with_their_sizes(name, tmp_path):
+    seed, frequency = PAIR_SEEDS[name]
+    pair = draw_pair(seed)
+    case = draw_forced_case(seed, pair, frequency_hz=frequency, duration_s=DURATION_S)
+    report = analyze_record(load_record(write_forced_case(case, tmp_path)), workers=2).as_json()
+    named = {c["cause"]: c for c in report["causes"]}
+    assert set(named) == set(pair), (pair, list(named), report["ranking"][:4])
+    assert report["cause"] == report["causes"][0]["cause"]
+    for cause_name, values in case.causes.items():
+        for key, truth in values.items():
+            found = named[cause_name]["parameters"][key]["value"]
+            assert found == pytest.approx(truth, rel=0.2, abs=0.05 if key.endswith("rad")
+                                          else 0), (cause_name, key)
+    assert report["extended"]["rms_residual"] < 1.5 * case.measurement.angle_noise_rad

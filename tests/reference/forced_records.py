@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from analysis.exchange import ExchangeMeta, ExchangeRecord, write_exchange
-from tests.reference.cause_sizes import CHOICES, ResponseScale, draw_cause_values
+from tests.reference.cause_sizes import CAUSES, CHOICES, ResponseScale, draw_cause_values
 from tests.reference.regime_truth import (
     RegimeTruth,
     attractor_extent,
@@ -233,7 +233,7 @@ def true_table(drive: DriveTruth, causes: dict[str, dict[str, float]]) -> TableM
 
 def draw_forced_case(
     seed: int,
-    cause: str | None = None,
+    cause: str | tuple[str, ...] | None = None,
     *,
     frequency_hz: float | None = None,
     regime: str | None = None,
@@ -244,7 +244,8 @@ def draw_forced_case(
     """A random forced case from ``numpy.random.default_rng(seed)``.
 
     ``cause``, ``frequency_hz`` and ``laser`` fix those draws (the others stay as the seed
-    makes them).  ``regime`` ("periodic" for period 1, "period-k" for any subharmonic,
+    makes them); ``cause`` may be several causes at once, each drawn at a size that shows
+    on its own.  ``regime`` ("periodic" for period 1, "period-k" for any subharmonic,
     "period-2".."period-32", "chaotic") is met by drawing again from the sub-seeds
     (seed, 1), (seed, 2), ... until the noiseless motion has it; draws driven over the
     top are redrawn the same way.  A cause is drawn at a size that shows after the
@@ -276,9 +277,15 @@ def draw_forced_case(
     )
 
 
+def draw_pair(seed: int) -> tuple[str, str]:
+    """Two different registered causes drawn from ``seed`` (in name order)."""
+    rng = np.random.default_rng([seed, 2])
+    return tuple(sorted(str(c) for c in rng.choice(CAUSES, 2, replace=False)))
+
+
 def _check_request(
     seed: int,
-    cause: str | None,
+    cause: str | tuple[str, ...] | None,
     frequency_hz: float | None,
     regime: str | None,
     duration_s: float,
@@ -287,8 +294,13 @@ def _check_request(
 ) -> None:
     if isinstance(seed, bool) or not isinstance(seed, int | np.integer) or seed < 0:
         raise ValueError(f"seed = {seed!r}: expected a non-negative integer")
-    if cause is not None and cause not in CHOICES:
-        raise ValueError(f"cause = {cause!r}: expected one of {', '.join(CHOICES)}")
+    several = isinstance(cause, tuple)
+    for name in (cause if several else () if cause is None else (cause,)):
+        if name not in (CAUSES if several else CHOICES):
+            raise ValueError(f"cause = {cause!r}: expected one of {', '.join(CHOICES)}"
+                             + (" (several: no 'none')" if several else ""))
+    if several and len(set(cause)) != len(cause):
+        raise ValueError(f"cause = {cause!r}: a cause given twice")
     if frequency_hz is not None and frequency_hz not in FREQUENCIES_HZ:
         raise ValueError(f"frequency_hz = {frequency_hz!r}: expected one of {FREQUENCIES_HZ}")
     if regime is not None and not REGIME_REQUEST.match(regime):
@@ -316,7 +328,7 @@ def _draw_once(
     rng: np.random.Generator,
     seed: int,
     attempt: int,
-    cause: str | None,
+    cause: str | tuple[str, ...] | None,
     frequency_hz: float | None,
     duration_s: float,
     sample_rate_hz: float,
@@ -372,39 +384,49 @@ def _draw_once(
     if cause == "none":
         motion = simulate_true_motion(case)
     else:
-        case, motion = _with_visible_cause(case, cause, cause_rng)
+        case, motion = _with_visible_causes(
+            case, cause if isinstance(cause, tuple) else (cause,), cause_rng)
     extent = attractor_extent(motion.theta_rad, motion.theta_dot_rad_s)
     truth = judge_regime(case.pendulum(), case.table(), motion.strobe_s, motion.strobe_states,
                          extent)
     return replace(case, regime_truth=truth, motion=motion)
 
 
-def _with_visible_cause(
-    case: ForcedCase, cause: str, rng: np.random.Generator
+def _with_visible_causes(
+    case: ForcedCase, causes: tuple[str, ...], rng: np.random.Generator
 ) -> tuple[ForcedCase, TrueMotion]:
-    """The case with ``cause`` drawn at a size that shows after the baseline refits its own
-    parameters (SIZE_QUANTILES: the plausible range, then its largest quarter), and its
-    motion; CauseHiddenError when no size tried shows."""
+    """The case with each of ``causes`` drawn at a size that shows on its own after the
+    baseline refits its own parameters (SIZE_QUANTILES: the plausible range, then its
+    largest quarter), and its motion; CauseHiddenError when no size tried shows."""
     rig, drive = case.rig, case.drive
     scale = _pilot_scale(rig, drive, case.theta0_rad, case.theta_dot0_rad_s, case.transient_s)
-    tried = []
-    for at_least in SIZE_QUANTILES:
-        values = draw_cause_values(
-            rng, cause, scale, m_kg=rig.m_kg, l_m=rig.l_m, L_m=rig.L_m, zeta=rig.zeta,
-            omega_rad_s=rig.omega_rad_s, K_N_per_m1_5=rig.K_N_per_m1_5,
-            mu0_s_per_m=rig.mu0_s_per_m, noise_rad=case.measurement.angle_noise_rad,
-            gravity_torque_N_m=rig.m_kg * rig.g_m_s2 * rig.L_m, at_least=at_least,
-        )
-        sized = replace(case, causes={cause: values})
+    drawn: dict[str, dict[str, float]] = {}
+    for cause in causes:
+        tried = []
+        for at_least in SIZE_QUANTILES:
+            values = draw_cause_values(
+                rng, cause, scale, m_kg=rig.m_kg, l_m=rig.l_m, L_m=rig.L_m, zeta=rig.zeta,
+                omega_rad_s=rig.omega_rad_s, K_N_per_m1_5=rig.K_N_per_m1_5,
+                mu0_s_per_m=rig.mu0_s_per_m, noise_rad=case.measurement.angle_noise_rad,
+                gravity_torque_N_m=rig.m_kg * rig.g_m_s2 * rig.L_m, at_least=at_least,
+            )
+            sized = replace(case, causes={cause: values})
+            motion = simulate_true_motion(sized)
+            visibility = visibility_of(sized, motion)
+            if visibility.shows:
+                drawn[cause] = values
+                break
+            tried.append(f"{visibility.visible_over_noise:.2g}")
+        else:
+            raise CauseHiddenError(
+                f"{cause} does not show in this record at any plausible size: the baseline's "
+                f"refit leaves {', '.join(tried)} x the noise (needs {SHOWS_OVER_NOISE:g})"
+            )
+    if len(causes) > 1:
+        sized = replace(case, causes=drawn)
         motion = simulate_true_motion(sized)
         visibility = visibility_of(sized, motion)
-        if visibility.shows:
-            return replace(sized, visibility=visibility), motion
-        tried.append(f"{visibility.visible_over_noise:.2g}")
-    raise CauseHiddenError(
-        f"{cause} does not show in this record at any plausible size: the baseline's refit "
-        f"leaves {', '.join(tried)} x the noise (needs {SHOWS_OVER_NOISE:g})"
-    )
+    return replace(sized, visibility=visibility), motion
 
 
 def visibility_of(case: ForcedCase, motion: TrueMotion) -> Visibility:
