@@ -48,6 +48,7 @@ from analysis.discrepancy.outcome import Analysis, AnalysisError, CandidateOutco
 from analysis.discrepancy.residual_reading import (
     Finding,
     drive_frequency_finding,
+    read_residual,
     timing_finding,
 )
 from analysis.discrepancy.selection import (
@@ -104,7 +105,7 @@ class ForcedOutcome:
 
 def analyze_forced_fits(
     record_or_data, *, priors: Mapping[str, float] | None = None,
-    causes: Sequence[str] | None = None, chaotic: bool = False,
+    causes: Sequence[str] | None = None, chaotic: bool = False, period: int = 1,
     progress: Progress | None = None, threads: int | None = None,
 ) -> ForcedOutcome:
     """Identify, fit the baseline and every candidate, judge them.
@@ -197,7 +198,7 @@ def analyze_forced_fits(
         steps.append((accepted, judged[accepted]))
         final, more = _forward_selection(
             data, ident, ModelFits(accepted, fits[accepted], trains[accepted]), screened, fits,
-            lay, threads, measured, say)
+            lay, threads, measured, period, say)
         steps += more
         indistinct = _indistinct(data, base.full, accepted, fits, bic, final)
     outcomes = []
@@ -215,7 +216,7 @@ def analyze_forced_fits(
 def _forward_selection(
     data: ForcedData, ident: ForcedIdentification, current: ModelFits,
     screened: Mapping[str, ShootingFit], fits: Mapping[str, ShootingFit], lay: Layouts,
-    threads: int | None, measured: Invariants | None, say: Progress,
+    threads: int | None, measured: Invariants | None, period: int, say: Progress,
 ) -> tuple[ModelFits, list[tuple[str, Verdict]]]:
     """Add causes to the accepted one while a step earns its place by the same judges
     (information criterion, then forecasts, and on a chaotic record the invariants' veto).
@@ -227,12 +228,19 @@ def _forward_selection(
     optimum, again against the current model continued as long.  Its own size must be
     known to differ from none (its first parameter's interval excludes the neutral value).
     After a step, a backward check drops an earlier cause the new one makes redundant (by
-    the information criterion against the model without it, when that fit is at hand)."""
+    the information criterion against the model without it, when that fit is at hand).
+    No step is tried once the current model's residual is white noise (nothing is left for
+    another cause to explain)."""
     steps: list[tuple[str, Verdict]] = []
     short = screened[current.cause]
     distance = None
     names = [n for n in screened if n != NONE]
     while len(causes_in(current.cause)) < MAX_CAUSES:
+        left = read_residual(data.t, current.full.residual, data.valid, data.noise_rad,
+                             drive_frequency_hz=data.drive.frequency_hz, subharmonic=period)
+        if not left.structured:
+            say(f"  beside {current.cause}: {left.why}; no further cause tried")
+            break
         present = causes_in(current.cause)
         yardstick = extend(data, current.cause, short, None, ident.short, threads,
                            STEP_SCREEN_ITERATIONS)
@@ -364,6 +372,7 @@ def analyze_forced(
     judge_time = time.perf_counter() - clock
     try:
         out = analyze_forced_fits(data, priors=priors, causes=causes, chaotic=chaotic,
+                                  period=regime.period or 1,
                                   progress=say, threads=threads)
     except IdentificationError as error:
         raise AnalysisError(f"{record.source or 'record'}: {error}") from error
