@@ -266,6 +266,8 @@ def _write_hdf5(path: Path, columns: dict[str, Any], metadata: dict) -> None:
     import h5py
     import numpy as np
 
+    from analysis.recording_file import write_attributes
+
     with h5py.File(path, "w") as handle:  # an existing file was refused or --overwrite given
         for name, values in columns.items():
             if values is None:
@@ -274,7 +276,7 @@ def _write_hdf5(path: Path, columns: dict[str, Any], metadata: dict) -> None:
             handle.create_dataset(
                 name, data=np.asarray(values, dtype=dtype), chunks=True, fletcher32=True
             )
-        handle.attrs["metadata"] = json.dumps(metadata)
+        write_attributes(handle, {"metadata": json.dumps(metadata)})
 
 
 def run(args: argparse.Namespace) -> int:
