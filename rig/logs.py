@@ -1,5 +1,10 @@
 """Logging for the command line: standard ``logging`` on stderr at the level --verbose and
---quiet choose, and a log file beside each recording with everything the run said."""
+--quiet choose, and a log file beside each recording with everything the run said.
+
+Progress lines are INFO records of the ``impact_rig.progress`` logger: shown by default,
+hidden by --quiet, kept in a run's log file.  Other INFO and DEBUG records show with
+--verbose only.
+"""
 
 from __future__ import annotations
 
@@ -14,15 +19,28 @@ CONSOLE_FORMAT = "%(message)s"
 FILE_FORMAT = "%(asctime)s %(levelname)s %(name)s: %(message)s"
 
 log = logging.getLogger(LOGGER_NAME)
+progress_log = logging.getLogger(f"{LOGGER_NAME}.progress")
+
+
+def progress(text: str) -> None:
+    """A progress line: on stderr unless --quiet, and in the run's log file if there is one."""
+    progress_log.info("%s", text)
+
+
+def _default_console(record: logging.LogRecord) -> bool:
+    """Without --verbose or --quiet: warnings, errors and progress lines."""
+    return record.levelno >= logging.WARNING or record.name == progress_log.name
 
 
 def configure(*, verbose: bool = False, quiet: bool = False) -> None:
-    """Send log records to stderr: warnings and errors by default, everything with
+    """Send log records to stderr: warnings, errors and progress by default, everything with
     ``verbose`` (and tracebacks), errors only with ``quiet``."""
-    level = logging.DEBUG if verbose else logging.ERROR if quiet else logging.WARNING
+    level = logging.DEBUG if verbose else logging.ERROR if quiet else logging.INFO
     console = logging.StreamHandler(sys.stderr)
     console.setFormatter(logging.Formatter(CONSOLE_FORMAT))
     console.setLevel(level)
+    if not verbose:
+        console.addFilter(_default_console)
     root = logging.getLogger()
     for handler in list(root.handlers):
         if getattr(handler, "impact_rig_console", False):

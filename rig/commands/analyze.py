@@ -5,10 +5,10 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 from pathlib import Path
 
 from rig.cli import CommandError
+from rig.logs import progress
 
 DESCRIPTION = """\
 Explain a measured record: fit the baseline model of docs/MODEL.md section 2, show where it
@@ -99,10 +99,6 @@ def run(args: argparse.Namespace) -> int:
             raise CommandError(f"--report {args.report}: is a file; expected a folder")
         outputs += report_files(args.report, args.file.stem)
     check_outputs(outputs, inputs=inputs, overwrite=args.overwrite)  # before a long analysis
-
-    def progress(message: str) -> None:
-        if not args.quiet:
-            print(message, file=sys.stderr, flush=True)
 
     try:
         record = load_record(args.file, args.meta)

@@ -5,11 +5,11 @@ from __future__ import annotations
 import argparse
 import contextlib
 import math
-import sys
 import time
 from pathlib import Path
 
 from rig.cli import CommandError
+from rig.logs import progress
 
 DESCRIPTION = """\
 Play an HDF5 recording through the replay drivers: each recorded channel becomes
@@ -124,8 +124,7 @@ def run(args: argparse.Namespace) -> int:
         try:
             while not replay.finished and engine.error is None:
                 time.sleep(0.5 if math.isinf(speed) else 1.0)
-                if not args.quiet:
-                    print(_live_line(engine), file=sys.stderr, flush=True)
+                progress(_live_line(engine))
         except KeyboardInterrupt:
             stop_reason = "interrupted (Ctrl-C)"
             raise

@@ -8,9 +8,7 @@ Modbus TCP amplifier, started in this process).
 from __future__ import annotations
 
 import argparse
-import logging
 import math
-import sys
 import time
 from collections.abc import Callable, Iterable
 from pathlib import Path
@@ -23,7 +21,6 @@ if TYPE_CHECKING:  # imported lazily at run time: a fast --help
     from rig.devices import RigDevices
     from rig.procedures import ProcedureResult
 
-progress_log = logging.getLogger("impact_rig.progress")
 
 CONFIG_HELP = (
     "rig file (TOML): devices and ports, calibrations, safety limits, rig constants "
@@ -111,9 +108,10 @@ def open_devices(config: RigConfig, fs: float | None) -> RigDevices:
     """Open the rig (CommandError naming the device when it cannot be reached)."""
     from drivers.interfaces import DeviceError, LimitError
     from rig.devices import open_rig
+    from rig.logs import progress
 
     where = "the virtual rig" if config.is_virtual else config.source
-    print(f"opening the devices of {where} ...", file=sys.stderr, flush=True)
+    progress(f"opening the devices of {where} ...")
     try:
         return open_rig(config, sample_rate_hz=fs)
     except (DeviceError, LimitError, OSError) as error:
@@ -190,22 +188,22 @@ def _run_on_devices(
 
 
 class ProgressLine:
-    """Progress on stderr: every new kind of message, and repeats at most a few per second."""
+    """Progress of a run (rig.logs.progress): every new kind of message, repeats of one kind
+    at most once a second (the log file beside the recording keeps them all)."""
 
-    def __init__(self, quiet: bool = False) -> None:
-        self.quiet = quiet
+    def __init__(self) -> None:
         self._last = 0.0
         self._kind = ""
 
     def __call__(self, text: str) -> None:
+        from rig.logs import progress
+
         now = time.monotonic()
         kind = text.split(":", 1)[0]
-        if kind != self._kind or now - self._last >= 1.0:
-            progress_log.info("%s", text)  # the log file keeps about one line a second
-        if self.quiet or (kind == self._kind and now - self._last < 0.2):
+        if kind == self._kind and now - self._last < 1.0:
             return
         self._last, self._kind = now, kind
-        print(text, file=sys.stderr, flush=True)
+        progress(text)
 
 
 def report(result: ProcedureResult) -> None:

@@ -23,6 +23,7 @@ from typing import Any
 
 from analysis.experiments import FORCED, IMPACT_DECAY, NAMES, experiment_kind
 from rig.cli import CommandError
+from rig.logs import log, progress
 
 DRIVE_PARAMETERS = {
     "f_drive_hz": "drive frequency [Hz]",
@@ -315,10 +316,9 @@ def run(args: argparse.Namespace) -> int:
     except ParameterError as error:
         raise CommandError(str(error)) from None
 
-    print(
+    progress(
         f"simulating {experiment} ({(args.case and 'paper case ' + args.case) or 'custom'}) "
-        f"for {args.skip:g} s + {args.duration:g} s ...",
-        file=sys.stderr,
+        f"for {args.skip:g} s + {args.duration:g} s ..."
     )
     started = time.perf_counter()
     try:
@@ -337,10 +337,9 @@ def run(args: argparse.Namespace) -> int:
         raise CommandError(str(error)) from None
     wall = time.perf_counter() - started
     if not result.ok:
-        print(
-            f"warning: the simulation stopped early ({result.status}) at "
-            f"t = {result.final_state[0]:.4g} s; writing the {result.t.size} samples before",
-            file=sys.stderr,
+        log.warning(
+            "warning: the simulation stopped early (%s) at t = %.4g s; writing the %d samples "
+            "before", result.status, result.final_state[0], result.t.size
         )
     if result.t.size < 2:
         raise CommandError(f"the simulation produced too few samples ({result.status})")
