@@ -27,6 +27,16 @@ def progress(text: str) -> None:
     progress_log.info("%s", text)
 
 
+def log_provenance() -> None:
+    """The provenance block (analysis.provenance) as the log's first record, so that a log
+    file too says which software, versions and command made it."""
+    import json
+
+    from analysis.provenance import provenance
+
+    log.info("provenance: %s", json.dumps(provenance()))
+
+
 def _default_console(record: logging.LogRecord) -> bool:
     """Without --verbose or --quiet: warnings, errors and progress lines."""
     return record.levelno >= logging.WARNING or record.name == progress_log.name

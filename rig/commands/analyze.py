@@ -120,7 +120,6 @@ def run(args: argparse.Namespace) -> int:
         progress(f"wrote {args.json_out}")
     if args.report:
         md = write_report(analysis, args.report, name=args.file.stem)
-        _write_json(js, args.report / f"{args.file.stem}.json")  # the same, with provenance
         progress(f"wrote {md}")
     if not args.json_out:
         print(json.dumps(js, indent=2))

@@ -55,7 +55,7 @@ def run(args: argparse.Namespace) -> int:
     from analysis.output_paths import check_outputs
     from analysis.provenance import provenance
     from rig.engine import AcquisitionEngine
-    from rig.logs import log, log_file, log_path_for
+    from rig.logs import log, log_file, log_path_for, log_provenance
     from rig.recorder import (
         ChannelSpec,
         Recorder,
@@ -117,6 +117,7 @@ def run(args: argparse.Namespace) -> int:
             thread = attach_recorder(engine, recorder)
             logging_to = stack.enter_context(log_file(log_path_for(args.record)))
             log.info("replaying %s into %s (log %s)", args.recording, args.record, logging_to)
+            log_provenance()
         engine.start()
         replay.publish_annotations(engine)
         started = time.monotonic()

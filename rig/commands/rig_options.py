@@ -145,10 +145,11 @@ def run_procedure(
     went to zero and the file keeps what was recorded (the procedure saw to both).  Every
     log record of the run goes to RUN.log beside the recording.
     """
-    from rig.logs import log, log_file, log_path_for
+    from rig.logs import log, log_file, log_path_for, log_provenance
 
     with log_file(log_path_for(path)) as logging_to:
         log.info("impact-rig run of %s into %s (this log: %s)", config.source, path, logging_to)
+        log_provenance()
         try:
             result = _run_on_devices(config, fs, path, procedure)
         except CommandError as error:
