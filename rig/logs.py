@@ -3,7 +3,8 @@
 
 Progress lines are INFO records of the ``impact_rig.progress`` logger: shown by default,
 hidden by --quiet, kept in a run's log file.  Other INFO and DEBUG records show with
---verbose only.
+--verbose only, and so do records logged with ``extra=FILE_ONLY`` (an error the command
+then reports on its one line anyway).
 """
 
 from __future__ import annotations
@@ -20,6 +21,7 @@ FILE_FORMAT = "%(asctime)s %(levelname)s %(name)s: %(message)s"
 
 log = logging.getLogger(LOGGER_NAME)
 progress_log = logging.getLogger(f"{LOGGER_NAME}.progress")
+FILE_ONLY = {"file_only": True}  # extra= of a record meant for the log file, not the console
 
 
 def progress(text: str) -> None:
@@ -38,7 +40,10 @@ def log_provenance() -> None:
 
 
 def _default_console(record: logging.LogRecord) -> bool:
-    """Without --verbose or --quiet: warnings, errors and progress lines."""
+    """Without --verbose: warnings, errors and progress lines (above the handler's level),
+    none meant for the log file only."""
+    if getattr(record, "file_only", False):
+        return False
     return record.levelno >= logging.WARNING or record.name == progress_log.name
 
 

@@ -145,7 +145,7 @@ def run_procedure(
     went to zero and the file keeps what was recorded (the procedure saw to both).  Every
     log record of the run goes to RUN.log beside the recording.
     """
-    from rig.logs import log, log_file, log_path_for, log_provenance
+    from rig.logs import FILE_ONLY, log, log_file, log_path_for, log_provenance
 
     with log_file(log_path_for(path)) as logging_to:
         log.info("impact-rig run of %s into %s (this log: %s)", config.source, path, logging_to)
@@ -153,7 +153,7 @@ def run_procedure(
         try:
             result = _run_on_devices(config, fs, path, procedure)
         except CommandError as error:
-            log.error("%s", error)
+            log.error("%s", error, extra=FILE_ONLY)  # main() prints it
             raise
         log.info("%s: %s", path, result.stop_reason)
         return result
@@ -182,7 +182,7 @@ def _run_on_devices(
         SubscriberOverrunError,
     ) as error:
         raise CommandError(
-            f"{error}\n(the drive was ramped to zero; {path} keeps the data recorded so far)"
+            f"{error} (the drive was ramped to zero; {path} keeps the data recorded so far)"
         ) from None
     finally:
         devices.close()
