@@ -170,7 +170,7 @@ def read_exchange(csv_path: str | Path, meta_path: str | Path | None = None) -> 
         if values is not None and not np.all(np.isfinite(values)):
             row = int(np.flatnonzero(~np.isfinite(values))[0]) + 2
             raise ExchangeFormatError(
-                f"{csv_path}: line {row}: {name} is {values[row - 2]!r}, not a finite number; "
+                f"{csv_path}: line {row}: {name} is {float(values[row - 2])}, not a finite number; "
                 "remove the row or mark the sample some other way (a gap is not allowed here)"
             )
     return ExchangeRecord(

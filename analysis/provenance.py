@@ -8,6 +8,7 @@ The command line and the operator are set once per process by the command dispat
 from __future__ import annotations
 
 import functools
+import json
 import platform
 import socket
 import subprocess
@@ -77,3 +78,34 @@ def provenance(*, operator: str | None = None, start_time_utc: str | None = None
         "start_time_utc": start_time_utc or datetime.now(UTC).isoformat(),
         "operator": operator if operator is not None else invocation_operator(),
     }
+
+
+def png_metadata() -> dict[str, str]:
+    """A figure's provenance as PNG text chunks (``savefig(path, metadata=png_metadata())``):
+    'Software' the version, 'Source' the command line, 'Provenance' the whole block as JSON."""
+    block = provenance()
+    return {
+        "Software": f"{PACKAGE} {block['software'][PACKAGE]}",
+        "Source": " ".join(block["command_line"]),
+        "Provenance": json.dumps(block),
+    }
+
+
+def markdown_provenance() -> list[str]:
+    """The closing lines of a Markdown report: the provenance block in one sentence."""
+    block = provenance()
+    git = block["git"]
+    commit = ""
+    if git:
+        changes = " with local changes" if git["local_changes"] else ""
+        commit = f", git {git['commit'][:12]}{changes}"
+    dependencies = ", ".join(f"{name} {v}" for name, v in block["dependencies"].items())
+    operator = f" by {block['operator']}" if block["operator"] else ""
+    return [
+        "",
+        "---",
+        "",
+        f"Made by {PACKAGE} {block['software'][PACKAGE]}{commit} (Python {block['python']}, "
+        f"{dependencies}) on {block['host']} at {block['start_time_utc']}{operator}: "
+        f"`{' '.join(block['command_line'])}`",
+    ]

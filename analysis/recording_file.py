@@ -25,6 +25,7 @@ from typing import Any
 import h5py
 import numpy as np
 
+from analysis.hdf5_library import set_metadata_read_attempts
 from analysis.records import RecordFormatError
 
 FORMAT_NAME = "impact-rig recording"
@@ -89,6 +90,9 @@ STATUS_DTYPE = np.dtype(
 )
 ROOT_TABLES = {"drive": DRIVE_DTYPE, "sweep_steps": STEP_DTYPE, "status": STATUS_DTYPE}
 REPAIR_HINT = "'impact-rig repair {path}' recovers what can still be read"
+# A SWMR reader's retries of a metadata block sleep 1 ns, 2 ns, 4 ns, ...: 30 attempts wait
+# about a second in all (a live writer's flush takes milliseconds), 36 over a minute.
+SWMR_METADATA_READ_ATTEMPTS = 30
 
 
 class RecordingFormatError(RecordFormatError):
@@ -302,12 +306,21 @@ def open_hdf5(path: str | Path) -> h5py.File:
     live = bool(block.flags & _WRITER_FLAGS)
     try:
         if live:
-            return h5py.File(path, "r", libver=LIBVER[0], swmr=True)
+            return h5py.File(_open_swmr_reader(path))
         return h5py.File(path, "r")
     except OSError as error:
         raise RecordingDamagedError(
             f"{path}: HDF5 cannot open it ({_first_line(error)}); " + REPAIR_HINT.format(path=path)
         ) from None
+
+
+def _open_swmr_reader(path: Path) -> h5py.h5f.FileID:
+    """``path`` opened read-only for SWMR, with metadata checksum failures retried for about
+    a second at most (the library's default retries a damaged block for days)."""
+    fapl = h5py.h5p.create(h5py.h5p.FILE_ACCESS)
+    fapl.set_libver_bounds(h5py.h5f.LIBVER_V110, h5py.h5f.LIBVER_LATEST)
+    set_metadata_read_attempts(fapl, SWMR_METADATA_READ_ATTEMPTS)
+    return h5py.h5f.open(os.fsencode(path), h5py.h5f.ACC_RDONLY | h5py.h5f.ACC_SWMR_READ, fapl)
 
 
 def _first_line(error: BaseException) -> str:
@@ -361,6 +374,26 @@ def metadata_attributes(meta: RecordingMetadata, software_version: str) -> dict[
     }
 
 
+def write_attributes(node: h5py.HLObject, values: dict[str, Any]) -> None:
+    """Set ``node``'s attributes, text as fixed-length UTF-8 strings.  Those are kept with the
+    attribute itself, under HDF5's metadata checksums; a variable-length string lives in the
+    global heap, which has none (zeroed bytes there sent HDF5 into an endless loop)."""
+    for key, value in values.items():
+        if isinstance(value, str):
+            data = value.encode("utf-8")
+            node.attrs.create(key, data, dtype=h5py.string_dtype("utf-8", max(1, len(data))))
+        else:
+            node.attrs[key] = value
+
+
+def read_attributes(node: h5py.HLObject) -> dict[str, Any]:
+    """``node``'s attributes, text as ``str`` whether stored fixed-length or variable-length."""
+    return {
+        key: value.decode("utf-8", "replace") if isinstance(value, bytes) else value
+        for key, value in node.attrs.items()
+    }
+
+
 class RecordingWriter:
     """Creates a recording's layout, then appends to it; SWMR-readable after every ``flush``.
 
@@ -396,18 +429,22 @@ class RecordingWriter:
         compression: str | None,
     ) -> None:
         f = self._file
-        for key, value in metadata_attributes(meta, software_version).items():
-            f.attrs[key] = value
+        write_attributes(f, metadata_attributes(meta, software_version))
         samples = f.create_group("channels")
         pulses = f.create_group("pulses")
         for spec in channels:
             packed = packing(compression, spec.sample_rate_hz)
             group = (samples if spec.kind == "samples" else pulses).create_group(spec.name)
-            group.attrs["kind"] = spec.kind
-            group.attrs["unit"] = spec.unit
-            group.attrs["sample_rate_hz"] = float(spec.sample_rate_hz)
-            group.attrs["device"] = spec.device
-            group.attrs["calibration_json"] = json.dumps(spec.calibration)
+            write_attributes(
+                group,
+                {
+                    "kind": spec.kind,
+                    "unit": spec.unit,
+                    "sample_rate_hz": float(spec.sample_rate_hz),
+                    "device": spec.device,
+                    "calibration_json": json.dumps(spec.calibration),
+                },
+            )
             chunk = (chunk_length(spec.sample_rate_hz),)
             if spec.kind == "samples":
                 for name, dtype in (
@@ -419,8 +456,10 @@ class RecordingWriter:
                     group.create_dataset(
                         name, (0,), maxshape=(None,), dtype=dtype, chunks=chunk, **packed
                     )
-                group["time_s"].attrs["unit"] = "s"
-                group["time_s"].attrs["meaning"] = "device time of each stored sample"
+                write_attributes(
+                    group["time_s"],
+                    {"unit": "s", "meaning": "device time of each stored sample"},
+                )
                 _table(group, "blocks", SAMPLE_BLOCK_DTYPE)
             else:
                 for name, dtype in (("edge_indices", "<i8"), ("edge_times_s", "<f8")):
@@ -545,6 +584,9 @@ class Recording:
         self._file = open_hdf5(self.path)
         try:
             self.info = self._check_layout()
+        except (OSError, RuntimeError, KeyError) as error:  # HDF5 cannot read an attribute
+            self._file.close()
+            raise self._damaged("the layout", error) from None
         except BaseException:
             self._file.close()
             raise
@@ -556,7 +598,7 @@ class Recording:
 
     def _check_layout(self) -> RecordingInfo:
         try:
-            attrs = dict(self._file.attrs)
+            attrs = read_attributes(self._file)
         except (OSError, RuntimeError, KeyError) as error:
             raise self._damaged("/", error) from None
         if attrs.get("format") != FORMAT_NAME:
@@ -579,7 +621,7 @@ class Recording:
         for name, dtype in ROOT_TABLES.items():
             self._check_dataset(self._node(name), dtype)
         for name in self.channel_names:
-            group = self._file["channels"][name]
+            group = self._node(f"channels/{name}")
             self._check_channel_attrs(group)
             needed = ["raw", "values"] + (["flags"] if version >= 2 else [])
             needed += ["time_s"] if version >= 3 else []
@@ -594,7 +636,7 @@ class Recording:
             self._check_dataset(self._node(f"channels/{name}/blocks"), SAMPLE_BLOCK_DTYPE)
             self._check_dataset(self._node(f"channels/{name}/gaps"), GAP_DTYPE)
         for name in self.pulse_names:
-            group = self._file["pulses"][name]
+            group = self._node(f"pulses/{name}")
             self._check_channel_attrs(group)
             for part in ("edge_indices", "edge_times_s"):
                 self._node(f"pulses/{name}/{part}")
@@ -617,12 +659,14 @@ class Recording:
         )
 
     def _node(self, name: str) -> Any:
+        """The object at ``name``: missing is a format error, present but unreadable (h5py
+        says KeyError for both) is damage."""
         try:
-            return self._file[name]
-        except KeyError:
-            raise self._fail(f"no /{name} (docs/recording_layout.md)") from None
-        except (OSError, RuntimeError) as error:
+            if name in self._file:
+                return self._file[name]
+        except (OSError, RuntimeError, KeyError) as error:
             raise self._damaged(f"/{name}", error) from None
+        raise self._fail(f"no /{name} (docs/recording_layout.md)")
 
     def _check_dataset(self, dataset: Any, dtype: np.dtype) -> None:
         if not isinstance(dataset, h5py.Dataset) or dataset.ndim != 1:
@@ -632,11 +676,12 @@ class Recording:
             raise self._fail(f"{dataset.name} lacks the field(s) {', '.join(missing)}")
 
     def _check_channel_attrs(self, group: h5py.Group) -> None:
+        attrs = read_attributes(group)
+        missing = [key for key in ("sample_rate_hz", "unit") if key not in attrs]
+        if missing:
+            raise self._fail(f"{group.name} has no attribute '{missing[0]}'")
         try:
-            rate = float(group.attrs["sample_rate_hz"])
-            str(group.attrs["unit"])
-        except KeyError as error:
-            raise self._fail(f"{group.name} has no attribute {error}") from None
+            rate = float(attrs["sample_rate_hz"])
         except (TypeError, ValueError):
             raise self._fail(f"{group.name}: attribute sample_rate_hz is not a number") from None
         if not (math.isfinite(rate) and rate > 0):
@@ -713,7 +758,7 @@ class Recording:
 
     def unit(self, name: str) -> str:
         """The SI unit of a channel's calibrated values ('' for pulse channels)."""
-        return str(self._group(self._top(name), name).attrs["unit"])
+        return str(read_attributes(self._group(self._top(name), name))["unit"])
 
     def channel_dtype(self, name: str) -> np.dtype:
         """The stored dtype of a sampled channel's raw counts."""
@@ -808,7 +853,7 @@ class Recording:
             gaps = gaps[gaps["start_index"] < last]
         return ChannelData(
             name=name,
-            unit=str(group.attrs["unit"]),
+            unit=str(read_attributes(group)["unit"]),
             sample_rate_hz=fs,
             indices=indices.astype(np.int64),
             times_s=sample_times(blocks, fs),
@@ -1005,7 +1050,7 @@ def _salvage(
     damaged: h5py.File, source: Path, destination: Path, findings: list[str]
 ) -> RepairReport:
     try:
-        attrs = dict(damaged.attrs)
+        attrs = read_attributes(damaged)
     except (OSError, RuntimeError) as error:
         raise RecordingDamagedError(
             f"{source}: its metadata (root attributes) cannot be read ({_first_line(error)})"
@@ -1032,14 +1077,15 @@ def _salvage(
         for name in names:
             try:
                 group = damaged[top][name]
-                rate = float(group.attrs["sample_rate_hz"])
+                group_attrs = read_attributes(group)
+                rate = float(group_attrs["sample_rate_hz"])
                 spec = ChannelSpec(
                     name,
                     kind,
-                    str(group.attrs.get("unit", "")),
+                    str(group_attrs.get("unit", "")),
                     rate,
-                    str(group.attrs.get("device", "")),
-                    json.loads(group.attrs.get("calibration_json", "null")),
+                    str(group_attrs.get("device", "")),
+                    json.loads(group_attrs.get("calibration_json", "null")),
                     str(group["raw"].dtype) if kind == "samples" else "int32",
                 )
                 rows, rows_good = _readable(group["blocks"], TABLE_CHUNK_ROWS)

@@ -11,6 +11,7 @@ from typing import Any
 
 import numpy as np
 
+from analysis.provenance import markdown_provenance, png_metadata, provenance
 from rig.demo import FIGURES
 
 
@@ -28,7 +29,7 @@ def write_figures(folder: Path, diagrams, settings) -> dict[str, str]:
     for collection, diagram in zip(figure.axes[0].collections, diagrams, strict=False):
         # few simulated points at the demo's resolution: make them show, the measured more so
         collection.set_sizes([30.0 if diagram.direction == "recorded" else 4.0])
-    figure.savefig(folder / path, format="png")
+    figure.savefig(folder / path, format="png", metadata=png_metadata())
     return {"bifurcation": str(path)}
 
 
@@ -165,6 +166,7 @@ def write_report(result, settings, recordings, findings, figures, config) -> Pat
     add("")
     timing = ", ".join(f"{k} {v:.1f} s" for k, v in result.timings_s.items())
     add(f"Timings: {timing}.")
+    lines += markdown_provenance()
     path = result.report
     path.write_text("\n".join(lines) + "\n", encoding="utf-8")
     return path
@@ -194,8 +196,10 @@ def _num(value: Any) -> str:
 
 
 def write_json(path: Path, data: Any) -> None:
-    """Write ``data`` as indented JSON (numpy values made plain)."""
-    path.write_text(json.dumps(_plain(data), indent=1, allow_nan=True) + "\n", encoding="utf-8")
+    """Write ``data`` (a mapping) as indented JSON, numpy values made plain, with its
+    provenance."""
+    report = {**_plain(data), "provenance": provenance()}
+    path.write_text(json.dumps(report, indent=1, allow_nan=True) + "\n", encoding="utf-8")
 
 
 def _plain(value: Any) -> Any:

@@ -22,6 +22,7 @@ from drivers.interfaces import DeviceError
 from drivers.shaker import MeasuredDrive, Setpoints
 from rig.config import DriveTolerance
 from rig.events import MEASURED
+from rig.logs import FILE_ONLY
 
 POLL_PERIOD_S = 0.25
 SETPOINT_HZ = 0.0015  # the registers hold whole mHz and um: anything further was not ours
@@ -168,6 +169,6 @@ class DriveMonitor:
             try:
                 self.check_once()
             except DeviceError as error:  # a mismatch, or the link failed: the run stops
-                log.error("%s", error)
+                log.error("%s", error, extra=FILE_ONLY)  # the run stops and says it
                 self.drive_log.fail(error)
                 return

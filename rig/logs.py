@@ -1,5 +1,11 @@
 """Logging for the command line: standard ``logging`` on stderr at the level --verbose and
---quiet choose, and a log file beside each recording with everything the run said."""
+--quiet choose, and a log file beside each recording with everything the run said.
+
+Progress lines are INFO records of the ``impact_rig.progress`` logger: shown by default,
+hidden by --quiet, kept in a run's log file.  Other INFO and DEBUG records show with
+--verbose only, and so do records logged with ``extra=FILE_ONLY`` (an error the command
+then reports on its one line anyway).
+"""
 
 from __future__ import annotations
 
@@ -14,15 +20,42 @@ CONSOLE_FORMAT = "%(message)s"
 FILE_FORMAT = "%(asctime)s %(levelname)s %(name)s: %(message)s"
 
 log = logging.getLogger(LOGGER_NAME)
+progress_log = logging.getLogger(f"{LOGGER_NAME}.progress")
+FILE_ONLY = {"file_only": True}  # extra= of a record meant for the log file, not the console
+
+
+def progress(text: str) -> None:
+    """A progress line: on stderr unless --quiet, and in the run's log file if there is one."""
+    progress_log.info("%s", text)
+
+
+def log_provenance() -> None:
+    """The provenance block (analysis.provenance) as the log's first record, so that a log
+    file too says which software, versions and command made it."""
+    import json
+
+    from analysis.provenance import provenance
+
+    log.info("provenance: %s", json.dumps(provenance()))
+
+
+def _default_console(record: logging.LogRecord) -> bool:
+    """Without --verbose: warnings, errors and progress lines (above the handler's level),
+    none meant for the log file only."""
+    if getattr(record, "file_only", False):
+        return False
+    return record.levelno >= logging.WARNING or record.name == progress_log.name
 
 
 def configure(*, verbose: bool = False, quiet: bool = False) -> None:
-    """Send log records to stderr: warnings and errors by default, everything with
+    """Send log records to stderr: warnings, errors and progress by default, everything with
     ``verbose`` (and tracebacks), errors only with ``quiet``."""
-    level = logging.DEBUG if verbose else logging.ERROR if quiet else logging.WARNING
+    level = logging.DEBUG if verbose else logging.ERROR if quiet else logging.INFO
     console = logging.StreamHandler(sys.stderr)
     console.setFormatter(logging.Formatter(CONSOLE_FORMAT))
     console.setLevel(level)
+    if not verbose:
+        console.addFilter(_default_console)
     root = logging.getLogger()
     for handler in list(root.handlers):
         if getattr(handler, "impact_rig_console", False):

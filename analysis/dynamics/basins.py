@@ -242,7 +242,9 @@ def plot_basins(
     axes.legend(loc="upper right", fontsize="small")
     figure.tight_layout()
     if path is not None:
-        figure.savefig(Path(path), format="png")
+        from analysis.provenance import png_metadata
+
+        figure.savefig(Path(path), format="png", metadata=png_metadata())
     return figure
 
 

@@ -199,5 +199,7 @@ def plot_bifurcation(
         handle.set_alpha(1.0)
     figure.tight_layout()
     if path is not None:
-        figure.savefig(Path(path), format="png")
+        from analysis.provenance import png_metadata
+
+        figure.savefig(Path(path), format="png", metadata=png_metadata())
     return figure

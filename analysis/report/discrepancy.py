@@ -20,6 +20,7 @@ import numpy as np
 from analysis.discrepancy.fitting import predict
 from analysis.discrepancy.outcome import Analysis
 from analysis.extensions import NONE, causes_in
+from analysis.provenance import markdown_provenance, png_metadata, provenance
 
 
 def _plain(value: Any) -> Any:
@@ -45,10 +46,11 @@ def report_json(analysis: Analysis) -> dict[str, Any]:
 
 
 def write_json(analysis: Analysis, path: str | Path) -> Path:
-    """Write the JSON report; returns its path."""
+    """Write the JSON report, with its provenance; returns its path."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(json.dumps(report_json(analysis), indent=2) + "\n")
+    report = {**report_json(analysis), "provenance": provenance()}
+    path.write_text(json.dumps(report, indent=2) + "\n")
     return path
 
 
@@ -96,7 +98,7 @@ def figure_fit(analysis: Analysis, path: Path, dpi: int = 80) -> Path:
     ax.set_ylabel("model - data [rad]")
     ax.legend(loc="upper right", fontsize=8)
     fig.tight_layout()
-    fig.savefig(path, dpi=dpi)
+    fig.savefig(path, dpi=dpi, metadata=png_metadata())
     plt.close(fig)
     return path
 
@@ -119,7 +121,7 @@ def figure_restitution(analysis: Analysis, path: Path, dpi: int = 80) -> Path:
     axes[1].set_xlabel("time [s]")
     axes[1].legend(loc="upper right", fontsize=8)
     fig.tight_layout()
-    fig.savefig(path, dpi=dpi)
+    fig.savefig(path, dpi=dpi, metadata=png_metadata())
     plt.close(fig)
     return path
 
@@ -219,6 +221,7 @@ def write_report(analysis: Analysis, directory: str | Path, name: str = "report"
         ]
     if js.get("notes"):
         lines += ["", "## Notes", ""] + [f"- {n}" for n in js["notes"]]
+    lines += markdown_provenance()
     md = directory / f"{name}.md"
     md.write_text("\n".join(lines) + "\n")
     return md

@@ -5,10 +5,10 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 from pathlib import Path
 
 from rig.cli import CommandError
+from rig.logs import progress
 
 DESCRIPTION = """\
 Explain a measured record: fit the baseline model of docs/MODEL.md section 2, show where it
@@ -100,10 +100,6 @@ def run(args: argparse.Namespace) -> int:
         outputs += report_files(args.report, args.file.stem)
     check_outputs(outputs, inputs=inputs, overwrite=args.overwrite)  # before a long analysis
 
-    def progress(message: str) -> None:
-        if not args.quiet:
-            print(message, file=sys.stderr, flush=True)
-
     try:
         record = load_record(args.file, args.meta)
         priors = None
@@ -124,7 +120,6 @@ def run(args: argparse.Namespace) -> int:
         progress(f"wrote {args.json_out}")
     if args.report:
         md = write_report(analysis, args.report, name=args.file.stem)
-        _write_json(js, args.report / f"{args.file.stem}.json")  # the same, with provenance
         progress(f"wrote {md}")
     if not args.json_out:
         print(json.dumps(js, indent=2))

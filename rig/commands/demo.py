@@ -3,11 +3,11 @@
 from __future__ import annotations
 
 import argparse
-import sys
 import time
 from pathlib import Path
 
 from rig.cli import CommandError
+from rig.logs import progress
 
 DEFAULT_OUT = "impact-rig-demo"
 
@@ -140,9 +140,8 @@ def run(args: argparse.Namespace) -> int:
         params = dict(DEFAULT_CAUSE_VALUES)
     started = time.monotonic()
 
-    def progress(text: str) -> None:
-        if not args.quiet:
-            print(f"[{time.monotonic() - started:5.1f} s] {text}", file=sys.stderr, flush=True)
+    def timed_progress(text: str) -> None:
+        progress(f"[{time.monotonic() - started:5.1f} s] {text}")
 
     try:
         hidden = hidden_cause(name, params)
@@ -153,7 +152,7 @@ def run(args: argparse.Namespace) -> int:
             hidden=hidden,
             config_path=args.config,
             overwrite=True,
-            progress=progress,
+            progress=timed_progress,
         )
     except (DemoError, ConfigError) as error:
         raise CommandError(str(error)) from None

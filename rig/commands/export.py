@@ -3,10 +3,10 @@
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
 
 from rig.cli import CommandError
+from rig.logs import progress
 
 DESCRIPTION = """\
 Write an HDF5 recording as the exchange format of docs/MODEL.md section 5: FILE.csv
@@ -122,7 +122,7 @@ def run(args: argparse.Namespace) -> int:
     )
     for k, (record, name) in enumerate(zip(records, names, strict=True)):
         if len(records) > 1:
-            print(f"writing {k + 1}/{len(records)} ...", file=sys.stderr, flush=True)
+            progress(f"writing {k + 1}/{len(records)} ...")
         try:
             csv_path, json_path = write_exchange(name, to_exchange(record))
         except OSError as error:  # unwritable folder, full disk: say which file, no traceback

@@ -4,11 +4,11 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 from rig.cli import CommandError
+from rig.logs import progress
 
 if TYPE_CHECKING:
     from analysis.identify import IdentificationResult
@@ -111,7 +111,7 @@ def run(args: argparse.Namespace) -> int:
                 )
             fits = []
             for path, record in zip(args.files, records, strict=True):
-                print(f"identifying {path} ({record.time_s.size} samples)...", file=sys.stderr)
+                progress(f"identifying {path} ({record.time_s.size} samples)...")
                 try:
                     fits.append(fit_free_decay(record))
                 except IdentificationError as error:
@@ -149,8 +149,8 @@ def _identify_one(args: argparse.Namespace, record: Record) -> IdentificationRes
     )
     from analysis.records import load_record
 
-    print(f"identifying {record.source} ({record.experiment}, {record.time_s.size} samples)...",
-          file=sys.stderr)
+    progress(f"identifying {record.source} ({record.experiment}, {record.time_s.size} "
+             "samples)...")
     kind = record.kind
     if kind is FREE_DECAY:
         return fit_free_decay(record)
@@ -180,4 +180,4 @@ def _identify_one(args: argparse.Namespace, record: Record) -> IdentificationRes
     if "L_m" in hold:
         priors["omega_rad_s"] = math.sqrt(record.gravity_m_s2 / hold["L_m"])
     return fit_forced(record, priors=priors,
-                      progress=lambda text: print(f"  {text}", file=sys.stderr))
+                      progress=lambda text: progress(f"  {text}"))

@@ -161,7 +161,7 @@ def run(args: argparse.Namespace) -> int:
         notes=args.notes,
         overwrite=args.overwrite,
         compression=compression(args),
-        progress=ProgressLine(args.quiet),
+        progress=ProgressLine(),
     )
     report(run_procedure(config, fs, path, run_plan))
     return 0

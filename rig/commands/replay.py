@@ -5,11 +5,11 @@ from __future__ import annotations
 import argparse
 import contextlib
 import math
-import sys
 import time
 from pathlib import Path
 
 from rig.cli import CommandError
+from rig.logs import progress
 
 DESCRIPTION = """\
 Play an HDF5 recording through the replay drivers: each recorded channel becomes
@@ -55,7 +55,7 @@ def run(args: argparse.Namespace) -> int:
     from analysis.output_paths import check_outputs
     from analysis.provenance import provenance
     from rig.engine import AcquisitionEngine
-    from rig.logs import log, log_file, log_path_for
+    from rig.logs import log, log_file, log_path_for, log_provenance
     from rig.recorder import (
         ChannelSpec,
         Recorder,
@@ -117,6 +117,7 @@ def run(args: argparse.Namespace) -> int:
             thread = attach_recorder(engine, recorder)
             logging_to = stack.enter_context(log_file(log_path_for(args.record)))
             log.info("replaying %s into %s (log %s)", args.recording, args.record, logging_to)
+            log_provenance()
         engine.start()
         replay.publish_annotations(engine)
         started = time.monotonic()
@@ -124,8 +125,7 @@ def run(args: argparse.Namespace) -> int:
         try:
             while not replay.finished and engine.error is None:
                 time.sleep(0.5 if math.isinf(speed) else 1.0)
-                if not args.quiet:
-                    print(_live_line(engine), file=sys.stderr, flush=True)
+                progress(_live_line(engine))
         except KeyboardInterrupt:
             stop_reason = "interrupted (Ctrl-C)"
             raise

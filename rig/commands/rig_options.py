@@ -8,9 +8,7 @@ Modbus TCP amplifier, started in this process).
 from __future__ import annotations
 
 import argparse
-import logging
 import math
-import sys
 import time
 from collections.abc import Callable, Iterable
 from pathlib import Path
@@ -23,7 +21,6 @@ if TYPE_CHECKING:  # imported lazily at run time: a fast --help
     from rig.devices import RigDevices
     from rig.procedures import ProcedureResult
 
-progress_log = logging.getLogger("impact_rig.progress")
 
 CONFIG_HELP = (
     "rig file (TOML): devices and ports, calibrations, safety limits, rig constants "
@@ -111,9 +108,10 @@ def open_devices(config: RigConfig, fs: float | None) -> RigDevices:
     """Open the rig (CommandError naming the device when it cannot be reached)."""
     from drivers.interfaces import DeviceError, LimitError
     from rig.devices import open_rig
+    from rig.logs import progress
 
     where = "the virtual rig" if config.is_virtual else config.source
-    print(f"opening the devices of {where} ...", file=sys.stderr, flush=True)
+    progress(f"opening the devices of {where} ...")
     try:
         return open_rig(config, sample_rate_hz=fs)
     except (DeviceError, LimitError, OSError) as error:
@@ -147,14 +145,15 @@ def run_procedure(
     went to zero and the file keeps what was recorded (the procedure saw to both).  Every
     log record of the run goes to RUN.log beside the recording.
     """
-    from rig.logs import log, log_file, log_path_for
+    from rig.logs import FILE_ONLY, log, log_file, log_path_for, log_provenance
 
     with log_file(log_path_for(path)) as logging_to:
         log.info("impact-rig run of %s into %s (this log: %s)", config.source, path, logging_to)
+        log_provenance()
         try:
             result = _run_on_devices(config, fs, path, procedure)
         except CommandError as error:
-            log.error("%s", error)
+            log.error("%s", error, extra=FILE_ONLY)  # main() prints it
             raise
         log.info("%s: %s", path, result.stop_reason)
         return result
@@ -183,29 +182,29 @@ def _run_on_devices(
         SubscriberOverrunError,
     ) as error:
         raise CommandError(
-            f"{error}\n(the drive was ramped to zero; {path} keeps the data recorded so far)"
+            f"{error} (the drive was ramped to zero; {path} keeps the data recorded so far)"
         ) from None
     finally:
         devices.close()
 
 
 class ProgressLine:
-    """Progress on stderr: every new kind of message, and repeats at most a few per second."""
+    """Progress of a run (rig.logs.progress): every new kind of message, repeats of one kind
+    at most once a second (the log file beside the recording keeps them all)."""
 
-    def __init__(self, quiet: bool = False) -> None:
-        self.quiet = quiet
+    def __init__(self) -> None:
         self._last = 0.0
         self._kind = ""
 
     def __call__(self, text: str) -> None:
+        from rig.logs import progress
+
         now = time.monotonic()
         kind = text.split(":", 1)[0]
-        if kind != self._kind or now - self._last >= 1.0:
-            progress_log.info("%s", text)  # the log file keeps about one line a second
-        if self.quiet or (kind == self._kind and now - self._last < 0.2):
+        if kind == self._kind and now - self._last < 1.0:
             return
         self._last, self._kind = now, kind
-        print(text, file=sys.stderr, flush=True)
+        progress(text)
 
 
 def report(result: ProcedureResult) -> None:

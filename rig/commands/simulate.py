@@ -23,6 +23,7 @@ from typing import Any
 
 from analysis.experiments import FORCED, IMPACT_DECAY, NAMES, experiment_kind
 from rig.cli import CommandError
+from rig.logs import log, progress
 
 DRIVE_PARAMETERS = {
     "f_drive_hz": "drive frequency [Hz]",
@@ -284,6 +285,8 @@ def _write_hdf5(path: Path, columns: dict[str, Any], metadata: dict) -> None:
     import h5py
     import numpy as np
 
+    from analysis.recording_file import write_attributes
+
     with h5py.File(path, "w") as handle:  # an existing file was refused or --overwrite given
         for name, values in columns.items():
             if values is None:
@@ -292,7 +295,7 @@ def _write_hdf5(path: Path, columns: dict[str, Any], metadata: dict) -> None:
             handle.create_dataset(
                 name, data=np.asarray(values, dtype=dtype), chunks=True, fletcher32=True
             )
-        handle.attrs["metadata"] = json.dumps(metadata)
+        write_attributes(handle, {"metadata": json.dumps(metadata)})
 
 
 def run(args: argparse.Namespace) -> int:
@@ -331,10 +334,9 @@ def run(args: argparse.Namespace) -> int:
     except ParameterError as error:
         raise CommandError(str(error)) from None
 
-    print(
+    progress(
         f"simulating {experiment} ({(args.case and 'paper case ' + args.case) or 'custom'}) "
-        f"for {args.skip:g} s + {args.duration:g} s ...",
-        file=sys.stderr,
+        f"for {args.skip:g} s + {args.duration:g} s ..."
     )
     started = time.perf_counter()
     try:
@@ -353,10 +355,9 @@ def run(args: argparse.Namespace) -> int:
         raise CommandError(str(error)) from None
     wall = time.perf_counter() - started
     if not result.ok:
-        print(
-            f"warning: the simulation stopped early ({result.status}) at "
-            f"t = {result.final_state[0]:.4g} s; writing the {result.t.size} samples before",
-            file=sys.stderr,
+        log.warning(
+            "warning: the simulation stopped early (%s) at t = %.4g s; writing the %d samples "
+            "before", result.status, result.final_state[0], result.t.size
         )
     if result.t.size < 2:
         raise CommandError(f"the simulation produced too few samples ({result.status})")

@@ -135,7 +135,7 @@ def run(args: argparse.Namespace) -> int:
             notes=args.notes,
             overwrite=args.overwrite,
             compression=compression(args),
-            progress=ProgressLine(args.quiet),
+            progress=ProgressLine(),
         ),
     )
     report(result)

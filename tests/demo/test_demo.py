@@ -69,6 +69,20 @@ def test_the_demo_succeeds_shows_progress_and_prints_where_the_report_is(demo):
     assert "hidden in the virtual rig: coulomb_friction" in done.stdout
 
 
+def test_every_file_of_the_demo_report_says_what_made_it(demo):
+    from PIL import Image
+
+    folder, _ = demo
+    for path in folder.rglob("*.json"):
+        assert _json(path.parent, path.name)["provenance"]["command_line"][:2] == [
+            "impact-rig", "demo"], path
+    for path in folder.rglob("*.md"):
+        assert "Made by impact-rig " in path.read_text(encoding="utf-8"), path
+    for path in folder.rglob("*.png"):
+        with Image.open(path) as image:
+            assert json.loads(image.text["Provenance"])["software"]["impact-rig"], path
+
+
 def test_the_report_shows_figures_that_exist(demo):
     folder, _ = demo
     report = (folder / "report.md").read_text(encoding="utf-8")

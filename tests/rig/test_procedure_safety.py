@@ -145,6 +145,7 @@ def test_a_disk_that_fills_during_a_forced_run_stops_it_cleanly(two_megabyte_fil
     assert status == 2
     error = capsys.readouterr().err
     assert "disk almost full" in error and "ramped to zero" in error
+    assert len(error.strip().splitlines()) == 1  # one line, not the log's copies of it
     with open_recording(path) as rec:
         status_row = rec.status()
         drive = rec.drive_log()

@@ -4,6 +4,8 @@ line naming the file, exits non-zero within seconds, and shows no traceback."""
 from __future__ import annotations
 
 import shutil
+import subprocess
+import sys
 import time
 
 import h5py
@@ -11,7 +13,7 @@ import numpy as np
 import pytest
 
 from analysis.recording_file import clear_writer_flags, lookup3, open_recording
-from tests.trust.conftest import run_cli
+from tests.trust.conftest import REPO, run_cli
 
 COMMANDS = {
     "export": lambda f, out: ["export", str(f), "--out", str(out / "x.csv"), "--gaps", "split"],
@@ -107,6 +109,80 @@ def test_zeros_where_nothing_is_stored_change_no_result(recording, tmp_path):
             assert out.read_bytes() == (tmp_path / "ref.csv").read_bytes()
         else:
             assert "Traceback" not in done.stderr and str(path) in done.stderr
+
+
+SWEEP_METADATA = """
+import sys
+from pathlib import Path
+from analysis.hdf5_records import read_recording_arrays
+from analysis.records import RecordFormatError
+source, folder = Path(sys.argv[1]), Path(sys.argv[2])
+whole = source.read_bytes()
+reference = read_recording_arrays(source)
+refused = same = 0
+for offset in map(int, sys.argv[3:]):
+    path = folder / f"at{offset}.h5"
+    path.write_bytes(whole[:offset] + bytes(512) + whole[offset + 512:])
+    try:
+        arrays = read_recording_arrays(path)
+    except RecordFormatError as error:
+        assert str(error).startswith(f"{path}: ") and len(str(error).splitlines()) == 1, error
+        refused += 1
+    else:
+        assert (arrays.angle_rad == reference.angle_rad).all(), offset
+        assert (arrays.tach_edges == reference.tach_edges).all(), offset
+        same += 1
+    path.unlink()
+print(refused, same)
+"""
+
+
+def test_zeros_anywhere_in_the_metadata_are_refused_in_one_line_or_change_nothing(
+    recording, tmp_path
+):
+    """Every 512-byte window outside the stored chunks of the file's first 32 KiB (object
+    headers, attribute storage, B-trees): HDF5 once looped forever on a zeroed global heap."""
+    chunks = _stored_byte_ranges(recording)
+    offsets = [
+        offset for offset in range(0, min(32_768, recording.stat().st_size - 512), 512)
+        if not any(start < offset + 512 and offset < stop for start, stop, _ in chunks)
+    ]
+    done = subprocess.run(
+        [sys.executable, "-c", SWEEP_METADATA, str(recording), str(tmp_path), *map(str, offsets)],
+        cwd=REPO, capture_output=True, text=True, timeout=60, check=False,
+    )
+    assert done.returncode == 0, done.stderr[-3000:]
+    refused, same = map(int, done.stdout.split())
+    assert refused >= len(offsets) // 2, (refused, same)  # most of it is live metadata
+
+
+def test_a_killed_recording_with_damaged_metadata_is_refused_within_seconds(
+    killed_recording, tmp_path
+):
+    """A killed file is read for SWMR, whose checksum retries once waited for days."""
+    path = tmp_path / "killed.h5"
+    data = bytearray(killed_recording.read_bytes())
+    heap = data.find(b"FHDB")  # the root attributes' heap block (dense attribute storage)
+    assert heap > 0
+    data[heap : heap + 512] = bytes(512)
+    path.write_bytes(bytes(data))
+    started = time.monotonic()
+    done = run_cli("export", str(path), "--out", str(tmp_path / "x.csv"), timeout_s=60)
+    assert time.monotonic() - started < WITHIN_S
+    assert done.returncode == 2 and "Traceback" not in done.stderr
+    assert f"{path}: / is damaged" in done.stderr
+
+
+def test_text_attributes_are_fixed_length_strings(recording):
+    """No variable-length strings: they would live in the global heap, which has no checksum."""
+    with h5py.File(recording, "r") as f:
+        nodes = [f]
+        f.visititems(lambda name, node: nodes.append(node))
+        for node in nodes:
+            for key in node.attrs:
+                info = h5py.check_string_dtype(node.attrs.get_id(key).dtype)
+                assert info is None or info.length is not None, f"{node.name} {key}"
+    assert b"GCOL" not in recording.read_bytes()
 
 
 def test_the_superblock_checksum_is_hdf5s_lookup3(recording):

@@ -18,7 +18,8 @@ READER = """
 import json, sys, h5py
 f = h5py.File(sys.argv[1], "r", swmr=True)
 out = {"hdf5": h5py.version.hdf5_version, "h5py": h5py.version.version,
-       "format": f.attrs["format"], "version": int(f.attrs["format_version"])}
+       "format": f.attrs["format"].decode(), "version": int(f.attrs["format_version"]),
+       "provenance": json.loads(f.attrs["provenance_json"])}
 for name, group in f["channels"].items():
     out[name] = [int(group["raw"].shape[0]), float(group["time_s"][-1]),
                  bool(group["values"].fletcher32), float(group["values"][()].sum())]
@@ -50,6 +51,7 @@ def test_h5py_3_11_on_hdf5_1_14_opens_a_fresh_recording(old_h5py, recording):
     seen = json.loads(done.stdout)
     assert seen["hdf5"].startswith("1.14") and seen["h5py"] == "3.11.0"
     assert seen["format"] == "impact-rig recording" and seen["version"] == 3
+    assert seen["provenance"]["operator"] == "A. Tester"
     with open_recording(recording) as rec:
         for name in rec.channel_names:
             data = rec.channel(name)

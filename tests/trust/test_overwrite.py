@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import shutil
+import subprocess
 
+from rig.cli import main
 from tests.trust.conftest import run_cli
 
 
@@ -20,14 +22,22 @@ def _refused(done, path, why):
     assert "Traceback" not in done.stderr and str(path) in done.stderr and why in done.stderr
 
 
-def test_analyze_never_writes_its_report_over_its_input(tmp_path):
+def _in_process(capsys, *args: str) -> subprocess.CompletedProcess[str]:
+    """``impact-rig ARGS`` run by this process (as fast as a refusal should be)."""
+    capsys.readouterr()
+    status = main(list(args))
+    captured = capsys.readouterr()
+    return subprocess.CompletedProcess(args, status, captured.out, captured.err)
+
+
+def test_analyze_never_writes_its_report_over_its_input(tmp_path, capsys):
     csv = _decay_csv(tmp_path)
     before = csv.read_bytes()
     for flags in ([], ["--overwrite"]):
-        done = run_cli("analyze", str(csv), "--json", str(csv), *flags)
+        done = _in_process(capsys, "analyze", str(csv), "--json", str(csv), *flags)
         _refused(done, csv, "is an input of this command")
-        done = run_cli("analyze", str(csv), "--report", str(tmp_path), *flags)  # decay.json!
-        _refused(done, tmp_path / "decay.json", "is an input of this command")
+        done = _in_process(capsys, "analyze", str(csv), "--report", str(tmp_path), *flags)
+        _refused(done, tmp_path / "decay.json", "is an input of this command")  # the sidecar
     assert csv.read_bytes() == before
 
 
