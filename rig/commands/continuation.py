@@ -167,7 +167,7 @@ def run(args: argparse.Namespace) -> int:
         period_map = PeriodMap(model, name, args.period)
     except (ParameterError, ValueError) as error:
         raise CommandError(f"--vary {args.vary}: {error}") from None
-    progress = ProgressLine(args.quiet)
+    progress = ProgressLine()
     if args.from_state:
         guess = np.array(_parse_state(args.from_state))
     else:

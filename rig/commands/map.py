@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import argparse
 import math
-import sys
 from pathlib import Path
 from typing import Any
 
@@ -191,7 +190,7 @@ def _compute(
         _say(args, f"map {plan.kind}: {plan.trajectories} trajectories in {len(plan.tasks)} "
              f"tasks of up to {plan.batch} on {runner.workers} worker(s), {runner.where}"
              + (f"; {left} tasks left in {args.out}" if resume else ""))
-        line = ProgressLine(args.quiet)
+        line = ProgressLine()
         return runner.run(plan, store, lambda p: line(_progress_text(p)))
     finally:
         store.close()
@@ -342,5 +341,7 @@ def _progress_text(progress: Any) -> str:
 
 
 def _say(args: argparse.Namespace, text: str) -> None:
-    if not args.quiet:
-        print(text, file=sys.stderr, flush=True)
+    """A progress line (rig.logs.progress: on stderr unless --quiet, and in the log)."""
+    from rig.logs import progress
+
+    progress(text)
