@@ -70,8 +70,7 @@ def simulate_ensemble(
     initial states with one parameter vector, or a sweep from one initial state).
     Each member skips ``skip_s`` (rounded up to its whole drive periods), then
     records ``duration_s``: Poincare samples at ``poincare_phase`` and, with
-    ``fs_hz``, uniform samples.  ``workers`` threads (default: one per core; with 1,
-    the members run in the calling thread).
+    ``fs_hz``, uniform samples.  ``workers`` threads (default: one per core).
     """
     packed = np.atleast_2d(np.asarray(packed, dtype=float))
     initial = np.atleast_2d(np.asarray(initial, dtype=float))
@@ -152,14 +151,9 @@ def simulate_ensemble(
         n_steps[i] = int(state[ig.S_STEPS])
         status[i] = int(state[ig.S_STATUS])
 
-    threads = workers or os.cpu_count() or 1
-    if threads == 1:  # one worker: in this thread, no pool (the reference for speed-ups)
-        for i in range(n):
-            run_member(i)
-    else:
-        with ThreadPoolExecutor(max_workers=threads) as pool:
-            for _ in pool.map(run_member, range(n)):
-                pass  # re-raises a member's exception here
+    with ThreadPoolExecutor(max_workers=workers or os.cpu_count() or 1) as pool:
+        for _ in pool.map(run_member, range(n)):
+            pass  # re-raises a member's exception here
     names = np.array([ig.STATUS_NAMES[int(code)] for code in status])
     return EnsembleResult(
         poincare=poincare,
