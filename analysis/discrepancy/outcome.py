@@ -106,8 +106,9 @@ class Analysis:
         """Read the final model's residual (and keep the findings already made)."""
         best = self.final_outcome
         final = best.full if best is not None else self.baseline
-        curve = self.curves[1] if self.curves is not None and best is not None else \
-            self.curves[0] if self.curves is not None else None
+        curve = None
+        if self.curves is not None:  # forced records: the baseline's and the final model's
+            curve = self.curves[0] if best is None else self.curves[1]
         period = (self.regime or {}).get("period") or 1
         self.reading = read_residual(
             self.data.t, final.residual, self.data.valid, self.data.noise_rad,

@@ -79,10 +79,12 @@ def excursion_maxima(y: np.ndarray, valid: np.ndarray) -> np.ndarray:
     return np.array([filled[a:b].max() for a, b in zip(starts, ends, strict=False)])
 
 
-def barrier_level(y: np.ndarray, valid: np.ndarray) -> float:
+def barrier_level(y: np.ndarray, valid: np.ndarray,
+                  maxima: np.ndarray | None = None) -> float:
     """The measured angle where the swings stop: the median of the upper half of the
-    excursions' maxima above the record's median (impacts cluster there)."""
-    maxima = excursion_maxima(y, valid)
+    excursions' maxima above the record's median (impacts cluster there); ``maxima`` when
+    the caller has them already."""
+    maxima = excursion_maxima(y, valid) if maxima is None else maxima
     if maxima.size < 3:
         return float(np.nanmax(np.where(valid, y, np.nan)))
     top = np.sort(maxima)[maxima.size // 2:]
@@ -180,7 +182,7 @@ def _contact_levels(y: np.ndarray, valid: np.ndarray) -> list[float]:
     """Candidate contact levels, highest first: the barrier level, then quantiles of the
     excursions' maxima down to the lowest of the upper half."""
     maxima = excursion_maxima(y, valid)
-    levels = [barrier_level(y, valid)]
+    levels = [barrier_level(y, valid, maxima)]
     if maxima.size >= 3:
         levels += [float(q) for q in np.quantile(maxima, [0.6, 0.5, 0.4, 0.3, 0.2, 0.1])]
     return sorted({lv for lv in levels if lv <= levels[0]}, reverse=True)
