@@ -47,6 +47,7 @@ from analysis.discrepancy.localize import localize
 from analysis.discrepancy.outcome import Analysis, AnalysisError, CandidateOutcome
 from analysis.discrepancy.residual_reading import (
     Finding,
+    ResidualReading,
     drive_frequency_finding,
     read_residual,
     timing_finding,
@@ -73,6 +74,9 @@ from analysis.records import Record
 
 REFINED = 4  # candidates refined beyond the screening (those that gained), best first
 SEED_RMS = 1.2  # a full fit this close to the noise lends its segment states
+# once a refined cause leaves white noise, a candidate whose screening gained this much
+# less cannot rival it (nor be told apart from it, INDISTINCT_BIC): it is not refined
+RIVAL_SCREENED = 0.1
 MAX_CAUSES = 3  # the forward selection stops at this many causes
 ADDED = 2  # causes fitted over the record as the next step, best screened first
 STEP_SCREEN_ITERATIONS = 6  # a step's screening: each cause added to the current model
@@ -111,7 +115,8 @@ def analyze_forced_fits(
     """Identify, fit the baseline and every candidate, judge them.
 
     Every candidate is fitted for SCREEN_ITERATIONS; the REFINED best (by the information
-    criterion) and any other that already passes it are fitted to convergence; the ones
+    criterion) are fitted to convergence, except those that screened RIVAL_SCREENED times
+    below a refined cause that already leaves white noise; the ones
     that pass are then fitted to the training stretches for the forecast judge (or, on a
     chaotic record, run long for the invariant statistics).
     """
@@ -139,8 +144,14 @@ def analyze_forced_fits(
     base = ModelFits(NONE, base_full)
     say(f"baseline rms {base_full.rms:.3g} rad ({base_full.rms / data.noise_rad:.3g} x noise)")
     ranked = sorted(names, key=lambda n: -bic[n])
+    screened_gain = dict(bic)
     fits: dict[str, ShootingFit] = {}
+    complete = None  # the first refined cause that gains, is plausible and leaves white noise
     for name in [n for n in ranked if bic[n] > 0.0][:REFINED]:
+        if complete is not None and screened_gain[name] < RIVAL_SCREENED * screened_gain[complete]:
+            say(f"  {name} not fitted over the record: {complete} leaves white noise and "
+                f"{name} screened {screened_gain[complete] / screened_gain[name]:.3g} x lower")
+            continue
         # the best full fit so far lends its states when it fits the record closely
         best = min([base_full, *fits.values()], key=lambda f: f.rms)
         seed = best if best.rms < SEED_RMS * data.noise_rad else None
@@ -156,6 +167,9 @@ def analyze_forced_fits(
                              key=lambda f: f.rss)
         bic[name] = _bic(data, base, fits[name])
         say(f"  {name} over the record: BIC gain {bic[name]:.3g}")
+        if complete is None and bic[name] > BIC_MARGIN and not implausibility(
+                name, fits[name].values) and not _structured(data, fits[name], period):
+            complete = name
     for name in names:
         if name not in fits:  # judged on its screening: it did not come close
             bic[name] = min(bic[name], BIC_MARGIN)
@@ -236,8 +250,7 @@ def _forward_selection(
     distance = None
     names = [n for n in screened if n != NONE]
     while len(causes_in(current.cause)) < MAX_CAUSES:
-        left = read_residual(data.t, current.full.residual, data.valid, data.noise_rad,
-                             drive_frequency_hz=data.drive.frequency_hz, subharmonic=period)
+        left = _residual_reading(data, current.full, period)
         if not left.structured:
             say(f"  beside {current.cause}: {left.why}; no further cause tried")
             break
@@ -336,6 +349,17 @@ def _indistinct(
                         f"them apart; {accepted} is named for its slightly higher score"),
             })
     return out
+
+
+def _residual_reading(data: ForcedData, fit: ShootingFit, period: int) -> ResidualReading:
+    """The residual of a fit over the record, judged against the record's white noise."""
+    return read_residual(data.t, fit.residual, data.valid, data.noise_rad,
+                         drive_frequency_hz=data.drive.frequency_hz, subharmonic=period)
+
+
+def _structured(data: ForcedData, fit: ShootingFit, period: int) -> bool:
+    """Whether a fit over the record leaves more than white noise."""
+    return _residual_reading(data, fit, period).structured
 
 
 def _bic(data: ForcedData, base: ModelFits, fit: ShootingFit) -> float:
