@@ -155,9 +155,10 @@ def draw_unregistered_case(
     raise CauseHiddenError(f"seed {seed}: {effect} never showed ({', '.join(reasons)})")
 
 
-def with_effect(base: ForcedCase, effect: str, values: dict[str, float]) -> ForcedCase:
+def with_effect(base: ForcedCase, effect: str, values: dict[str, float], *,
+                judged: bool = True) -> ForcedCase:
     """The clean case ``base`` with one effect: its motion simulated again when the effect
-    moves the pendulum, the regime judged again, and how much of it shows."""
+    moves the pendulum, and (``judged``) the regime judged again and how much of it shows."""
     spec = EFFECTS[effect]
     case = replace(base, effects={effect: values})
     if effect == "drive_frequency_off":
@@ -166,8 +167,9 @@ def with_effect(base: ForcedCase, effect: str, values: dict[str, float]) -> Forc
     motion = base.motion
     if spec.moves_the_pendulum:
         motion = simulate_true_motion(case)
+    if spec.moves_the_pendulum and judged:
         extent = attractor_extent(motion.theta_rad, motion.theta_dot_rad_s)
         case = replace(case, regime_truth=judge_regime(
             case.pendulum(), case.table(), motion.strobe_s, motion.strobe_states, extent))
-    visibility = visibility_of(case, motion) if spec.shown_by_visibility else None
+    visibility = visibility_of(case, motion) if spec.shown_by_visibility and judged else None
     return replace(case, motion=motion, visibility=visibility)
