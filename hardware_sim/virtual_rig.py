@@ -20,7 +20,8 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from analysis.extensions import cause
-from analysis.model import Drive, Model, P
+from analysis.model import Drive, Model
+from analysis.packed import P
 from analysis.simulate import SimulationStoppedError, Stepper
 from hardware_sim.shaker_response import ShakerDynamics, ShakerOutput, ShakerResponse
 

@@ -60,7 +60,7 @@ class HiddenCause:
 def hidden_cause(name: str, given: Mapping[str, float] | None = None) -> HiddenCause:
     """Validate a cause name and its parameter values against the registry (defaults filled in)."""
     from analysis.extensions import cause
-    from analysis.model import ParameterError
+    from analysis.packed import ParameterError
 
     given = dict(given or {})
     if name == NONE:

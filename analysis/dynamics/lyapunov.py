@@ -20,7 +20,8 @@ import numpy as np
 
 from analysis.dynamics.embedding import delay_embed
 from analysis.dynamics.integrators import JittedFunction
-from analysis.model import P, acceleration
+from analysis.model import acceleration
+from analysis.packed import P
 
 
 @dataclass(frozen=True)
