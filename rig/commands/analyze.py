@@ -76,13 +76,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Analyse the record and print the verdict (and the JSON when no --json is given)."""
-    import analysis.hdf5_records
     from analysis.discrepancy import AnalysisError, analyze_record
     from analysis.discrepancy.analyze import priors_from_decays
     from analysis.identify import IdentificationError
     from analysis.output_paths import check_outputs, record_inputs
     from analysis.provenance import provenance
-    from analysis.records import RecordFormatError, load_record
+    from analysis.record_loaders import load_record
+    from analysis.records import RecordFormatError
     from analysis.report import write_report
     from analysis.report.discrepancy import report_json
 
