@@ -374,12 +374,6 @@ class VirtualRig:
         return s.adc.counts(s.laser.volts(x))
 
 
-# The former names, which read like the drivers' (opposite) calibrations; rig/devices.py
-# still imports them.
-PotentiometerCalibration = PotentiometerOutput
-LaserCalibration = LaserOutput
-
-
 def compile_physics(settings: VirtualRigSettings) -> None:
     """Compile the numba physics on a throwaway rig swinging into the barrier.
 
