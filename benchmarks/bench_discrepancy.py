@@ -43,7 +43,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from analysis.discrepancy import analyze_record
 from analysis.experiments import FORCED
-from analysis.records import load_record
+from analysis.record_loaders import load_record
 from tests.discrepancy.hidden_cause import SHOWS_IN, draw_case, write_case
 from tests.reference.cause_sizes import CHOICES
 from tests.reference.forced_records import draw_forced_case, draw_pair, write_forced_case

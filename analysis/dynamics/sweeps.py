@@ -15,7 +15,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from analysis.model import Model, P
+from analysis.model import Model
+from analysis.packed import P
 from analysis.simulate import simulate_ensemble
 
 Progress = Callable[[int, int], None]  # (runs done, runs in all)

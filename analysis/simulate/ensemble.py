@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from analysis.model import P
+from analysis.packed import P
 from analysis.simulate import integrator as ig
 from analysis.simulate.simulation import (
     DEFAULT_MAX_STEPS,

@@ -30,7 +30,7 @@ import numba
 import numpy as np
 from scipy.integrate._ivp import dop853_coefficients as _dop853
 
-from analysis.model import P
+from analysis.packed import P
 
 # Every kernel below may fuse a*b + c into one rounded fma (LLVM's "contract" only: no
 # reordering, no NaN or infinity shortcuts).  The Runge-Kutta stage sums are chains of

@@ -6,7 +6,8 @@ import math
 
 import numpy as np
 
-from analysis.model import Model, P
+from analysis.model import Model
+from analysis.packed import P
 from analysis.simulate import integrator as ig
 from analysis.simulate.result import ContactEvents, SimulationResult, StickEvents, Trajectory
 
@@ -109,7 +110,7 @@ def simulate_packed(
     atol: float = 1e-11,
     max_step_s: float = math.inf,
 ) -> SimulationResult:
-    """Simulate a packed parameter vector (layout ``analysis.model.P``).
+    """Simulate a packed parameter vector (layout ``analysis.packed.P``).
 
     The transient ``skip_s`` (rounded up to whole drive periods when forced) is
     integrated and discarded; then ``duration_s`` is recorded: samples at ``fs_hz``

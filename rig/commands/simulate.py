@@ -166,12 +166,12 @@ def build_model(
     from analysis.model import (
         Drive,
         Model,
-        ParameterError,
         RigParameters,
         from_nondimensional,
         paper_case,
         to_nondimensional,
     )
+    from analysis.packed import ParameterError
 
     rig_names = [f.name for f in fields(RigParameters)]
     cause_of = {
@@ -286,8 +286,8 @@ def run(args: argparse.Namespace) -> int:
 
     from analysis.exchange import ExchangeRecord, write_exchange
     from analysis.measurement import MeasurementModel, has_measurement_causes
-    from analysis.model import P, ParameterError
     from analysis.output_paths import check_outputs
+    from analysis.packed import P, ParameterError
     from analysis.simulate import simulate
 
     suffix = args.out.suffix.lower()
@@ -399,7 +399,7 @@ def _tach(t: Any, p: Any, fs_hz: float) -> Any:
     """1 on the sample nearest each instant of drive phase 0 (Omega t + phase0 = 2 pi k)."""
     import numpy as np
 
-    from analysis.model import P
+    from analysis.packed import P
 
     omega = p[P.OMEGA_DRIVE]
     tach = np.zeros(t.size, dtype=np.int64)

@@ -18,7 +18,7 @@ import sys
 import pytest
 
 from analysis.discrepancy import analyze_record
-from analysis.records import load_record
+from analysis.record_loaders import load_record
 from tests.reference.forced_records import draw_forced_case, draw_pair, write_forced_case
 from tests.reference.unregistered import EFFECTS, draw_unregistered_case
 

@@ -6,7 +6,8 @@ import math
 
 import numpy as np
 
-from analysis.model import Model, P, contact_force, paper_case, penetration, smooth_acceleration
+from analysis.model import Model, contact_force, paper_case, penetration, smooth_acceleration
+from analysis.packed import P
 from analysis.simulate.integrator import coefficients, region_acceleration
 
 # a typical size of every slot of the packed vector, by name (the random draw scales it)
