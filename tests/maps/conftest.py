@@ -33,11 +33,14 @@ TINY = {
 COMPARED = ("trajectories", "summary", "points", "axes")
 
 
-def run_map(*args: str, timeout: float = 120.0) -> subprocess.CompletedProcess:
-    """``impact-rig map ARGS`` in a new process, as a user runs it."""
+def run_map(
+    *args: str, timeout: float = 120.0, env: dict[str, str] | None = None
+) -> subprocess.CompletedProcess:
+    """``impact-rig map ARGS`` in a new process, as a user runs it (``env``: its whole
+    environment, default this process's)."""
     return subprocess.run(
         [sys.executable, "-m", "rig.cli", "map", *args],
-        capture_output=True, text=True, timeout=timeout,
+        capture_output=True, text=True, timeout=timeout, env=env,
     )
 
 

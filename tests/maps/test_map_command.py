@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import re
 import shutil
 import signal
@@ -21,7 +22,7 @@ from analysis.model import Drive, Model, RigParameters
 from analysis.recording_file import clear_writer_flags
 from analysis.records import Record
 from analysis.simulate import simulate
-from tests.maps.conftest import TINY, assert_same_map, finite_fraction, map_main
+from tests.maps.conftest import TINY, assert_same_map, finite_fraction, map_main, run_map
 
 
 def test_each_kind_writes_a_complete_map_with_its_provenance_and_figure(reference_maps):
@@ -160,6 +161,25 @@ def test_the_numbers_do_not_depend_on_how_the_map_is_cut_into_tasks(
         for group in ("trajectories", "summary"):
             for name, values in a[group].items():
                 assert values.tobytes() == b[group][name].tobytes(), (kind, group, name)
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(600)
+def test_a_map_is_the_same_whether_its_process_compiled_the_integrator_or_loaded_it(
+    tmp_path, reference_maps
+):
+    """On a fresh install the first map compiles the integrator and writes numba's cache;
+    later runs and every worker load it.  Both must compute the same numbers as this
+    process, whatever it compiled or loaded before (issue 20: they differed while the
+    kernels let LLVM fuse multiply-adds)."""
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "numba_cache"))  # empty: compile
+    for run in ("compiled", "loaded"):
+        out = tmp_path / f"{run}.h5"
+        result = run_map(*TINY["bifurcation"], "--workers", "1", "--quiet", "--out", str(out),
+                         timeout=400, env=env)
+        assert result.returncode == 0, result.stderr
+        assert_same_map(reference_maps["bifurcation"], out)
+    assert any((tmp_path / "numba_cache").rglob("*.nbi"))  # the second run had a cache
 
 
 def test_a_recorded_sweep_is_drawn_from_the_settled_poincare_points_of_its_steps(
