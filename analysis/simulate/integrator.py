@@ -32,10 +32,13 @@ from scipy.integrate._ivp import dop853_coefficients as _dop853
 
 from analysis.packed import P
 
-# Every kernel below may fuse a*b + c into one rounded fma (LLVM's "contract" only: no
-# reordering, no NaN or infinity shortcuts).  The Runge-Kutta stage sums are chains of
-# products: measured, the impact decay runs 10 % and case h 4 % faster.
-kernel = functools.partial(numba.njit, cache=True, fastmath={"contract"})
+# Strict IEEE arithmetic, no fast-math flags, not even "contract": with it, LLVM fuses
+# a*b + c into an fma wherever the code it is optimising allows, so the rounding depends on
+# how a kernel was inlined, and numba links a kernel's helpers from whichever copy the
+# process compiled or loaded first (a fresh compile, numba's cache, another kernel's).  The
+# same run then gave other numbers in a process that had compiled the integrator than in
+# one that loaded it, and maps differed between this process and their workers.
+kernel = functools.partial(numba.njit, cache=True)
 
 # ----------------------------------------------------------------------------- status codes
 

@@ -156,6 +156,29 @@ def parse_assignments(items: list[str]) -> dict[str, float]:
     return values
 
 
+def _cause_parameters(rig_names: list[str]) -> dict[str, str]:
+    """Parameter name -> the named cause it belongs to (rig parameters excluded)."""
+    from analysis.extensions import CAUSES
+
+    return {
+        spec.name: c.name
+        for c in CAUSES.values()
+        for spec in c.parameters
+        if spec.name not in rig_names
+    }
+
+
+def parameter_names() -> list[str]:
+    """Every name --param takes: rig, drive, nondimensional, then the causes' parameters."""
+    from dataclasses import fields
+
+    from analysis.model import RigParameters
+
+    rig_names = [f.name for f in fields(RigParameters)]
+    causes = sorted(_cause_parameters(rig_names))
+    return [*rig_names, *DRIVE_PARAMETERS, *NONDIMENSIONAL_PARAMETERS, *causes]
+
+
 def build_model(
     case: str | None, experiment: str | None, params: dict[str, float], causes: list[str]
 ) -> tuple[Any, str]:
@@ -174,13 +197,8 @@ def build_model(
     from analysis.packed import ParameterError
 
     rig_names = [f.name for f in fields(RigParameters)]
-    cause_of = {
-        spec.name: c.name
-        for c in CAUSES.values()
-        for spec in c.parameters
-        if spec.name not in rig_names
-    }
-    valid = [*rig_names, *DRIVE_PARAMETERS, *NONDIMENSIONAL_PARAMETERS, *sorted(cause_of)]
+    cause_of = _cause_parameters(rig_names)
+    valid = parameter_names()
     unknown = [name for name in params if name not in valid]
     if unknown:
         raise CommandError(
