@@ -90,6 +90,19 @@ def main() -> int:
     return 0
 
 
+def analyse_case(case, workers: int) -> tuple[dict | None, str | None, float]:
+    """Write a reference case as a lab's CSV + JSON and analyse it alone: the report (None
+    on a failure, which is then described), and the seconds the analysis took."""
+    with tempfile.TemporaryDirectory() as tmp:
+        path = write_forced_case(case, Path(tmp))
+        start = time.perf_counter()
+        try:
+            report, error = analyze_record(load_record(path), workers=workers).as_json(), None
+        except Exception as failure:  # a failure counts as a miss, with its reason shown
+            report, error = None, f"error: {type(failure).__name__}: {failure}"[:90]
+        return report, error, time.perf_counter() - start
+
+
 def run_unknown(args: argparse.Namespace) -> None:
     """Forced records with an effect no named cause describes (issue 15): never a confident
     named cause; flagged as unexplained or by the finding of the effect's kind."""
@@ -103,17 +116,12 @@ def run_unknown(args: argparse.Namespace) -> None:
         frequency = (2.0, 10.0)[(i + k) % 2]
         case = draw_unregistered_case(seed, effect, frequency_hz=frequency,
                                       duration_s=args.duration)
-        with tempfile.TemporaryDirectory() as tmp:
-            path = write_forced_case(case, Path(tmp))
-            start = time.perf_counter()
-            try:
-                report = analyze_record(load_record(path), workers=args.workers).as_json()
-                named = [c["cause"] for c in report["causes"]]
-                unexplained = bool(report.get("unexplained"))
-                kinds = sorted({f["kind"] for f in report.get("residual_findings", [])})
-            except Exception as error:  # a failure counts as nothing flagged
-                named, unexplained, kinds = [f"error: {type(error).__name__}"], False, []
-            elapsed = time.perf_counter() - start
+        report, error, elapsed = analyse_case(case, args.workers)
+        named, unexplained, kinds = [error], False, []  # a failure flags nothing
+        if report is not None:
+            named = [c["cause"] for c in report["causes"]]
+            unexplained = bool(report.get("unexplained"))
+            kinds = sorted({f["kind"] for f in report.get("residual_findings", [])})
         spec = EFFECTS[effect]
         right_kind = spec.finding is None or spec.finding in kinds
         rows.append(dict(effect=effect, domain=spec.domain, named=named,
@@ -163,16 +171,11 @@ def run_pairs(args: argparse.Namespace) -> None:
         except RuntimeError as error:  # no draw of the seed shows both: not identifiable
             print(f"[{i + 1}/{args.pairs}] {' + '.join(pair)}: not drawn ({error})"[:160])
             continue
-        with tempfile.TemporaryDirectory() as tmp:
-            path = write_forced_case(case, Path(tmp))
-            start = time.perf_counter()
-            try:
-                report = analyze_record(load_record(path), workers=args.workers).as_json()
-                found = {c["cause"] for c in report["causes"]}
-                apart = [p["causes"] for p in report.get("indistinct", [])]
-            except Exception as error:  # a failure counts as a miss, with its reason shown
-                found, apart = {f"error: {type(error).__name__}: {error}"[:90]}, []
-            elapsed = time.perf_counter() - start
+        report, error, elapsed = analyse_case(case, args.workers)
+        found, apart = {error}, []
+        if report is not None:
+            found = {c["cause"] for c in report["causes"]}
+            apart = [p["causes"] for p in report.get("indistinct", [])]
         rows.append(dict(pair=set(pair), found=found, seconds=elapsed))
         laser = "laser" if case.measurement.laser else "no laser"
         verdict = "both" if found == set(pair) else \
@@ -253,15 +256,9 @@ def run_forced(args: argparse.Namespace) -> None:
         seed = args.seed + 37 * i
         frequency = (2.0, 10.0)[(i + k) % 2]
         case = draw_forced_case(seed, truth, frequency_hz=frequency, duration_s=args.duration)
-        with tempfile.TemporaryDirectory() as tmp:
-            path = write_forced_case(case, Path(tmp))
-            start = time.perf_counter()
-            try:
-                report = analyze_record(load_record(path), workers=args.workers).as_json()
-                found = "+".join(sorted(c["cause"] for c in report["causes"])) or "none"
-            except Exception as error:  # a failure counts as a miss, with its reason shown
-                report, found = None, f"error: {type(error).__name__}: {error}"[:90]
-            elapsed = time.perf_counter() - start
+        report, error, elapsed = analyse_case(case, args.workers)
+        found = error if report is None else \
+            "+".join(sorted(c["cause"] for c in report["causes"])) or "none"
         noise = case.measurement.angle_noise_rad
         residual = report["baseline"]["rms_residual"] / noise if report else float("nan")
         right = regime_right(case, report) if report else False
