@@ -141,6 +141,10 @@ class TableMotion:
             return 0.0
         w = 2.0 * math.pi * self.frequency_hz
         phase = w * t + self.phase_rad
+        if self.am_depth == 0.0:  # a steady gain (kept in this order: records stay bitwise)
+            return -w * w * self.amplitude_m * (
+                math.sin(phase) + 4.0 * self.h2 * math.sin(2.0 * phase + self.phi2_rad)
+            )
         second = 2.0 * phase + self.phi2_rad
         shape = math.sin(phase) + self.h2 * math.sin(second)
         shape_rate = w * (math.cos(phase) + 2.0 * self.h2 * math.cos(second))
