@@ -28,8 +28,8 @@ from typing import Any
 import numpy as np
 from scipy import fft as sp_fft
 from scipy import ndimage, stats
-from scipy.signal import windows
 
+from analysis.dynamics.lines import FALSE_ALARM, find_lines, periodogram
 from analysis.dynamics.strobe import StrobeClock
 from analysis.identify.drive import fit_table
 from analysis.identify.intervals import Z95, sandwich_covariance
@@ -37,9 +37,6 @@ from analysis.identify.preprocess import noise_and_quantum
 
 KINDS = ("line", "drive_frequency", "trend", "timing", "outliers", "backbone")
 
-# Chance that a residual of pure white noise shows a given finding (or a given verdict
-# of structure): small enough that a benchmark of hundreds of clean records sees none.
-FALSE_ALARM = 1e-4
 Z_FINDING = float(stats.norm.isf(FALSE_ALARM / 2.0))  # two-sided: 3.89
 # Structure counts when its rms reaches this fraction of the noise's.  It then adds 2 %
 # to the residual's rms; a fit's own imperfections (parameters off by their standard
@@ -56,17 +53,7 @@ MIN_STRUCTURE = 0.2
 # which the fixed ratio this replaces let through, stands far above it.
 SCATTER_LIMIT = 1.75
 LJUNG_BOX_LAGS = 20
-# Spectrum: a Blackman-Harris window keeps a strong drive harmonic's leakage 92 dB down,
-# so its skirts never pass for lines; its equivalent noise bandwidth is 2 bins.
-WINDOW_BINS = 2.0
-FLOOR_WINDOW = 513  # bins of the running median that is a line's local noise floor
-RING = (8, 72)  # bins either side of a peak whose median it must also clear (a narrow line)
-MERGE_BINS = 6  # peaks closer than this are one line (the window's main lobe is +-4 bins)
-HARMONIC_GUARD_BINS = 6  # a peak this close to a drive harmonic is the harmonic's
-LINE_MIN_CYCLES = 10  # a line makes at least this many cycles over the record (else: trend)
 MAX_LINES = 5
-CLEAN_ROUNDS = 6  # fit-and-subtract rounds (gaps in the record leak a strong line's power)
-LEAK_SAFETY = 10.0  # a peak is a line only this far above what the gaps leak from the strongest
 # Heavy tails: beyond 5 sigma a Gaussian puts 5.7e-7 of its samples; the finding needs
 # significantly more, carrying at least this share of the squared detail (least squares
 # then spends that much of its attention on a few samples).
@@ -174,7 +161,7 @@ def read_residual(
     centred = np.where(ok, r - values.mean(), 0.0)
     # the white floor from the plain periodogram, which weighs every sample alike as the
     # mean square does (a window would weigh a spike by where it falls)
-    upper = _spectrum(centred, ok, window=False)[r.size // 4:]
+    upper = periodogram(centred, ok, window=False)[r.size // 4:]
     floor_power = float(np.median(upper)) / math.log(2.0)
     floor = math.sqrt(floor_power)
     excess = mean_square / floor_power - 1.0
@@ -386,15 +373,6 @@ def _checked(t_s, residual_rad, valid) -> tuple[np.ndarray, np.ndarray, np.ndarr
     return t, np.where(ok, r, 0.0), ok
 
 
-def _spectrum(filled: np.ndarray, ok: np.ndarray, *, window: bool = True) -> np.ndarray:
-    """Periodogram of a zero-filled sequence (Blackman-Harris window, or none), scaled so
-    that white noise of variance s^2 has every bin's expectation s^2 whatever the gaps
-    (bins 0..n/2)."""
-    taper = windows.blackmanharris(filled.size, sym=False) if window else np.ones(filled.size)
-    weight = taper * ok
-    return np.abs(sp_fft.rfft(filled * taper)) ** 2 / float(weight @ weight)
-
-
 def _ljung_box(r: np.ndarray, ok: np.ndarray, lags: int) -> tuple[float, float]:
     """Ljung-Box statistic over the valid pairs at each lag (gaps never pair) and its p."""
     x = np.where(ok, r - r[ok].mean(), 0.0)
@@ -412,75 +390,15 @@ def _ljung_box(r: np.ndarray, ok: np.ndarray, lags: int) -> tuple[float, float]:
 # --- lines ---------------------------------------------------------------------------
 
 
-def _line_threshold(tested: int) -> float:
-    """Power over the local floor that a bin of white noise passes with a chance of at most
-    FALSE_ALARM / tested: e^-tau per bin for an exact floor, tau raised so that the floor's
-    own scatter (the median of FLOOR_WINDOW / WINDOW_BINS independent bins, relative
-    variance s2 = 2.08 / that count) costs nothing: E[exp(-tau (1 + e))] = exp(-tau +
-    tau^2 s2 / 2) for a Gaussian error e."""
-    level = math.log(max(tested, 1) / FALSE_ALARM)
-    s2 = 2.08 * WINDOW_BINS / FLOOR_WINDOW
-    return (1.0 - math.sqrt(1.0 - 2.0 * s2 * level)) / s2
-
-
-def _local_floor(power: np.ndarray) -> np.ndarray:
-    """Per bin, the larger of the running median and the median of the ring of bins either
-    side of it (a peak on a broad hump or on the skirt of low frequencies is no line)."""
-    wide = ndimage.median_filter(power, size=FLOOR_WINDOW, mode="reflect")
-    ring = np.zeros(2 * RING[1] + 1, dtype=bool)
-    ring[: RING[1] - RING[0] + 1] = True
-    ring[RING[1] + RING[0]:] = True
-    near = ndimage.median_filter(power, footprint=ring, mode="reflect")
-    return np.maximum(wide, near) / math.log(2.0)
-
-
 def _lines(t, r, ok, floor_rad, base_hz, drive_hz) -> list[Finding]:
-    """Spectral lines off the drive's harmonics, found against the local floor.
-
-    The residual's periodic part at ``base_hz`` (all the drive's harmonics at once, its
-    average over each phase of the period) is taken out first, so that no harmonic leaks
-    through the record's gaps; peaks near a harmonic are never lines.  Lines are then
-    found in rounds: the strongest peaks that pass the threshold (and exceed what the
-    gaps could leak from the strongest, ``_leakage``) are fitted by least squares on the
-    valid samples, exact despite the gaps, and subtracted; the next round looks again.
-    """
-    size = r.size
-    dt = float(t[1] - t[0])
-    df = 1.0 / (size * dt)
-    first = max(LINE_MIN_CYCLES, RING[1])
-    last = size // 2 - MERGE_BINS
-    if last <= first:
-        return []
-    allowed = np.ones(size // 2 + 1, dtype=bool)
-    if base_hz is not None:
-        r = r - _periodic_part(t, r, ok, base_hz)
-        frequencies = np.arange(allowed.size) * df
-        nearest = np.maximum(np.rint(frequencies / base_hz), 1.0) * base_hz
-        allowed = np.abs(frequencies - nearest) > HARMONIC_GUARD_BINS * df
-    threshold = _line_threshold(int(np.count_nonzero(allowed[first:last])))
-    leak = _leakage(ok)
-    fitted: list[float] = []  # frequencies [Hz] of the lines fitted so far
-    remaining = r
-    for _ in range(CLEAN_ROUNDS):
-        power = _spectrum(np.where(ok, remaining - remaining[ok].mean(), 0.0), ok)
-        ratio = np.where(allowed, power / _local_floor(power), 0.0)
-        found = [_refine(power, k) * df
-                 for k in _peaks(ratio, power, first, last, threshold, leak)]
-        found = [f for f in found if all(abs(f - g) > MERGE_BINS * df for g in fitted)]
-        if not found:
-            break
-        fitted += found
-        remaining = r - _fit_sines(t, r, ok, fitted)[0]
-    if not fitted:
-        return []
-    _, amplitudes = _fit_sines(t, r, ok, fitted)
+    """Spectral lines off the drive's harmonics (:func:`analysis.dynamics.lines.find_lines`)
+    big enough to matter, as findings, largest first."""
     out = []
-    for frequency, amplitude in sorted(zip(fitted, amplitudes, strict=True),
-                                       key=lambda fa: -fa[1]):
+    for frequency, amplitude in find_lines(t, r, ok, base_hz):
         if amplitude / math.sqrt(2.0) < MIN_STRUCTURE * floor_rad:
             continue
-        numbers = {"frequency_hz": frequency, "amplitude_rad": float(amplitude),
-                   "amplitude_over_noise": float(amplitude / floor_rad)}
+        numbers = {"frequency_hz": frequency, "amplitude_rad": amplitude,
+                   "amplitude_over_noise": amplitude / floor_rad}
         where = ""
         if drive_hz is not None:
             numbers["drive_frequency_hz"] = float(drive_hz)
@@ -490,64 +408,6 @@ def _lines(t, r, ok, floor_rad, base_hz, drive_hz) -> list[Finding]:
                                    f" ({amplitude / floor_rad:.2g} x the noise){where}",
                            numbers))
     return out[:MAX_LINES]
-
-
-def _periodic_part(t, r, ok, base_hz) -> np.ndarray:
-    """The residual's average over each phase of the period 1 / base_hz (one bin a sample),
-    read back at every sample's phase by linear interpolation round the period."""
-    bins = max(8, round(1.0 / (base_hz * float(t[1] - t[0]))))
-    position = ((t - t[0]) * base_hz % 1.0) * bins
-    index = np.minimum(position.astype(np.int64), bins - 1)
-    counts = np.bincount(index[ok], minlength=bins)
-    sums = np.bincount(index[ok], weights=r[ok], minlength=bins)
-    profile = np.where(counts > 0, sums / np.maximum(counts, 1), 0.0)
-    centres = np.arange(bins) + 0.5
-    return np.interp(position, centres, profile, period=bins)
-
-
-def _leakage(ok: np.ndarray) -> float:
-    """The largest share of a line's power that the record's gaps move to another bin
-    beyond the window's main lobe (0 without gaps)."""
-    if ok.all():
-        return 0.0
-    mask = _spectrum(ok.astype(float), np.ones_like(ok))
-    return float(mask[MERGE_BINS:].max() / mask[0])
-
-
-def _peaks(ratio, power, first, last, threshold, leak) -> list[int]:
-    """Bins that pass ``threshold``, are the largest within MERGE_BINS and stand above
-    what the gaps could leak from this round's strongest peak."""
-    candidates = np.flatnonzero(ratio[first:last] > threshold) + first
-    if candidates.size == 0:
-        return []
-    strongest = float(power[candidates].max())
-    peaks = []
-    for k in candidates[np.argsort(-power[candidates])]:
-        if any(abs(k - j) <= MERGE_BINS for j in peaks):
-            continue
-        if power[k] < LEAK_SAFETY * leak * strongest:
-            break
-        peaks.append(int(k))
-    return peaks
-
-
-def _refine(power: np.ndarray, k: int) -> float:
-    """The peak's position in bins: a parabola through the log power of three bins."""
-    a, b, c = np.log(np.maximum(power[k - 1: k + 2], 1e-300))
-    curvature = a - 2.0 * b + c
-    return k + (0.5 * (a - c) / curvature if curvature < 0 else 0.0)
-
-
-def _fit_sines(t, r, ok, frequencies_hz) -> tuple[np.ndarray, np.ndarray]:
-    """Least-squares sines at the given frequencies (and a constant) on the valid samples:
-    the fitted curve over the whole record and each sine's amplitude."""
-    tt = t - t[0]
-    columns = [np.ones_like(tt)]
-    for f in frequencies_hz:
-        columns += [np.sin(2.0 * math.pi * f * tt), np.cos(2.0 * math.pi * f * tt)]
-    basis = np.column_stack(columns)
-    coef, *_ = np.linalg.lstsq(basis[ok], r[ok], rcond=None)
-    return basis @ coef, np.hypot(coef[1::2], coef[2::2])
 
 
 # --- trends and outliers -------------------------------------------------------------
