@@ -17,6 +17,14 @@ from typing import Any
 
 import numpy as np
 
+from analysis.dynamics.lines import (
+    MERGE_BINS,
+    find_lines,
+    line_threshold,
+    local_floor,
+    periodic_part,
+    periodogram,
+)
 from analysis.dynamics.regime import Regime, harmonic_content, harmonic_text
 from analysis.dynamics.spectrum import amplitude_spectrum
 from analysis.dynamics.strobe import StrobeSamples, strobe_record
@@ -48,6 +56,13 @@ SETTLING_EQUATIONS_PER_POINT = 5
 TRANSIENT_STEPS = 20  # transient lengths tried: the record's first half in this many steps
 CHAOS_K = 0.5  # 0-1 test K above this: chaotic by the 0-1 test
 MIN_ZERO_ONE_SAMPLES = 50  # the 0-1 test's least
+# An added line (a hum) is steady: its fits to the two halves of the record differ by at
+# most this many standard errors plus this share of its amplitude (a free oscillation
+# decays by far more over a record; a sensor's hum wanders by far less).
+STEADY_Z = 4.0
+STEADY_RELATIVE = 0.25
+SIDEBAND_BINS = 2  # bins either side of an expected sideband searched for it
+MIN_LINE_SAMPLES = 1024  # fewer valid samples: no added line is looked for
 
 
 def judge_regime(
@@ -141,13 +156,125 @@ def judge_record_regime(
 ) -> tuple[Regime, StrobeSamples]:
     """Strobe a forced record (on its tach, else on the stated drive) and judge its regime.
 
-    Returns the regime and the strobe points (the settled section is
-    ``strobe.section[regime.evidence['transient_periods']:]`` for a periodic record).
+    Lines the pendulum cannot have made (:func:`additive_lines`: a hum in the sensor) are
+    taken out first: strobed, such a line aliases into a pattern that repeats after
+    some k periods and would pass for a period-k orbit.  They are in the evidence as
+    'additive_lines'.  Returns the regime and the strobe points of the record judged
+    (the settled section is ``strobe.section[regime.evidence['transient_periods']:]``
+    for a periodic record).
     """
     strobe = strobe_record(
         theta, fs_hz, tach_indices=tach_indices, frequency_hz=frequency_hz, phase_rad=phase_rad
     )
-    return judge_regime(strobe, noise_rad, theta=theta, max_period=max_period), strobe
+    lines = additive_lines(theta, fs_hz, strobe.clock.frequency_hz)
+    if not lines:
+        return judge_regime(strobe, noise_rad, theta=theta, max_period=max_period), strobe
+    t = np.arange(np.asarray(theta).size) / fs_hz
+    cleaned = np.asarray(theta, dtype=float) - sum(line.at(t) for line in lines)
+    strobe = strobe_record(
+        cleaned, fs_hz, tach_indices=tach_indices, frequency_hz=frequency_hz,
+        phase_rad=phase_rad,
+    )
+    regime = judge_regime(strobe, noise_rad, theta=cleaned, max_period=max_period)
+    evidence = dict(regime.evidence)
+    evidence["additive_lines"] = [line.as_json() for line in lines]
+    taken = ", ".join(f"{line.frequency_hz:.4g} Hz" for line in lines)
+    label = f"{regime.label}; a line at {taken} taken out (no sidebands: not the pendulum's)"
+    return Regime(regime.kind, regime.period, label, MappingProxyType(evidence)), strobe
+
+
+@dataclass(frozen=True)
+class AdditiveLine:
+    """A steady tone added to the record, not made by the pendulum (see additive_lines)."""
+
+    frequency_hz: float
+    amplitude_rad: float
+    phase_rad: float  # of the cosine at sample 0
+
+    def at(self, t_s: np.ndarray) -> np.ndarray:
+        """The line's value at times ``t_s`` [s] from the record's first sample."""
+        return self.amplitude_rad * np.cos(2.0 * math.pi * self.frequency_hz * t_s
+                                           + self.phase_rad)
+
+    def as_json(self) -> dict[str, float]:
+        return {"frequency_hz": self.frequency_hz, "amplitude_rad": self.amplitude_rad}
+
+
+def additive_lines(theta: np.ndarray, fs_hz: float, drive_hz: float) -> tuple[AdditiveLine, ...]:
+    """Lines above the drive frequency that the pendulum cannot have made.
+
+    Whatever the pendulum does at a frequency off the drive's harmonics, it does through
+    the impacts and its own nonlinearity, which mix it with the drive: its line has
+    sidebands at f_line +- f and +- 2 f.  A sensor's hum has none, and it is steady: the
+    same amplitude and phase in either half of the record.  A line found off the drive's
+    harmonics (:func:`analysis.dynamics.lines.find_lines`) counts as added when it lies
+    above the drive frequency, no sideband stands above the floor, it is no sideband or
+    second harmonic of another line found, and its halves agree within STEADY_Z standard
+    errors plus STEADY_RELATIVE of its size.
+    A torus or a subharmonic orbit has sidebands; a decaying free oscillation is not
+    steady; below the drive frequency the pendulum's own linear response is left alone.
+    """
+    x = np.asarray(theta, dtype=float)
+    ok = np.isfinite(x)
+    if x.size < 2 or np.count_nonzero(ok) < MIN_LINE_SAMPLES:
+        return ()
+    t = np.arange(x.size) / fs_hz
+    filled = np.where(ok, x, 0.0)
+    found = find_lines(t, filled, ok, drive_hz)
+    if not found:
+        return ()
+    residual = np.where(ok, filled - periodic_part(t, filled, ok, drive_hz), 0.0)
+    power = periodogram(np.where(ok, residual - residual[ok].mean(), 0.0), ok)
+    floor = local_floor(power)
+    df = fs_hz / x.size
+    lines = []
+    for frequency, _ in found:
+        if frequency <= drive_hz:
+            continue
+        sidebands = [frequency + j * drive_hz for j in (-2, -1, 1, 2)]
+        sidebands = [s for s in sidebands if 0.0 < s < fs_hz / 2.0 - MERGE_BINS * df]
+        mixed = [m * g + j * drive_hz for g, _ in found if g != frequency
+                 for m in (1, 2) for j in range(-2, 3)]
+        if any(abs(frequency - c) <= MERGE_BINS * df for c in mixed):
+            continue  # a sideband or a harmonic of another line: part of one motion
+        if _sideband_shows(power, floor, sidebands, df):
+            continue
+        line = _steady_line(t, residual, ok, frequency)
+        if line is not None:
+            lines.append(line)
+    return tuple(lines)
+
+
+def _sideband_shows(power: np.ndarray, floor: np.ndarray, sidebands: list[float],
+                    df: float) -> bool:
+    """Whether any bin within SIDEBAND_BINS of an expected sideband passes the line
+    threshold for the bins so searched."""
+    bins = [np.arange(round(s / df) - SIDEBAND_BINS, round(s / df) + SIDEBAND_BINS + 1)
+            for s in sidebands]
+    if not bins:
+        return False
+    searched = np.clip(np.concatenate(bins), 0, power.size - 1)
+    return bool(np.any(power[searched] / floor[searched] > line_threshold(searched.size)))
+
+
+def _steady_line(
+    t: np.ndarray, residual: np.ndarray, ok: np.ndarray, frequency_hz: float
+) -> AdditiveLine | None:
+    """The line fitted over the whole record when its fits to each half agree, else None."""
+    def fit(mask: np.ndarray) -> tuple[complex, float]:
+        phase = 2.0 * math.pi * frequency_hz * t[mask]
+        basis = np.column_stack([np.ones(phase.size), np.cos(phase), np.sin(phase)])
+        coef, *_ = np.linalg.lstsq(basis, residual[mask], rcond=None)
+        spread = float(np.std(residual[mask] - basis @ coef))
+        return complex(coef[1], -coef[2]), spread * math.sqrt(2.0 / phase.size)
+
+    half = t.size // 2
+    first, second = np.zeros_like(ok), np.zeros_like(ok)
+    first[:half], second[half:] = ok[:half], ok[half:]
+    (c1, s1), (c2, s2), (whole, _) = fit(first), fit(second), fit(ok)
+    if abs(c1 - c2) > STEADY_Z * math.hypot(s1, s2) + STEADY_RELATIVE * abs(whole):
+        return None
+    return AdditiveLine(float(frequency_hz), abs(whole), float(np.angle(whole)))
 
 
 @dataclass(frozen=True)

@@ -10,12 +10,15 @@ Lyapunov exponent).  Records last 30 s, half the benchmark's: their truth holds 
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
 from analysis.dynamics import judge_record_regime
 from analysis.identify.preprocess import noise_and_quantum
 from tests.reference.forced_records import draw_forced_case, generate
+from tests.reference.unregistered import draw_unregistered_case
 
 RECORD_S = 30.0
 DRIVE_HZ = 10.0
@@ -31,6 +34,8 @@ def _judge(case, *, noise_understated: float = 1.0):
         tach_indices=np.flatnonzero(record.tach),
         frequency_hz=case.drive.stated_frequency_hz,
     )
+    if not case.effects:  # the pendulum's own lines are never taken for a hum
+        assert "additive_lines" not in regime.evidence, regime.label
     return regime
 
 
@@ -98,3 +103,18 @@ def test_a_long_period_is_found_and_never_read_as_chaos(seed, cause, period):
     for understated in (2.0, 3.0):
         regime = _judge(case, noise_understated=understated)
         assert regime.kind != "chaotic", regime.label
+
+
+@pytest.mark.parametrize("seed", [11, 12])
+def test_a_sensor_hum_is_taken_out_before_the_strobe(seed):
+    """A hum off every drive (sub)harmonic, 1-3 noises in size at a random frequency,
+    aliases on the strobe points into a pattern that repeats after some k periods (or
+    never): the record is judged as it is without it, and the hum is reported."""
+    case = draw_unregistered_case(seed, "sensor_hum", frequency_hz=2.0, duration_s=RECORD_S)
+    hum = case.effects["sensor_hum"]
+    regime = _judge(case)
+    truth = _judge(replace(case, effects={}))
+    assert (regime.kind, regime.period) == (truth.kind, truth.period), regime.label
+    [line] = regime.evidence["additive_lines"]
+    assert abs(line["frequency_hz"] - hum["frequency_hz"]) < 1.0 / RECORD_S
+    assert line["amplitude_rad"] == pytest.approx(hum["amplitude_rad"], rel=0.25)
