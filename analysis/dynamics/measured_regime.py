@@ -239,7 +239,7 @@ def additive_lines(theta: np.ndarray, fs_hz: float, drive_hz: float) -> tuple[Ad
             continue  # a sideband or a harmonic of another line: part of one motion
         if _sideband_shows(power, floor, sidebands, df):
             continue
-        line = _steady_line(t, residual, ok, frequency)
+        line = _steady_line(t, residual, ok, frequency, float(floor[round(frequency / df)]))
         if line is not None:
             lines.append(line)
     return tuple(lines)
@@ -258,15 +258,20 @@ def _sideband_shows(power: np.ndarray, floor: np.ndarray, sidebands: list[float]
 
 
 def _steady_line(
-    t: np.ndarray, residual: np.ndarray, ok: np.ndarray, frequency_hz: float
+    t: np.ndarray, residual: np.ndarray, ok: np.ndarray, frequency_hz: float,
+    floor_power: float,
 ) -> AdditiveLine | None:
-    """The line fitted over the whole record when its fits to each half agree, else None."""
+    """The line fitted over the whole record when its fits to each half agree, else None.
+
+    A half's cosine and sine coefficients each have the standard error
+    sqrt(2 floor / samples), ``floor_power`` being the local noise floor at the line's
+    frequency (the power of white noise of that level): the record's noise near the line,
+    not the whole residual's, which a chaotic motion's broadband swells."""
     def fit(mask: np.ndarray) -> tuple[complex, float]:
         phase = 2.0 * math.pi * frequency_hz * t[mask]
         basis = np.column_stack([np.ones(phase.size), np.cos(phase), np.sin(phase)])
         coef, *_ = np.linalg.lstsq(basis, residual[mask], rcond=None)
-        spread = float(np.std(residual[mask] - basis @ coef))
-        return complex(coef[1], -coef[2]), spread * math.sqrt(2.0 / phase.size)
+        return complex(coef[1], -coef[2]), math.sqrt(2.0 * floor_power / phase.size)
 
     half = t.size // 2
     first, second = np.zeros_like(ok), np.zeros_like(ok)
