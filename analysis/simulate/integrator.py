@@ -30,7 +30,16 @@ import numba
 import numpy as np
 from scipy.integrate._ivp import dop853_coefficients as _dop853
 
-from analysis.model import P
+from analysis.model import (
+    K_GAIN,
+    K_SHAFT,
+    K_STIFFNESS,
+    P,
+    coefficients,
+    region_acceleration,
+    sliding_acceleration,
+    sliding_direction,
+)
 
 # Every kernel below may fuse a*b + c into one rounded fma (LLVM's "contract" only: no
 # reordering, no NaN or infinity shortcuts).  The Runge-Kutta stage sums are chains of
@@ -118,9 +127,9 @@ def _power_basis() -> np.ndarray:
         for j in range(DEGREE - 1, -1, -1):
             poly = poly + (1.0 if j == i else 0.0)
             poly = poly * (s if j % 2 == 0 else 1.0 - s)
-        coefficients = np.zeros(DEGREE + 1)
-        coefficients[: poly.coef.size] = poly.coef
-        basis[:, i] = coefficients[1:]
+        padded = np.zeros(DEGREE + 1)
+        padded[: poly.coef.size] = poly.coef
+        basis[:, i] = padded[1:]
     return basis
 
 
@@ -142,83 +151,19 @@ STUCK_SCAN_PER_PERIOD = 128  # release search resolution while stuck under forci
 
 
 # ----------------------------------------------------------------------------- right-hand side
-# The kernel evaluates analysis.model.smooth_acceleration with the packed vector's entries
-# hoisted into a tuple of scalars once per call, sin/cos of theta taken once per stage, the
-# drive's second harmonic and the general power law skipped when they are off.  The terms
-# are exactly those of analysis.model (tests/simulate/test_rhs.py checks equality over
-# random packed vectors); the physics is defined there, not here.
-
-K_OMEGA2, K_TWO_ZETA_OMEGA, K_C2, K_INV_L, K_OMEGA_DRIVE, K_PHASE0 = 0, 1, 2, 3, 4, 5
-K_A1, K_A2, K_PHI2, K_GAIN, K_SHAFT, K_STIFFNESS, K_EXPONENT = 6, 7, 8, 9, 10, 11, 12
-K_MU0, K_C_VISCOUS, K_SIN_THETA_B, K_CONTACT_ON, K_HERTZ, K_FORCED, K_HARMONIC2 = (
-    13,
-    14,
-    15,
-    16,
-    17,
-    18,
-    19,
-)
+# The right-hand side is analysis.model's definition of the equations, not a copy: its
+# functions are inlined into these kernels (and compiled with their flags).  numba's cache
+# tracks only a kernel's own file, so after editing the equations in analysis/model.py
+# delete this folder's __pycache__ (tests/simulate/test_rhs.py finds a stale cache: the
+# kernels' right-hand side then differs from the model's).
 
 
 @kernel
-def coefficients(p, contact):
-    """The packed vector as a tuple of scalars for the kernel; ``contact`` False drops the
-    barrier term (free-flight region)."""
-    forced = p[P.OMEGA_DRIVE] != 0.0 and (p[P.A1] != 0.0 or p[P.A2] != 0.0)
-    return (
-        p[P.OMEGA2],
-        p[P.TWO_ZETA_OMEGA],
-        p[P.C2],
-        p[P.INV_L],
-        p[P.OMEGA_DRIVE],
-        p[P.PHASE0],
-        p[P.A1],
-        p[P.A2],
-        p[P.PHI2],
-        p[P.CONTACT_GAIN],
-        p[P.SHAFT_L],
-        p[P.K],
-        p[P.EXPONENT],
-        p[P.MU0],
-        p[P.C_VISCOUS],
-        p[P.SIN_THETA_B],
-        1.0 if (contact and p[P.BARRIER] != 0.0) else 0.0,
-        1.0 if p[P.EXPONENT] == 1.5 else 0.0,
-        1.0 if forced else 0.0,
-        1.0 if p[P.A2] != 0.0 else 0.0,
-    )
-
-
-@kernel
-def region_acceleration(t, th, om, k):
-    """analysis.model.smooth_acceleration for the coefficient tuple ``k`` (see above)."""
-    s = math.sin(th)
-    c = math.cos(th)
-    acc = -k[K_TWO_ZETA_OMEGA] * om - k[K_C2] * om * abs(om) - k[K_OMEGA2] * s
-    if k[K_FORCED] != 0.0:
-        w = k[K_OMEGA_DRIVE]
-        phase = w * t + k[K_PHASE0]
-        drive = k[K_A1] * math.sin(phase)
-        if k[K_HARMONIC2] != 0.0:
-            drive += 4.0 * k[K_A2] * math.sin(2.0 * phase + k[K_PHI2])
-        acc += w * w * drive * k[K_INV_L] * c
-    if k[K_CONTACT_ON] != 0.0 and c > 0.0:
-        delta = k[K_SHAFT] * (s - k[K_SIN_THETA_B])
-        if delta > 0.0:
-            delta_dot = k[K_SHAFT] * c * om
-            power = delta * math.sqrt(delta) if k[K_HERTZ] != 0.0 else delta ** k[K_EXPONENT]
-            force = k[K_STIFFNESS] * power * (1.0 + k[K_MU0] * delta_dot)
-            force += k[K_C_VISCOUS] * delta_dot
-            if force > 0.0:
-                acc -= k[K_GAIN] * force
-    return acc
-
-
-@kernel
-def _acc(t, th, om, pr, slide, tc):
-    """theta'' of the current region: smooth terms plus friction in a fixed direction."""
-    return region_acceleration(t, th, om, pr) - slide * tc
+def rhs(t, th, om, pr, slide, tc):
+    """The right-hand side theta'' every step integrates: the model's equation for the
+    region's coefficients ``pr`` (contact term or not), sliding in direction ``slide``
+    against the friction acceleration ``tc``."""
+    return sliding_acceleration(t, th, om, pr, slide, tc)
 
 
 @kernel(inline="always")  # one call site; a call would pass ~40 arguments
@@ -234,30 +179,30 @@ def _rk_step(t, th, om, a0, h, pr, slide, tc, kth, kom, rtol, atol, om_floor):
     A = A853
     v0 = om
     v1 = om + h * (A[1, 0] * a0)
-    a1 = _acc(t + C853[1] * h, th + h * (A[1, 0] * v0), v1, pr, slide, tc)
+    a1 = rhs(t + C853[1] * h, th + h * (A[1, 0] * v0), v1, pr, slide, tc)
     v2 = om + h * (A[2, 0] * a0 + A[2, 1] * a1)
-    a2 = _acc(t + C853[2] * h, th + h * (A[2, 0] * v0 + A[2, 1] * v1), v2, pr, slide, tc)
+    a2 = rhs(t + C853[2] * h, th + h * (A[2, 0] * v0 + A[2, 1] * v1), v2, pr, slide, tc)
     v3 = om + h * (A[3, 0] * a0 + A[3, 2] * a2)
-    a3 = _acc(t + C853[3] * h, th + h * (A[3, 0] * v0 + A[3, 2] * v2), v3, pr, slide, tc)
+    a3 = rhs(t + C853[3] * h, th + h * (A[3, 0] * v0 + A[3, 2] * v2), v3, pr, slide, tc)
     v4 = om + h * (A[4, 0] * a0 + A[4, 2] * a2 + A[4, 3] * a3)
-    a4 = _acc(
+    a4 = rhs(
         t + C853[4] * h, th + h * (A[4, 0] * v0 + A[4, 2] * v2 + A[4, 3] * v3), v4, pr, slide, tc
     )
     v5 = om + h * (A[5, 0] * a0 + A[5, 3] * a3 + A[5, 4] * a4)
-    a5 = _acc(
+    a5 = rhs(
         t + C853[5] * h, th + h * (A[5, 0] * v0 + A[5, 3] * v3 + A[5, 4] * v4), v5, pr, slide, tc
     )
     v6 = om + h * (A[6, 0] * a0 + A[6, 3] * a3 + A[6, 4] * a4 + A[6, 5] * a5)
     d6 = A[6, 0] * v0 + A[6, 3] * v3 + A[6, 4] * v4 + A[6, 5] * v5
-    a6 = _acc(t + C853[6] * h, th + h * d6, v6, pr, slide, tc)
+    a6 = rhs(t + C853[6] * h, th + h * d6, v6, pr, slide, tc)
     v7 = om + h * (A[7, 0] * a0 + A[7, 3] * a3 + A[7, 4] * a4 + A[7, 5] * a5 + A[7, 6] * a6)
     d7 = A[7, 0] * v0 + A[7, 3] * v3 + A[7, 4] * v4 + A[7, 5] * v5 + A[7, 6] * v6
-    a7 = _acc(t + C853[7] * h, th + h * d7, v7, pr, slide, tc)
+    a7 = rhs(t + C853[7] * h, th + h * d7, v7, pr, slide, tc)
     v8 = om + h * (
         A[8, 0] * a0 + A[8, 3] * a3 + A[8, 4] * a4 + A[8, 5] * a5 + A[8, 6] * a6 + A[8, 7] * a7
     )
     d8 = A[8, 0] * v0 + A[8, 3] * v3 + A[8, 4] * v4 + A[8, 5] * v5 + A[8, 6] * v6 + A[8, 7] * v7
-    a8 = _acc(t + C853[8] * h, th + h * d8, v8, pr, slide, tc)
+    a8 = rhs(t + C853[8] * h, th + h * d8, v8, pr, slide, tc)
     v9 = om + h * (
         A[9, 0] * a0
         + A[9, 3] * a3
@@ -276,7 +221,7 @@ def _rk_step(t, th, om, a0, h, pr, slide, tc, kth, kom, rtol, atol, om_floor):
         + A[9, 7] * v7
         + A[9, 8] * v8
     )
-    a9 = _acc(t + C853[9] * h, th + h * d9, v9, pr, slide, tc)
+    a9 = rhs(t + C853[9] * h, th + h * d9, v9, pr, slide, tc)
     v10 = om + h * (
         A[10, 0] * a0
         + A[10, 3] * a3
@@ -297,7 +242,7 @@ def _rk_step(t, th, om, a0, h, pr, slide, tc, kth, kom, rtol, atol, om_floor):
         + A[10, 8] * v8
         + A[10, 9] * v9
     )
-    a10 = _acc(t + C853[10] * h, th + h * d10, v10, pr, slide, tc)
+    a10 = rhs(t + C853[10] * h, th + h * d10, v10, pr, slide, tc)
     v11 = om + h * (
         A[11, 0] * a0
         + A[11, 3] * a3
@@ -320,7 +265,7 @@ def _rk_step(t, th, om, a0, h, pr, slide, tc, kth, kom, rtol, atol, om_floor):
         + A[11, 9] * v9
         + A[11, 10] * v10
     )
-    a11 = _acc(t + C853[11] * h, th + h * d11, v11, pr, slide, tc)
+    a11 = rhs(t + C853[11] * h, th + h * d11, v11, pr, slide, tc)
     # the 8th-order solution and the two error estimates share stages 0 and 5-11
     B = B853
     th1 = th + h * (
@@ -343,7 +288,7 @@ def _rk_step(t, th, om, a0, h, pr, slide, tc, kth, kom, rtol, atol, om_floor):
         + B[10] * a10
         + B[11] * a11
     )
-    a12 = _acc(t + h, th1, om1, pr, slide, tc)
+    a12 = rhs(t + h, th1, om1, pr, slide, tc)
     e5th = (
         E5[0] * v0
         + E5[5] * v5
@@ -426,7 +371,7 @@ def _dense_coefficients(t, th, om, th1, om1, h, pr, slide, tc, kth, kom, S):
             dom += a * kom[j]
         v = om + h * dom
         kth[s] = v
-        kom[s] = _acc(t + C853[s] * h, th + h * dth, v, pr, slide, tc)
+        kom[s] = rhs(t + C853[s] * h, th + h * dth, v, pr, slide, tc)
     for comp in range(2):
         k = kth if comp == 0 else kom
         delta = (th1 - th) if comp == 0 else (om1 - om)
@@ -566,19 +511,19 @@ def _land_theta(t, th, om, target, pr, slide, tc):
     if dth == 0.0 or om == 0.0:
         return t, om
     k1t = 1.0 / om
-    k1v = _acc(t, th, om, pr, slide, tc) / om
+    k1v = rhs(t, th, om, pr, slide, tc) / om
     t2 = t + 0.5 * dth * k1t
     v2 = om + 0.5 * dth * k1v
     k2t = 1.0 / v2
-    k2v = _acc(t2, th + 0.5 * dth, v2, pr, slide, tc) / v2
+    k2v = rhs(t2, th + 0.5 * dth, v2, pr, slide, tc) / v2
     t3 = t + 0.5 * dth * k2t
     v3 = om + 0.5 * dth * k2v
     k3t = 1.0 / v3
-    k3v = _acc(t3, th + 0.5 * dth, v3, pr, slide, tc) / v3
+    k3v = rhs(t3, th + 0.5 * dth, v3, pr, slide, tc) / v3
     t4 = t + dth * k3t
     v4 = om + dth * k3v
     k4t = 1.0 / v4
-    k4v = _acc(t4, target, v4, pr, slide, tc) / v4
+    k4v = rhs(t4, target, v4, pr, slide, tc) / v4
     t_new = t + dth * (k1t + 2.0 * k2t + 2.0 * k3t + k4t) / 6.0
     om_new = om + dth * (k1v + 2.0 * k2v + 2.0 * k3v + k4v) / 6.0
     return t_new, om_new
@@ -590,7 +535,7 @@ def _land_rest(t, th, om, pr, slide, tc):
     dom = -om
     if dom == 0.0:
         return t, th
-    a = _acc(t, th, om, pr, slide, tc)
+    a = rhs(t, th, om, pr, slide, tc)
     if a == 0.0:
         return t, th
     k1t = 1.0 / a
@@ -598,17 +543,17 @@ def _land_rest(t, th, om, pr, slide, tc):
     v2 = om + 0.5 * dom
     t2 = t + 0.5 * dom * k1t
     y2 = th + 0.5 * dom * k1y
-    a2 = _acc(t2, y2, v2, pr, slide, tc)
+    a2 = rhs(t2, y2, v2, pr, slide, tc)
     k2t = 1.0 / a2
     k2y = v2 / a2
     t3 = t + 0.5 * dom * k2t
     y3 = th + 0.5 * dom * k2y
-    a3 = _acc(t3, y3, v2, pr, slide, tc)
+    a3 = rhs(t3, y3, v2, pr, slide, tc)
     k3t = 1.0 / a3
     k3y = v2 / a3
     t4 = t + dom * k3t
     y4 = th + dom * k3y
-    a4 = _acc(t4, y4, 0.0, pr, slide, tc)
+    a4 = rhs(t4, y4, 0.0, pr, slide, tc)
     k4t = 1.0 / a4
     k4y = 0.0
     t_new = t + dom * (k1t + 2.0 * k2t + 2.0 * k3t + k4t) / 6.0
@@ -640,15 +585,6 @@ def _push_dense(dense, n_dense, t, th, om):
 
 
 @kernel
-def _stick_test(t, th, pr, tc):
-    """Sliding direction on leaving theta' = 0: 0 stays stuck, else the sign of the net torque."""
-    a = region_acceleration(t, th, 0.0, pr)
-    if abs(a) <= tc:
-        return 0.0
-    return 1.0 if a > 0.0 else -1.0
-
-
-@kernel
 def _contact_entry_step(k_contact, om):
     """A fraction of the Hertz contact time at entry speed ``om`` (0 when it has none): the
     force's delta^1.5 onset makes larger first steps fail repeatedly."""
@@ -677,14 +613,9 @@ def initialise_regions(S, p):
         S[S_EXIT_H] = _contact_entry_step(coefficients(p, True), om)
     tc = p[P.COULOMB_ACC]
     if tc > 0.0:
-        if om > 0.0:
-            S[S_SLIDE] = 1.0
-        elif om < 0.0:
-            S[S_SLIDE] = -1.0
-        else:
-            S[S_SLIDE] = _stick_test(S[S_TB], th, coefficients(p, contact), tc)
-            if S[S_SLIDE] == 0.0:
-                S[S_STICK_T] = S[S_TB]
+        S[S_SLIDE] = sliding_direction(S[S_TB], th, om, coefficients(p, contact), tc)
+        if S[S_SLIDE] == 0.0:
+            S[S_STICK_T] = S[S_TB]
     else:
         S[S_SLIDE] = 1.0
     S[S_ACC_OK] = 0.0
@@ -740,7 +671,7 @@ def _initial_step(t, th, om, a, pr, slide, tc, rtol, atol):
     h0 = 1e-6 if (d0 < 1e-5 or d1 < 1e-5) else 0.01 * d0 / d1
     th1 = th + h0 * om
     om1 = om + h0 * a
-    a1 = _acc(t + h0, th1, om1, pr, slide, tc)
+    a1 = rhs(t + h0, th1, om1, pr, slide, tc)
     d2 = math.sqrt(0.5 * (((om1 - om) / sc0) ** 2 + ((a1 - a) / sc1) ** 2)) / h0
     h1 = max(1e-06, h0 * 0.001) if max(d1, d2) <= 1e-15 else (0.01 / max(d1, d2)) ** 0.125
     return min(100.0 * h0, h1)
@@ -910,7 +841,7 @@ def integrate(
                 n_dense += 1
             continue
 
-        a1 = S[S_ACC_B] if S[S_ACC_OK] != 0.0 else _acc(t, th, om, pr, slide, tc)
+        a1 = S[S_ACC_B] if S[S_ACC_OK] != 0.0 else rhs(t, th, om, pr, slide, tc)
         h = S[S_H]
         if h <= 0.0:
             h = _initial_step(t, th, om, a1, pr, slide, tc, rtol, atol)
@@ -1093,7 +1024,7 @@ def integrate(
                 if h_entry > 0.0:
                     S[S_H] = min(S[S_H], h_entry)
         else:
-            new_slide = _stick_test(t_ev, th_ev, pr, tc)
+            new_slide = sliding_direction(t_ev, th_ev, 0.0, pr, tc)
             S[S_SLIDE] = new_slide
             if new_slide == 0.0:
                 S[S_STICK_T] = t_ev
