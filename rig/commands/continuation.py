@@ -131,7 +131,7 @@ def run(args: argparse.Namespace) -> int:
     from analysis.model import ParameterError
     from analysis.output_paths import check_outputs
     from analysis.provenance import provenance
-    from analysis.simulate import simulate
+    from analysis.simulate import SimulationSettings, simulate
     from rig.commands.rig_options import ProgressLine
     from rig.commands.simulate import build_model, parse_assignments
 
@@ -173,8 +173,12 @@ def run(args: argparse.Namespace) -> int:
     else:
         progress(f"settling: {SETTLE_PERIODS} drive periods from rest at {name} = {start:g}")
         period_s = 1.0 / model.drive.frequency_hz
-        settled = simulate(model, 0.0, 0.0, duration_s=period_s, fs_hz=1.0 / period_s,
-                           skip_s=SETTLE_PERIODS * period_s)
+        settled = simulate(
+            model, 0.0, 0.0,
+            settings=SimulationSettings(
+                duration_s=period_s, fs_hz=1.0 / period_s, skip_s=SETTLE_PERIODS * period_s,
+            ),
+        )
         if not settled.ok or settled.poincare.theta.size == 0:
             raise CommandError(f"the run from rest stopped ({settled.status}); give --from-state")
         guess = np.array([settled.poincare.theta[-1], settled.poincare.theta_dot[-1]])

@@ -288,7 +288,7 @@ def run(args: argparse.Namespace) -> int:
     from analysis.measurement import MeasurementModel, has_measurement_causes
     from analysis.model import P, ParameterError
     from analysis.output_paths import check_outputs
-    from analysis.simulate import simulate
+    from analysis.simulate import SimulationSettings, simulate
 
     suffix = args.out.suffix.lower()
     if suffix not in (".csv", ".h5", ".hdf5"):
@@ -323,15 +323,11 @@ def run(args: argparse.Namespace) -> int:
     started = time.perf_counter()
     try:
         result = simulate(
-            model,
-            args.theta0,
-            args.omega0,
-            duration_s=args.duration,
-            fs_hz=args.fs,
-            skip_s=args.skip,
-            poincare_phase=None,
-            rtol=args.rtol,
-            atol=args.rtol * 1e-2,
+            model, args.theta0, args.omega0,
+            settings=SimulationSettings(
+                duration_s=args.duration, fs_hz=args.fs, skip_s=args.skip, poincare_phase=None,
+                rtol=args.rtol, atol=args.rtol * 1e-2,
+            ),
         )
     except ValueError as error:
         raise CommandError(str(error)) from None
