@@ -280,6 +280,21 @@ def _write_hdf5(path: Path, columns: dict[str, Any], metadata: dict) -> None:
         write_attributes(handle, {"metadata": json.dumps(metadata)})
 
 
+def _check_record_arguments(args: argparse.Namespace) -> None:
+    """Refuse a record length, sample rate or transient that makes no sense or no file."""
+    for name in ("duration", "fs"):
+        value = getattr(args, name)
+        if not (math.isfinite(value) and value > 0):
+            raise CommandError(f"--{name} {value!r}: must be a positive number")
+    if not (math.isfinite(args.skip) and args.skip >= 0):
+        raise CommandError(f"--skip {args.skip!r}: must be >= 0")
+    if args.duration * args.fs > MAX_SAMPLES:
+        raise CommandError(
+            f"--duration {args.duration} s at --fs {args.fs} Hz is "
+            f"{args.duration * args.fs:.3g} samples; the limit is {MAX_SAMPLES:.0e}"
+        )
+
+
 def run(args: argparse.Namespace) -> int:
     """Build the model, simulate, apply the measurement model, write the record."""
     import numpy as np
@@ -297,17 +312,7 @@ def run(args: argparse.Namespace) -> int:
         raise CommandError(f"--out {args.out}: folder {args.out.parent} does not exist")
     outputs = [args.out] + ([args.out.with_suffix(".json")] if suffix == ".csv" else [])
     check_outputs(outputs, overwrite=args.overwrite)
-    for name in ("duration", "fs"):
-        value = getattr(args, name)
-        if not (math.isfinite(value) and value > 0):
-            raise CommandError(f"--{name} {value!r}: must be a positive number")
-    if not (math.isfinite(args.skip) and args.skip >= 0):
-        raise CommandError(f"--skip {args.skip!r}: must be >= 0")
-    if args.duration * args.fs > MAX_SAMPLES:
-        raise CommandError(
-            f"--duration {args.duration} s at --fs {args.fs} Hz is "
-            f"{args.duration * args.fs:.3g} samples; the limit is {MAX_SAMPLES:.0e}"
-        )
+    _check_record_arguments(args)
     model, experiment = build_model(
         args.case, args.experiment, parse_assignments(args.param), args.cause
     )
