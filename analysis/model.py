@@ -3,9 +3,9 @@
 The equations are written once, as numba-compiled functions of a packed parameter
 vector (layout in ``P``) hoisted into a tuple of coefficients, so the simulator's
 compiled integrator, the virtual rig and the analysis all integrate exactly the same
-physics.  Every term of the superset equation is off
-(zero) by default; the named causes of docs/MODEL.md section 6 switch terms on through
-the registry in :mod:`analysis.extensions`, never by editing these equations.
+physics.  Every term of the superset equation is off (zero) by default; the named causes
+of docs/MODEL.md section 6 switch terms on through the registry in
+:mod:`analysis.extensions`, never by editing these equations.
 """
 
 from __future__ import annotations
@@ -335,7 +335,9 @@ class Model:
 # for its right-hand side in every region, and the functions of the packed vector further
 # down (what the rest of the analysis calls) are these functions too.  Each is inlined
 # into its caller (numba inline="always"), so it is compiled with the caller's own flags:
-# the integrator's kernels fuse multiply-adds, these entry points do not.
+# the integrator's kernels fuse multiply-adds, these entry points do not.  numba caches a
+# kernel by its own file only: after editing these equations, delete
+# analysis/simulate/__pycache__ (tests/simulate/test_rhs.py fails on a stale cache).
 
 # Positions in the coefficient tuple: the packed vector's entries hoisted into scalars once
 # per call, with flags that skip the drive, its second harmonic and the general power law
