@@ -16,9 +16,9 @@ from typing import TYPE_CHECKING, Literal
 import numpy as np
 from scipy.signal import lfilter
 
-from analysis.model import P, ParameterError
+from analysis.packed import P, ParameterError
 
-if TYPE_CHECKING:
+if TYPE_CHECKING:  # a type only: analysis.model imports this module to pack its causes
     from analysis.model import Model
 
 NONE = "none"

@@ -5,8 +5,7 @@ refuses a damaged one).  A record must be uniformly sampled: a recording
 with gaps is returned as its gap-free segments, never with samples filled in; a
 sweep is returned one record per step (its steady-state dwell, with its drive).
 The flat file that ``impact-rig simulate --out FILE.h5`` writes is read as well.
-Importing this module registers the loader for ``.h5`` and ``.hdf5`` with
-:func:`analysis.records.load_record`.
+:mod:`analysis.record_loaders` reads ``.h5`` and ``.hdf5`` files with :func:`load_hdf5_record`.
 """
 
 from __future__ import annotations
@@ -20,7 +19,7 @@ import numpy as np
 
 from analysis.exchange import meta_from_json
 from analysis.recording_file import RecordingFormatError, open_recording
-from analysis.records import Record, RecordFormatError, register_loader
+from analysis.records import Record, RecordFormatError
 
 RIG_KEYS = ("m_kg", "l_m", "R_m", "g")
 
@@ -223,7 +222,3 @@ def load_hdf5_record(path: Path, meta_path: Path | None = None) -> Record:
             f"{first_gap}); analyse one gap-free segment ('impact-rig export --gaps split')"
         )
     return _record(arrays, slice(None), path, "")
-
-
-register_loader(".h5", load_hdf5_record)
-register_loader(".hdf5", load_hdf5_record)

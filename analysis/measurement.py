@@ -14,7 +14,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from analysis.extensions import apply_measurement, cause
-from analysis.model import Model, ParameterError
+from analysis.model import Model
+from analysis.packed import ParameterError
 
 
 @dataclass(frozen=True)

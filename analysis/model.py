@@ -1,10 +1,10 @@
 """The impact-pendulum model of docs/MODEL.md: parameters, nondimensional form, equations of motion.
 
 The equations are written once, as numba-compiled functions of a packed parameter
-vector (layout in ``P``) hoisted into a tuple of coefficients, so the simulator's
-compiled integrator, the virtual rig and the analysis all integrate exactly the same
-physics.  Every term of the superset equation is off (zero) by default; the named causes
-of docs/MODEL.md section 6 switch terms on through the registry in
+vector (layout in :mod:`analysis.packed`) hoisted into a tuple of coefficients, so the
+simulator's compiled integrator, the virtual rig and the analysis all integrate exactly the
+same physics.  Every term of the superset equation is off (zero) by default; the named
+causes of docs/MODEL.md section 6 switch terms on through the registry in
 :mod:`analysis.extensions`, never by editing these equations.
 """
 
@@ -12,18 +12,16 @@ from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass, field, fields, replace
-from enum import IntEnum
 from types import MappingProxyType
 from typing import Any
 
 import numba
 import numpy as np
 
+from analysis.extensions import apply_dynamics, validate_extensions
+from analysis.packed import P, ParameterError
+
 G_STANDARD = 9.81
-
-
-class ParameterError(ValueError):
-    """A model parameter is missing, unknown or outside its physical range."""
 
 
 # --------------------------------------------------------------------------- parameters
@@ -242,36 +240,7 @@ def paper_case(name: str) -> PaperCase:
         ) from None
 
 
-# --------------------------------------------------------------------------- packed vector
-
-
-class P(IntEnum):
-    """Indices of the packed parameter vector the compiled equations read.
-
-    The vector is the superset model: baseline terms plus every extension slot,
-    each extension slot neutral (zero, or n = 1.5) unless a cause sets it.
-    """
-
-    OMEGA2 = 0  # g / L                        [1/s^2]
-    TWO_ZETA_OMEGA = 1  # 2 zeta omega          [1/s]
-    INV_L = 2  # 1 / L, scales table acceleration [1/m]
-    CONTACT_GAIN = 3  # l / (m L^2)             [1/(kg m)]
-    SHAFT_L = 4  # l, pivot to contact point     [m]
-    K = 5  # contact stiffness K_n               [N / m^n]
-    EXPONENT = 6  # force-penetration exponent n (1.5 = Hertz)
-    MU0 = 7  # Hunt-Crossley constant            [s/m]
-    C_VISCOUS = 8  # Kelvin-Voigt contact damping [N s/m]
-    THETA_B = 9  # barrier angle                 [rad]
-    SIN_THETA_B = 10  # sin(theta_b)
-    BARRIER = 11  # 1.0 barrier present, 0.0 removed
-    COULOMB_ACC = 12  # Tc / (m L^2)             [1/s^2]
-    C2 = 13  # quadratic drag coefficient        [1/rad]
-    OMEGA_DRIVE = 14  # Omega                    [rad/s]
-    A1 = 15  # table amplitude, fundamental      [m]
-    A2 = 16  # table amplitude, 2nd harmonic     [m]
-    PHI2 = 17  # phase of the 2nd harmonic       [rad]
-    PHASE0 = 18  # drive phase at t = 0, keeps it continuous when Omega changes [rad]
-    SIZE = 19
+# --------------------------------------------------------------------------- the model
 
 
 @dataclass(frozen=True)
@@ -294,8 +263,6 @@ class Model:
             {name: MappingProxyType(dict(values)) for name, values in dict(self.extensions).items()}
         )
         object.__setattr__(self, "extensions", frozen)
-        from analysis.extensions import validate_extensions
-
         validate_extensions(self)
 
     def with_extension(self, name: str, **values: float) -> Model:
@@ -322,8 +289,6 @@ class Model:
         p[P.A1] = drive.amplitude_m
         p[P.A2] = drive.amplitude_m * drive.h2
         p[P.PHI2] = drive.phi2_rad
-        from analysis.extensions import apply_dynamics
-
         apply_dynamics(self, p)
         p[P.SIN_THETA_B] = math.sin(p[P.THETA_B])
         return p
@@ -334,10 +299,12 @@ class Model:
 # below; the compiled integrator (analysis.simulate.integrator) calls these same functions
 # for its right-hand side in every region, and the functions of the packed vector further
 # down (what the rest of the analysis calls) are these functions too.  Each is inlined
-# into its caller (numba inline="always"), so it is compiled with the caller's own flags:
-# the integrator's kernels fuse multiply-adds, these entry points do not.  numba caches a
-# kernel by its own file only: after editing these equations, delete
-# analysis/simulate/__pycache__ (tests/simulate/test_rhs.py fails on a stale cache).
+# into its caller (numba inline="always"), so it is compiled with the caller's own flags;
+# no caller may set fast-math flags, not even "contract" (fused multiply-adds): the
+# integrator's comment on its kernels says why, and without them the integrator and these
+# entry points round every term alike.  numba caches a kernel by its own file only: after
+# editing these equations, delete analysis/simulate/__pycache__ (tests/simulate/test_rhs.py
+# fails on a stale cache).
 
 # Positions in the coefficient tuple: the packed vector's entries hoisted into scalars once
 # per call, with flags that skip the drive, its second harmonic and the general power law

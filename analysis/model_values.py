@@ -13,7 +13,8 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 
 from analysis.extensions import NONE, cause
-from analysis.model import Drive, Model, P, RigParameters
+from analysis.model import Drive, Model, RigParameters
+from analysis.packed import P
 
 
 def model_from_values(

@@ -1,23 +1,18 @@
-"""A measured record as the analysis sees it, and the loaders that produce it from files.
+"""A measured record as the analysis sees it.
 
-Identification and discrepancy analysis take a :class:`Record`, never a file: the
-exchange CSV + JSON loader lives here, and the recorder's HDF5 loader plugs in
-through :func:`register_loader` with the same object, so every analysis works
-unchanged on either source.
+Identification and discrepancy analysis take a :class:`Record`, never a file; the
+loaders that make one from an exchange CSV or an HDF5 recording are in
+:mod:`analysis.record_loaders`.
 """
 
 from __future__ import annotations
 
-import contextlib
-import importlib
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping
 from dataclasses import dataclass, field
-from pathlib import Path
 from types import MappingProxyType
 
 import numpy as np
 
-from analysis.exchange import read_exchange
 from analysis.experiments import NAMES, ExperimentKind, experiment_kind
 from analysis.model import G_STANDARD, Drive, RigParameters
 
@@ -98,54 +93,3 @@ class Record:
             amplitude_m=float(self.drive.get("amplitude_m") or 0.0),
             frequency_hz=float(self.drive.get("frequency_hz") or 0.0),
         )
-
-
-Loader = Callable[[Path, Path | None], Record]
-_LOADERS: dict[str, Loader] = {}
-
-
-def register_loader(suffix: str, loader: Loader) -> None:
-    """Make :func:`load_record` read files ending in ``suffix`` (e.g. ``.h5``) with ``loader``."""
-    _LOADERS[suffix.lower()] = loader
-
-
-def load_record(path: str | Path, meta_path: str | Path | None = None) -> Record:
-    """Read a record: exchange CSV (sidecar beside it, or ``meta_path``) or a registered type."""
-    path = Path(path)
-    suffix = path.suffix.lower()
-    loader = _LOADERS.get(suffix)
-    if loader is None and suffix in (".h5", ".hdf5"):
-        # The recorder's layout is read by analysis.hdf5_records, which registers itself.
-        with contextlib.suppress(ImportError):
-            importlib.import_module("analysis.hdf5_records")
-        loader = _LOADERS.get(suffix)
-    if loader is None:
-        if suffix in (".h5", ".hdf5"):
-            raise RecordFormatError(
-                f"{path}: reading HDF5 needs h5py, which is not installed; install it, or "
-                "export the recording to CSV + JSON ('impact-rig export') and pass the CSV"
-            )
-        raise RecordFormatError(
-            f"{path}: unknown file type {suffix or '(none)'!r}; expected an exchange .csv "
-            f"(or one of {sorted(_LOADERS)})"
-        )
-    return loader(path, Path(meta_path) if meta_path else None)
-
-
-def _load_exchange(path: Path, meta_path: Path | None) -> Record:
-    exchange = read_exchange(path, meta_path)
-    meta = exchange.meta
-    return Record(
-        time_s=exchange.time_s,
-        angle_rad=exchange.angle_rad,
-        experiment=meta.experiment,
-        rig=meta.rig,
-        drive=meta.drive,
-        table_m=exchange.table_m,
-        tach_indices=exchange.tach_indices,
-        source=str(path),
-        notes=meta.notes,
-    )
-
-
-register_loader(".csv", _load_exchange)

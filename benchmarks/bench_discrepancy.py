@@ -20,6 +20,12 @@ judged right, the clean records' baseline residual over their true noise, and se
     python benchmarks/bench_discrepancy.py --kinds free_decay,impact_decay --cases 40
     python benchmarks/bench_discrepancy.py --kinds forced --causes sensor_lag,none
     python benchmarks/bench_discrepancy.py --kinds pairs --pairs 10   # two causes at once
+    python benchmarks/bench_discrepancy.py --kinds unknown --per-effect 1  # outside the registry
+
+Effects outside the registry (``tests/reference/unregistered.py``: two in the physics, three
+in the sensor, three in the drive, and a noise decoy) must never be explained confidently by
+a named cause; the analysis should flag them (``unexplained``, or the finding of the right
+kind: a line, a trend, the drive frequency, the timing).
 """
 
 from __future__ import annotations
@@ -37,11 +43,12 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from analysis.discrepancy import analyze_record
 from analysis.experiments import FORCED
-from analysis.records import load_record
+from analysis.record_loaders import load_record
 from tests.discrepancy.hidden_cause import SHOWS_IN, draw_case, write_case
 from tests.reference.cause_sizes import CHOICES
 from tests.reference.forced_records import draw_forced_case, draw_pair, write_forced_case
 from tests.reference.regime_truth import periods_a_record_shows
+from tests.reference.unregistered import EFFECTS, draw_unregistered_case
 
 BUDGET_S = 60.0
 FORCED_GOALS = {"named": 0.9, "clean_residual_over_noise": 1.5, "seconds_per_60s": 30.0}
@@ -66,6 +73,10 @@ def main() -> int:
                         help="forced records: length [s] (at 1 kHz)")
     parser.add_argument("--pairs", type=int, default=10,
                         help="kind 'pairs': forced records with two causes at once")
+    parser.add_argument("--per-effect", type=int, default=1,
+                        help="kind 'unknown': forced records per effect outside the registry")
+    parser.add_argument("--effects", default=",".join(EFFECTS),
+                        help="kind 'unknown': the effects to add (comma separated)")
     args = parser.parse_args()
     kinds = args.kinds.split(",")
     if any(kind in SHOWS_IN for kind in kinds):
@@ -74,7 +85,75 @@ def main() -> int:
         run_forced(args)
     if "pairs" in kinds:
         run_pairs(args)
+    if "unknown" in kinds:
+        run_unknown(args)
     return 0
+
+
+def analyse_case(case, workers: int) -> tuple[dict | None, str | None, float]:
+    """Write a reference case as a lab's CSV + JSON and analyse it alone: the report (None
+    on a failure, which is then described), and the seconds the analysis took."""
+    with tempfile.TemporaryDirectory() as tmp:
+        path = write_forced_case(case, Path(tmp))
+        start = time.perf_counter()
+        try:
+            report, error = analyze_record(load_record(path), workers=workers).as_json(), None
+        except Exception as failure:  # a failure counts as a miss, with its reason shown
+            report, error = None, f"error: {type(failure).__name__}: {failure}"[:90]
+        return report, error, time.perf_counter() - start
+
+
+def run_unknown(args: argparse.Namespace) -> None:
+    """Forced records with an effect no named cause describes (issue 15): never a confident
+    named cause; flagged as unexplained or by the finding of the effect's kind."""
+    effects = args.effects.split(",")
+    plan = [(e, k) for k in range(args.per_effect) for e in effects]
+    print(f"{len(plan)} forced records with an effect outside the registry, "
+          f"{args.duration:g} s at 1 kHz", flush=True)
+    rows = []
+    for i, (effect, k) in enumerate(plan):
+        seed = args.seed + 43 * i
+        frequency = (2.0, 10.0)[(i + k) % 2]
+        case = draw_unregistered_case(seed, effect, frequency_hz=frequency,
+                                      duration_s=args.duration)
+        report, error, elapsed = analyse_case(case, args.workers)
+        named, unexplained, kinds = [error], False, []  # a failure flags nothing
+        if report is not None:
+            named = [c["cause"] for c in report["causes"]]
+            unexplained = bool(report.get("unexplained"))
+            kinds = sorted({f["kind"] for f in report.get("residual_findings", [])})
+        spec = EFFECTS[effect]
+        right_kind = spec.finding is None or spec.finding in kinds
+        rows.append(dict(effect=effect, domain=spec.domain, named=named,
+                         unexplained=unexplained, right_kind=right_kind,
+                         kind_applies=spec.finding is not None, seconds=elapsed,
+                         flagged=unexplained or (spec.finding is not None and right_kind)))
+        laser = "laser" if case.measurement.laser else "no laser"
+        print(f"[{i + 1}/{len(plan)}] {frequency:4.0f} Hz {laser:8s} {case.regime:10s} "
+              f"{effect:20s} -> causes {'+'.join(named) or 'none':28s} unexplained "
+              f"{unexplained!s:5s} findings {','.join(kinds) or '-':30s} "
+              f"(wants {spec.finding or 'any'}) {elapsed:6.1f} s", flush=True)
+    effects_rows = [r for r in rows if r["domain"] != "noise"]
+    decoys = [r for r in rows if r["domain"] == "noise"]
+    confident = sum(bool(r["named"]) and not r["unexplained"] for r in effects_rows)
+    any_named = sum(bool(r["named"]) for r in effects_rows)
+    flagged = sum(r["flagged"] for r in effects_rows)
+    flagged_unexplained = sum(r["unexplained"] for r in effects_rows)
+    applies = [r for r in effects_rows if r["kind_applies"]]
+    print(f"\neffects outside the registry: {len(effects_rows)} records")
+    print(f"confident false explanations (a cause named, nothing flagged): {confident} "
+          f"(goal 0); a cause named at all: {any_named}")
+    print(f"flagged: {flagged}/{len(effects_rows)} = {100 * flagged / len(effects_rows):.0f} % "
+          f"(goal >= 80 %); of them by unexplained: {flagged_unexplained}")
+    if applies:
+        print(f"the right finding kind where one applies: "
+              f"{sum(r['right_kind'] for r in applies)}/{len(applies)}")
+    if decoys:
+        print(f"noise decoys with a cause named: {sum(bool(r['named']) for r in decoys)}/"
+              f"{len(decoys)} (goal 0); outliers found: "
+              f"{sum(r['right_kind'] for r in decoys)}/{len(decoys)}")
+    times = np.array([r["seconds"] for r in rows])
+    print(f"seconds per record: mean {times.mean():.1f}, max {times.max():.1f}")
 
 
 def run_pairs(args: argparse.Namespace) -> None:
@@ -92,16 +171,11 @@ def run_pairs(args: argparse.Namespace) -> None:
         except RuntimeError as error:  # no draw of the seed shows both: not identifiable
             print(f"[{i + 1}/{args.pairs}] {' + '.join(pair)}: not drawn ({error})"[:160])
             continue
-        with tempfile.TemporaryDirectory() as tmp:
-            path = write_forced_case(case, Path(tmp))
-            start = time.perf_counter()
-            try:
-                report = analyze_record(load_record(path), workers=args.workers).as_json()
-                found = {c["cause"] for c in report["causes"]}
-                apart = [p["causes"] for p in report.get("indistinct", [])]
-            except Exception as error:  # a failure counts as a miss, with its reason shown
-                found, apart = {f"error: {type(error).__name__}: {error}"[:90]}, []
-            elapsed = time.perf_counter() - start
+        report, error, elapsed = analyse_case(case, args.workers)
+        found, apart = {error}, []
+        if report is not None:
+            found = {c["cause"] for c in report["causes"]}
+            apart = [p["causes"] for p in report.get("indistinct", [])]
         rows.append(dict(pair=set(pair), found=found, seconds=elapsed))
         laser = "laser" if case.measurement.laser else "no laser"
         verdict = "both" if found == set(pair) else \
@@ -182,15 +256,9 @@ def run_forced(args: argparse.Namespace) -> None:
         seed = args.seed + 37 * i
         frequency = (2.0, 10.0)[(i + k) % 2]
         case = draw_forced_case(seed, truth, frequency_hz=frequency, duration_s=args.duration)
-        with tempfile.TemporaryDirectory() as tmp:
-            path = write_forced_case(case, Path(tmp))
-            start = time.perf_counter()
-            try:
-                report = analyze_record(load_record(path), workers=args.workers).as_json()
-                found = "+".join(sorted(c["cause"] for c in report["causes"])) or "none"
-            except Exception as error:  # a failure counts as a miss, with its reason shown
-                report, found = None, f"error: {type(error).__name__}: {error}"[:90]
-            elapsed = time.perf_counter() - start
+        report, error, elapsed = analyse_case(case, args.workers)
+        found = error if report is None else \
+            "+".join(sorted(c["cause"] for c in report["causes"])) or "none"
         noise = case.measurement.angle_noise_rad
         residual = report["baseline"]["rms_residual"] / noise if report else float("nan")
         right = regime_right(case, report) if report else False

@@ -37,7 +37,8 @@ from analysis.dynamics import (  # noqa: E402
     simulate_bifurcation,
 )
 from analysis.dynamics.sweeps import default_workers  # noqa: E402
-from analysis.model import Model, P, paper_case  # noqa: E402
+from analysis.model import Model, paper_case  # noqa: E402
+from analysis.packed import P  # noqa: E402
 from analysis.simulate import SimulationSettings, simulate_ensemble, simulate_packed  # noqa: E402
 
 

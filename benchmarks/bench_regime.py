@@ -32,7 +32,7 @@ from analysis.dynamics import (  # noqa: E402
 from analysis.model import Drive, Model, RigParameters, paper_case  # noqa: E402
 from analysis.simulate import SimulationSettings, simulate  # noqa: E402
 from hardware_sim.virtual_rig import VirtualRig, VirtualRigSettings  # noqa: E402
-from rig.demo import FULL  # noqa: E402
+from rig.demo.settings import FULL  # noqa: E402
 
 FS = 1000.0
 SECONDS = 60.0

@@ -32,7 +32,8 @@ ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
-from analysis.model import Model, P, acceleration, paper_case  # noqa: E402
+from analysis.model import Model, acceleration, paper_case  # noqa: E402
+from analysis.packed import P  # noqa: E402
 from analysis.simulate import SimulationSettings, Stepper, simulate_packed  # noqa: E402
 
 GRID_HZ = 1000.0

@@ -17,7 +17,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from analysis.discrepancy import analyze_record
-from analysis.records import load_record
+from analysis.record_loaders import load_record
 from analysis.report import write_report
 from analysis.report.discrepancy import report_json
 

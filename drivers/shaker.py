@@ -1,7 +1,7 @@
 """The shaker amplifier as a device: settings declared once with unit, limits and docstring.
 
-How it talks is a backend passed in (Modbus TCP/RTU in :mod:`drivers.modbus_shaker`,
-the in-process simulation in ``hardware_sim.sim_shaker_backend``); every backend
+How it talks is a backend passed in (Modbus TCP/RTU in :mod:`drivers.modbus_shaker`;
+the tests add one straight into the emulator's firmware); every backend
 moves raw registers of docs/amplifier_registers.md and raises DeviceError on
 failure.  Safety lives here: a value outside the configured limits raises
 LimitError before any byte is sent; a background thread writes the heartbeat;

@@ -12,12 +12,12 @@ from pathlib import Path
 
 import numpy as np
 
-import analysis.hdf5_records  # noqa: F401  (registers the .h5 loader with load_record)
 from analysis.experiments import FREE_DECAY
 from analysis.identify import IdentificationResult, fit_drive, fit_free_decay, fit_impact_decay
 from analysis.identify.free_decay import averaging_solution, simulated_free_decay
 from analysis.model import Drive, Model
-from analysis.records import Record, load_record
+from analysis.record_loaders import load_record
+from analysis.records import Record
 
 
 @dataclass(frozen=True)

@@ -1,6 +1,6 @@
 """The amplifier controller's firmware: docs/amplifier_registers.md acting on a ShakerResponse.
 
-Transport-free, so the Modbus emulator (TCP and RTU) and the in-process simulated
+Transport-free, so the Modbus emulator (TCP and RTU) and the tests' in-process
 backend run exactly the same register logic: validation, watchdog, latched faults.
 """
 

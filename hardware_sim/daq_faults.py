@@ -2,7 +2,7 @@
 
 One :class:`DaqFaults` object drives both simulated backends: the pty emulator
 applies it to the bytes of each frame (garbage between frames, bytes dropped
-mid-frame, a corrupted CRC), the in-process backend to whole chunks (a damaged
+mid-frame, a corrupted CRC), the tests' in-process backend to whole chunks (a damaged
 frame is a lost chunk).  Stalls and unplugging act on the link.  Every fault that
 costs samples is logged with the exact running indices it cost, so a test can
 demand that the driver's lost-sample count is exact.

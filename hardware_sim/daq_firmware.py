@@ -1,7 +1,7 @@
 """The simulated DAQ board's firmware: command interpreter, sample clock and frame contents.
 
 Shared by the pty emulator (which frames and sends what this produces) and the
-in-process simulated backend (which hands the same chunks over directly), so the
+tests' in-process backend (which hands the same chunks over directly), so the
 two behave alike: same limits, same error replies, same sample indices.
 """
 

@@ -1,7 +1,7 @@
 """What feeds a simulated DAQ board: any object that produces the next n raw samples.
 
 The virtual rig (physics) and the deterministic counter source below both fit
-:class:`SampleSource`; the board emulator and the in-process simulated backend
+:class:`SampleSource`; the board emulator and the tests' in-process backend
 take either.  Channel names are the board's signal names: ``'angle'`` and
 ``'table'`` (ADC counts, int) and ``'tach'`` (bool per sample).
 """

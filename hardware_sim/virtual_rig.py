@@ -20,7 +20,8 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from analysis.extensions import cause
-from analysis.model import Drive, Model, P
+from analysis.model import Drive, Model
+from analysis.packed import P
 from analysis.simulate import SimulationStoppedError, Stepper
 from hardware_sim.shaker_response import ShakerDynamics, ShakerOutput, ShakerResponse
 
@@ -371,12 +372,6 @@ class VirtualRig:
         if s.table_noise_m > 0:
             x = x + self._table_rng.normal(0.0, s.table_noise_m, x.size)
         return s.adc.counts(s.laser.volts(x))
-
-
-# The former names, which read like the drivers' (opposite) calibrations; rig/devices.py
-# still imports them.
-PotentiometerCalibration = PotentiometerOutput
-LaserCalibration = LaserOutput
 
 
 def compile_physics(settings: VirtualRigSettings) -> None:

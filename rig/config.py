@@ -259,7 +259,7 @@ def _virtual_causes(virtual: _Section) -> Mapping[str, Mapping[str, float]]:
     if "causes" not in virtual.table:
         return MappingProxyType({})
     from analysis.extensions import CAUSES
-    from analysis.model import ParameterError
+    from analysis.packed import ParameterError
 
     table = virtual.section("causes")
     causes: dict[str, Mapping[str, float]] = {}

@@ -193,9 +193,7 @@ def _start_virtual_rig(config: RigConfig, sample_rate_hz: float, speed: float):
     """The virtual rig's emulators, with sensors that match the file's calibrations."""
     from analysis.model import Model, RigParameters
     from hardware_sim.sim_rig import SimRig
-    from hardware_sim.virtual_rig import LaserCalibration as LaserOutput
-    from hardware_sim.virtual_rig import PotentiometerCalibration as PotentiometerOutput
-    from hardware_sim.virtual_rig import VirtualRigSettings
+    from hardware_sim.virtual_rig import LaserOutput, PotentiometerOutput, VirtualRigSettings
 
     constants = config.constants
     pot, laser = config.angle_calibration, config.table_calibration

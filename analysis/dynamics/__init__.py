@@ -25,7 +25,6 @@ from analysis.dynamics.embedding import (
     mutual_information,
     mutual_information_delay,
 )
-from analysis.dynamics.integrators import iterate_map, rk4_trajectory
 from analysis.dynamics.lyapunov import (
     LyapunovEstimate,
     flow_lyapunov,
@@ -83,7 +82,6 @@ __all__ = [
     "fnn_dimension",
     "harmonic_label",
     "identify_attractors",
-    "iterate_map",
     "judge_record_regime",
     "judge_regime",
     "map_lyapunov",
@@ -96,7 +94,6 @@ __all__ = [
     "poincare_from_phase",
     "poincare_from_pulses",
     "recurrence_distances",
-    "rk4_trajectory",
     "rosenstein_lyapunov",
     "run_poincare",
     "simulate_bifurcation",

@@ -13,14 +13,19 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numba
 import numpy as np
 
 from analysis.dynamics.embedding import delay_embed
-from analysis.dynamics.integrators import JittedFunction
-from analysis.model import P, acceleration
+from analysis.model import acceleration
+from analysis.packed import P
+
+# a numba.njit function f(t, y, p) -> array: a flow's right-hand side, a map's step (t the
+# iteration count), or either's Jacobian
+JittedFunction = Callable[[float, np.ndarray, np.ndarray], np.ndarray]
 
 
 @dataclass(frozen=True)

@@ -6,7 +6,8 @@ from __future__ import annotations
 from dataclasses import fields, replace
 
 from analysis.dynamics.sweeps import model_at_beta
-from analysis.model import Model, ParameterError, RigParameters
+from analysis.model import Model, RigParameters
+from analysis.packed import ParameterError
 
 DRIVE_PARAMETERS = ("beta", "A_m", "f_drive_hz")
 RIG_PARAMETERS = tuple(f.name for f in fields(RigParameters))

@@ -29,7 +29,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from analysis.dynamics.model_parameters import model_with, parameter_value
-from analysis.model import Model, P
+from analysis.model import Model
+from analysis.packed import P
 from analysis.simulate import SimulationSettings, simulate_packed
 from analysis.simulate import integrator as ig
 from analysis.simulate.result import ContactEvents

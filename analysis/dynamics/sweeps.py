@@ -15,7 +15,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from analysis.model import Model, P
+from analysis.model import Model
+from analysis.packed import P
 from analysis.simulate import simulate_ensemble
 
 Progress = Callable[[int, int], None]  # (runs done, runs in all)
@@ -29,6 +30,7 @@ class PoincareRuns:
     theta_dot: np.ndarray
     final_state: np.ndarray  # (n, 2) theta, theta_dot at the end (drive phase 0 again)
     status: tuple[str, ...]
+    contacts: np.ndarray  # (n,) contacts that ended during the recorded periods
 
 
 def model_at_beta(model: Model, beta: float) -> Model:
@@ -60,9 +62,9 @@ def run_poincare(
     """Simulate runs (packed (n, P.SIZE), initial (n, 2)) and keep their Poincare samples.
 
     Each run integrates ``transient_periods`` drive periods, then records one sample
-    per period for ``record_periods`` periods.  All rows must share the drive
-    frequency.  ``workers`` caps the threads; ``progress(done, total)`` is called as
-    chunks of runs finish.
+    per period for ``record_periods`` periods (rows may differ in drive frequency).
+    ``workers`` caps the threads; ``progress(done, total)`` is called as chunks of runs
+    finish.
     """
     packed, initial = _check_runs(packed, initial, transient_periods, record_periods)
     n = packed.shape[0]
@@ -88,6 +90,7 @@ def run_poincare(
         np.concatenate([part.theta_dot for part in parts]),
         np.concatenate([part.final_state for part in parts]),
         tuple(s for part in parts for s in part.status),
+        np.concatenate([part.contacts for part in parts]),
     )
 
 
@@ -101,14 +104,16 @@ def continue_along(
     atol: float = 1e-10,
     workers: int | None = None,
     progress: Progress | None = None,
+    restart_state: tuple[float, float] | np.ndarray | None = None,
 ) -> tuple[PoincareRuns, ...]:
     """Continuation sweeps: each step starts from the final state of the step before.
 
     ``packed`` is (steps, P.SIZE) for one sweep or (sweeps, steps, P.SIZE) for several
     advanced in lockstep (one ensemble call of ``sweeps`` members per step, e.g. the
     up and down sweeps in parallel).  ``initial_state`` is (2,) or (sweeps, 2).  A run
-    that leaves the model's regime (over the top) restarts the next step from the
-    initial state.  Returns one :class:`PoincareRuns` per sweep, in step order.
+    that leaves the model's regime (over the top) restarts the next step from
+    ``restart_state`` (default: the initial state; a sweep continued in pieces passes
+    its first piece's).  Returns one :class:`PoincareRuns` per sweep, in step order.
     """
     packed = np.asarray(packed, dtype=float)
     if packed.ndim == 2:
@@ -117,10 +122,14 @@ def continue_along(
         raise ValueError(f"packed has shape {packed.shape}; expected (sweeps, steps, {P.SIZE})")
     sweeps, steps = packed.shape[:2]
     start = np.broadcast_to(np.asarray(initial_state, dtype=float), (sweeps, 2)).copy()
+    restart = start if restart_state is None else np.broadcast_to(
+        np.asarray(restart_state, dtype=float), (sweeps, 2)
+    )
     theta = np.full((sweeps, steps, record_periods), np.nan)
     theta_dot = np.full((sweeps, steps, record_periods), np.nan)
     final = np.full((sweeps, steps, 2), np.nan)
     status = np.empty((sweeps, steps), dtype=object)
+    contacts = np.zeros((sweeps, steps), dtype=np.int64)
     state = start.copy()
     for k in range(steps):
         run = _ensemble(
@@ -128,12 +137,14 @@ def continue_along(
         )
         theta[:, k], theta_dot[:, k], final[:, k] = run.theta, run.theta_dot, run.final_state
         status[:, k] = run.status
+        contacts[:, k] = run.contacts
         ok = np.array(run.status) == "ok"
-        state = np.where(ok[:, None], run.final_state, start)
+        state = np.where(ok[:, None], run.final_state, restart)
         if progress is not None:
             progress((k + 1) * sweeps, steps * sweeps)
     return tuple(
-        PoincareRuns(theta[m], theta_dot[m], final[m], tuple(status[m])) for m in range(sweeps)
+        PoincareRuns(theta[m], theta_dot[m], final[m], tuple(status[m]), contacts[m])
+        for m in range(sweeps)
     )
 
 
@@ -152,35 +163,41 @@ def _check_runs(packed, initial, transient_periods, record_periods):
 def _ensemble(
     packed, initial, transient_periods, record_periods, rtol, atol, workers
 ) -> PoincareRuns:
-    """One ensemble call; the Poincare sample at the record's end is the final state."""
+    """Ensemble calls, one per drive frequency; the Poincare sample at the record's end is
+    the final state.  (Members run independently, so the grouping does not change them.)"""
     omega = packed[:, P.OMEGA_DRIVE]
-    if not np.all(omega > 0) or not np.allclose(omega, omega[0]):
-        raise ValueError("all runs need the same drive frequency > 0 for Poincare samples")
-    period = 2.0 * math.pi / float(omega[0])
-    result = simulate_ensemble(
-        packed,
-        initial,
-        duration_s=record_periods * period,
-        skip_s=transient_periods * period,
-        poincare_phase=0.0,
-        rtol=rtol,
-        atol=atol,
-        workers=workers,
-    )
-    samples = result.poincare[:, : record_periods + 1]
-    theta = np.full((packed.shape[0], record_periods), np.nan)
+    if not np.all(omega > 0):
+        raise ValueError("every run needs a drive frequency > 0 for Poincare samples")
+    n = packed.shape[0]
+    theta = np.full((n, record_periods), np.nan)
     theta_dot = np.full_like(theta, np.nan)
-    usable = min(record_periods, samples.shape[1])
-    theta[:, :usable] = samples[:, :usable, 0]
-    theta_dot[:, :usable] = samples[:, :usable, 1]
-    final = np.full((packed.shape[0], 2), np.nan)
-    if samples.shape[1] == record_periods + 1:
-        final = samples[:, record_periods].copy()
-    status = tuple(str(s) for s in result.status)
+    final = np.full((n, 2), np.nan)
+    contacts = np.zeros(n, dtype=np.int64)
+    status = np.empty(n, dtype=object)
+    for frequency in np.unique(omega):
+        rows = np.flatnonzero(omega == frequency)
+        period = 2.0 * math.pi / float(frequency)
+        result = simulate_ensemble(
+            packed[rows],
+            initial[rows],
+            duration_s=record_periods * period,
+            skip_s=transient_periods * period,
+            poincare_phase=0.0,
+            rtol=rtol,
+            atol=atol,
+            workers=workers,
+        )
+        samples = result.poincare[:, : record_periods + 1]
+        usable = min(record_periods, samples.shape[1])
+        theta[rows, :usable] = samples[:, :usable, 0]
+        theta_dot[rows, :usable] = samples[:, :usable, 1]
+        if samples.shape[1] == record_periods + 1:
+            final[rows] = samples[:, record_periods]
+        contacts[rows] = result.contacts
+        status[rows] = [str(s) for s in result.status]
     # a run without its closing sample did not reach the end: treat it as failed
-    status = tuple(
+    names = tuple(
         s if np.all(np.isfinite(f)) else (s if s != "ok" else "incomplete")
         for s, f in zip(status, final, strict=True)
     )
-    return PoincareRuns(theta, theta_dot, final, status)
-
+    return PoincareRuns(theta, theta_dot, final, names, contacts)

@@ -47,7 +47,9 @@ REPAIR_ROUNDS = 1
 REPAIR_ITERATIONS = 6  # the fit's further iterations after a repair
 MAX_STEPS_PER_SEGMENT = 20_000  # a few hundred suffice; a trial needing more fails
 COST_TOLERANCE = 0.05  # a step gaining less chi^2 / 2 than this changes no judgement
-# ... nor does a relative gain this small of a model that misses the record by far
+# ... nor does a gain this small relative to the cost above the noise's own (chi^2 / 2 of
+# half a unit a sample): it matters on a model that misses the record by far, never on one
+# at the noise, where parameter intervals are read
 RELATIVE_TOLERANCE = 1e-4
 FAILED_RESIDUAL = 1e3  # in noise units, for samples a stopped run did not reach
 
@@ -344,6 +346,7 @@ class ShootingProblem:
             s = repaired
         r, theta, ends = evaluate(u, s)
         cost = 0.5 * float(r @ r)
+        noise_cost = 0.5 * float(np.count_nonzero(self.fitted))  # a perfect model's, expected
         lam = 1e-3
         nu = 2.0
         message = "maximum iterations reached"
@@ -394,7 +397,7 @@ class ShootingProblem:
                     message = "no step lowers the cost"
                     success = True
                     break
-                small = gain <= max(COST_TOLERANCE, RELATIVE_TOLERANCE * cost)
+                small = gain <= max(COST_TOLERANCE, RELATIVE_TOLERANCE * (cost - noise_cost))
                 if small and (lam < 1e-2 or small_before):
                     message = "cost converged"
                     success = True

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from analysis.model import P
+from analysis.packed import P
 from analysis.simulate import integrator as ig
 from analysis.simulate.simulation import (
     DEFAULT_MAX_STEPS,
@@ -70,7 +70,8 @@ def simulate_ensemble(
     initial states with one parameter vector, or a sweep from one initial state).
     Each member skips ``skip_s`` (rounded up to its whole drive periods), then
     records ``duration_s``: Poincare samples at ``poincare_phase`` and, with
-    ``fs_hz``, uniform samples.  ``workers`` threads (default: one per core).
+    ``fs_hz``, uniform samples.  ``workers`` threads (default: one per core; with 1,
+    the members run in the calling thread).
     """
     packed = np.atleast_2d(np.asarray(packed, dtype=float))
     initial = np.atleast_2d(np.asarray(initial, dtype=float))
@@ -151,9 +152,14 @@ def simulate_ensemble(
         n_steps[i] = int(state[ig.S_STEPS])
         status[i] = int(state[ig.S_STATUS])
 
-    with ThreadPoolExecutor(max_workers=workers or os.cpu_count() or 1) as pool:
-        for _ in pool.map(run_member, range(n)):
-            pass  # re-raises a member's exception here
+    threads = workers or os.cpu_count() or 1
+    if threads == 1:  # one worker: in this thread, no pool (the reference for speed-ups)
+        for i in range(n):
+            run_member(i)
+    else:
+        with ThreadPoolExecutor(max_workers=threads) as pool:
+            for _ in pool.map(run_member, range(n)):
+                pass  # re-raises a member's exception here
     names = np.array([ig.STATUS_NAMES[int(code)] for code in status])
     return EnsembleResult(
         poincare=poincare,

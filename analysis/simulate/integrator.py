@@ -34,16 +34,19 @@ from analysis.model import (
     K_GAIN,
     K_SHAFT,
     K_STIFFNESS,
-    P,
     coefficients,
     sliding_acceleration,
     sliding_direction,
 )
+from analysis.packed import P
 
-# Every kernel below may fuse a*b + c into one rounded fma (LLVM's "contract" only: no
-# reordering, no NaN or infinity shortcuts).  The Runge-Kutta stage sums are chains of
-# products: measured, the impact decay runs 10 % and case h 4 % faster.
-kernel = functools.partial(numba.njit, cache=True, fastmath={"contract"})
+# Strict IEEE arithmetic, no fast-math flags, not even "contract": with it, LLVM fuses
+# a*b + c into an fma wherever the code it is optimising allows, so the rounding depends on
+# how a kernel was inlined, and numba links a kernel's helpers from whichever copy the
+# process compiled or loaded first (a fresh compile, numba's cache, another kernel's).  The
+# same run then gave other numbers in a process that had compiled the integrator than in
+# one that loaded it, and maps differed between this process and their workers.
+kernel = functools.partial(numba.njit, cache=True)
 
 # ----------------------------------------------------------------------------- status codes
 
@@ -1059,8 +1062,7 @@ def _event_step(S, p, step, a1, h_next, s_event, kind, grazing, contact, pr, sli
     # the step's dense output, as solve_ivp takes its events
     thl = _poly(th, S, S_POLY, s_event)
     oml = _poly(om, S, S_POLY + DEGREE, s_event)
-    # t_land first: the slow entry's step size below reuses its product (rounded once, where
-    # a fused multiply-add would round t_land differently from the results pinned by tests)
+    # the event's time on the step; a slow entry below takes a step of that length
     t_land = t + s_event * h
     poly_ok = True
     extra = 0

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from analysis.model import P
+from analysis.packed import P
 from analysis.simulate import integrator as ig
 from analysis.simulate.simulation import DEFAULT_MAX_STEPS, check_step_settings
 

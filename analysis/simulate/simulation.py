@@ -7,7 +7,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from analysis.model import Model, P
+from analysis.model import Model
+from analysis.packed import P
 from analysis.simulate import integrator as ig
 from analysis.simulate.result import ContactEvents, SimulationResult, StickEvents, Trajectory
 
@@ -112,7 +113,7 @@ def simulate_packed(
     *,
     settings: SimulationSettings = DEFAULT_SETTINGS,
 ) -> SimulationResult:
-    """Simulate a packed parameter vector (layout ``analysis.model.P``) as ``settings`` say.
+    """Simulate a packed parameter vector (layout ``analysis.packed.P``) as ``settings`` say.
 
     The transient is integrated and discarded; then the record holds the samples, every
     contact and stick interval that ended in it, and the Poincare samples.

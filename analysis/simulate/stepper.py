@@ -13,7 +13,8 @@ import math
 
 import numpy as np
 
-from analysis.model import Model, P
+from analysis.model import Model
+from analysis.packed import P
 from analysis.simulate import integrator as ig
 from analysis.simulate.result import ContactEvents, StickEvents
 from analysis.simulate.simulation import DEFAULT_MAX_STEPS, check_step_settings

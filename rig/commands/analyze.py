@@ -76,13 +76,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Analyse the record and print the verdict (and the JSON when no --json is given)."""
-    import analysis.hdf5_records
     from analysis.discrepancy import AnalysisError, analyze_record
     from analysis.discrepancy.analyze import priors_from_decays
     from analysis.identify import IdentificationError
     from analysis.output_paths import check_outputs, record_inputs
     from analysis.provenance import provenance
-    from analysis.records import RecordFormatError, load_record
+    from analysis.record_loaders import load_record
     from analysis.report import write_report
     from analysis.report.discrepancy import report_json
 
@@ -109,10 +108,13 @@ def run(args: argparse.Namespace) -> int:
                 load_record(args.impact_decay) if args.impact_decay else None,
             )
             progress(f"start values from the decays: {priors}")
+    except ValueError as error:  # a file's format error names the file and field itself
+        raise CommandError(str(error)) from error
+    try:
         analysis = analyze_record(record, workers=args.workers, progress=progress,
                                   priors=priors)
-    except (RecordFormatError, AnalysisError, IdentificationError, ValueError) as error:
-        raise CommandError(str(error)) from error
+    except (AnalysisError, IdentificationError, ValueError) as error:
+        raise CommandError(f"{args.file}: cannot analyse: {error}") from error
     js = report_json(analysis)
     js["provenance"] = provenance()
     if args.json_out:

@@ -128,8 +128,8 @@ def run(args: argparse.Namespace) -> int:
     from analysis.dynamics.continuation_output import plot_continuation, write_continuation
     from analysis.dynamics.model_parameters import model_with
     from analysis.dynamics.period_map import PeriodMap
-    from analysis.model import ParameterError
     from analysis.output_paths import check_outputs
+    from analysis.packed import ParameterError
     from analysis.provenance import provenance
     from rig.commands.rig_options import ProgressLine
     from rig.commands.simulate import build_model, parse_assignments

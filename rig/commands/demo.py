@@ -101,7 +101,7 @@ def _parse_params(items: list[str]) -> dict[str, float]:
 def _cause_from_rig_file(config_path: str | None, params: dict[str, float]):
     """The cause the rig file's [virtual.causes] switches on (the default cause without one)."""
     from rig.config import ConfigError, load_config
-    from rig.demo import DEFAULT_CAUSE
+    from rig.demo.settings import DEFAULT_CAUSE
 
     try:
         causes = load_config(config_path).virtual.causes
@@ -121,15 +121,15 @@ def _cause_from_rig_file(config_path: str | None, params: dict[str, float]):
 def run(args: argparse.Namespace) -> int:
     """Validate the options, run the demo, print where the report is."""
     from rig.config import ConfigError
-    from rig.demo import (
+    from rig.demo.record import prepare_folder
+    from rig.demo.run import run_demo
+    from rig.demo.settings import (
         DEFAULT_CAUSE,
         DEFAULT_CAUSE_VALUES,
         FULL,
         QUICK,
         DemoError,
         hidden_cause,
-        prepare_folder,
-        run_demo,
     )
 
     params = _parse_params(args.param)

@@ -93,7 +93,7 @@ def run(args: argparse.Namespace) -> int:
     from analysis.identify import IdentificationError, fit_free_decay, pool_free_decays
     from analysis.output_paths import check_outputs, record_inputs
     from analysis.provenance import provenance
-    from analysis.records import load_record
+    from analysis.record_loaders import load_record
 
     if len(args.files) > 1 and args.meta:
         raise CommandError("--meta applies to a single FILE; give each CSV its NAME.json")
@@ -147,7 +147,7 @@ def _identify_one(args: argparse.Namespace, record: Record) -> IdentificationRes
         fit_free_decay,
         fit_impact_decay,
     )
-    from analysis.records import load_record
+    from analysis.record_loaders import load_record
 
     progress(f"identifying {record.source} ({record.experiment}, {record.time_s.size} "
              "samples)...")

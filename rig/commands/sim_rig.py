@@ -126,7 +126,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def _build(args: argparse.Namespace) -> Any:
-    from analysis.model import Model, ParameterError
+    from analysis.model import Model
+    from analysis.packed import ParameterError
     from hardware_sim.amplifier_emulator import TransportFault
     from hardware_sim.sim_rig import SimRig
     from hardware_sim.virtual_rig import VirtualRigSettings

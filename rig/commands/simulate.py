@@ -156,6 +156,29 @@ def parse_assignments(items: list[str]) -> dict[str, float]:
     return values
 
 
+def _cause_parameters(rig_names: list[str]) -> dict[str, str]:
+    """Parameter name -> the named cause it belongs to (rig parameters excluded)."""
+    from analysis.extensions import CAUSES
+
+    return {
+        spec.name: c.name
+        for c in CAUSES.values()
+        for spec in c.parameters
+        if spec.name not in rig_names
+    }
+
+
+def parameter_names() -> list[str]:
+    """Every name --param takes: rig, drive, nondimensional, then the causes' parameters."""
+    from dataclasses import fields
+
+    from analysis.model import RigParameters
+
+    rig_names = [f.name for f in fields(RigParameters)]
+    causes = sorted(_cause_parameters(rig_names))
+    return [*rig_names, *DRIVE_PARAMETERS, *NONDIMENSIONAL_PARAMETERS, *causes]
+
+
 def build_model(
     case: str | None, experiment: str | None, params: dict[str, float], causes: list[str]
 ) -> tuple[Any, str]:
@@ -166,21 +189,16 @@ def build_model(
     from analysis.model import (
         Drive,
         Model,
-        ParameterError,
         RigParameters,
         from_nondimensional,
         paper_case,
         to_nondimensional,
     )
+    from analysis.packed import ParameterError
 
     rig_names = [f.name for f in fields(RigParameters)]
-    cause_of = {
-        spec.name: c.name
-        for c in CAUSES.values()
-        for spec in c.parameters
-        if spec.name not in rig_names
-    }
-    valid = [*rig_names, *DRIVE_PARAMETERS, *NONDIMENSIONAL_PARAMETERS, *sorted(cause_of)]
+    cause_of = _cause_parameters(rig_names)
+    valid = parameter_names()
     unknown = [name for name in params if name not in valid]
     if unknown:
         raise CommandError(
@@ -301,8 +319,8 @@ def run(args: argparse.Namespace) -> int:
 
     from analysis.exchange import ExchangeRecord, write_exchange
     from analysis.measurement import MeasurementModel, has_measurement_causes
-    from analysis.model import P, ParameterError
     from analysis.output_paths import check_outputs
+    from analysis.packed import P, ParameterError
     from analysis.simulate import SimulationSettings, simulate
 
     suffix = args.out.suffix.lower()
@@ -400,7 +418,7 @@ def _tach(t: Any, p: Any, fs_hz: float) -> Any:
     """1 on the sample nearest each instant of drive phase 0 (Omega t + phase0 = 2 pi k)."""
     import numpy as np
 
-    from analysis.model import P
+    from analysis.packed import P
 
     omega = p[P.OMEGA_DRIVE]
     tach = np.zeros(t.size, dtype=np.int64)

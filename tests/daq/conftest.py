@@ -17,7 +17,7 @@ from drivers.serial_daq import SerialDaqBackend
 from hardware_sim.daq_emulator import DaqEmulator
 from hardware_sim.daq_faults import DaqFaults
 from hardware_sim.sample_source import SampleSource
-from hardware_sim.sim_daq_backend import SimDaqBackend
+from tests.daq.sim_daq_backend import SimDaqBackend
 
 BACKENDS = ("pty", "inprocess")
 

@@ -149,7 +149,6 @@ def test_the_recordings_open_complete_and_hold_the_sweep_steps(demo):
 
 def test_the_discrepancy_reports_follow_section_6_and_name_the_hidden_cause(demo):
     folder, _ = demo
-    pytest.importorskip("analysis.discrepancy")
     for name in ("analysis/free_decay.json", "analysis/impact_decay.json"):
         report = _json(folder, name)
         assert set(report) >= SECTION_6_KEYS

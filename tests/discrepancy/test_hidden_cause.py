@@ -9,7 +9,7 @@ from __future__ import annotations
 import pytest
 
 from analysis.discrepancy import analyze_record
-from analysis.records import load_record
+from analysis.record_loaders import load_record
 from tests.discrepancy.hidden_cause import draw_case, write_case
 
 FREE_DECAY_SEEDS = (101, 102, 103, 104, 105)

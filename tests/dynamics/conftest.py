@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from analysis.dynamics import iterate_map, rk4_trajectory
-from analysis.dynamics.reference_systems import (
+from tests.dynamics.integrators import iterate_map, rk4_trajectory
+from tests.dynamics.reference_systems import (
     HENON_CLASSIC,
     LORENZ_CLASSIC,
     henon_map,

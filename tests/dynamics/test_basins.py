@@ -5,16 +5,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from analysis.dynamics import (
-    NO_ATTRACTOR,
-    basins_of_attraction,
-    identify_attractors,
-    iterate_map,
-    plot_basins,
-)
-from analysis.dynamics.reference_systems import HENON_CLASSIC, henon_map
+from analysis.dynamics import NO_ATTRACTOR, basins_of_attraction, identify_attractors, plot_basins
 from analysis.model import Drive, Model, RigParameters, paper_case
 from analysis.simulate import SimulationSettings, simulate
+from tests.dynamics.integrators import iterate_map
+from tests.dynamics.reference_systems import HENON_CLASSIC, henon_map
 
 K = 64
 

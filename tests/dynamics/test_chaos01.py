@@ -4,8 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from analysis.dynamics import iterate_map, zero_one_test
-from analysis.dynamics.reference_systems import LOGISTIC_FULLY_CHAOTIC, logistic_map
+from analysis.dynamics import zero_one_test
+from tests.dynamics.integrators import iterate_map
+from tests.dynamics.reference_systems import LOGISTIC_FULLY_CHAOTIC, logistic_map
 
 K = np.arange(1000)
 

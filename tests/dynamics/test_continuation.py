@@ -14,7 +14,8 @@ from analysis.dynamics.continuation import continue_orbits
 from analysis.dynamics.model_parameters import model_with
 from analysis.dynamics.period_map import PeriodMap
 from analysis.dynamics.periodic_orbits import find_periodic_orbit
-from analysis.model import Drive, Model, P, RigParameters, paper_case
+from analysis.model import Drive, Model, RigParameters, paper_case
+from analysis.packed import P
 from analysis.simulate import SimulationSettings, simulate, simulate_packed
 
 

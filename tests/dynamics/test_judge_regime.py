@@ -20,7 +20,7 @@ from analysis.model import Drive, Model, paper_case
 from analysis.simulate import SimulationSettings, simulate
 from hardware_sim.virtual_rig import VirtualRig, VirtualRigSettings
 from rig.config import load_config
-from rig.demo import FULL
+from rig.demo.settings import FULL
 
 FS = 1000.0
 SEEDS = (11, 12, 13)

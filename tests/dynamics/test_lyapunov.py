@@ -16,7 +16,8 @@ from analysis.dynamics import (
     rosenstein_lyapunov,
 )
 from analysis.dynamics.lyapunov import scaling_region
-from analysis.dynamics.reference_systems import (
+from analysis.model import Drive, Model, RigParameters
+from tests.dynamics.reference_systems import (
     HENON_CLASSIC,
     LOGISTIC_FULLY_CHAOTIC,
     LORENZ_CLASSIC,
@@ -27,7 +28,6 @@ from analysis.dynamics.reference_systems import (
     lorenz_jacobian,
     lorenz_rhs,
 )
-from analysis.model import Drive, Model, RigParameters
 
 from .conftest import LORENZ_DT
 

@@ -13,14 +13,15 @@ import math
 import numpy as np
 import pytest
 
-from analysis.dynamics import iterate_map, zero_one_test
-from analysis.dynamics.reference_systems import HENON_CLASSIC, henon_map
+from analysis.dynamics import zero_one_test
 from analysis.dynamics.strobe_chaos import (
     Bands,
     bands_from_recurrence,
     neighbour_divergence,
     zero_one_about_bands,
 )
+from tests.dynamics.integrators import iterate_map
+from tests.dynamics.reference_systems import HENON_CLASSIC, henon_map
 
 SEEDS = (11, 12, 13)
 PERIODS = 600

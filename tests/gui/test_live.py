@@ -11,6 +11,7 @@ from drivers.amplifier_registers import Fault, Holding
 from gui.app import MainWindow
 from gui.settings import AppSettings
 from gui.worker import LiveSession
+from hardware_sim.daq_faults import CORRUPT_CRC
 from tests.gui.conftest import run_events, wait_until
 
 FS_HZ = 2000.0
@@ -208,14 +209,27 @@ def test_amplifier_fault_appears_in_plain_words(qapp, window):
 
 
 def test_lost_daq_frames_appear_as_lost_samples(qapp, window):
-    window.session.devices.sim.daq.faults.corrupt_crc(frames=2)
+    faults = window.session.devices.sim.daq.faults
+    faults.corrupt_crc(frames=2)
     wait_until(
         qapp,
-        lambda: window.status_panel.text("lost") not in ("0", "-"),
+        lambda: sum(record.kind == CORRUPT_CRC for record in faults.log) == 2,
         10,
-        "lost samples in the status panel",
+        "two frames damaged on the wire",
     )
-    assert "gaps in the data" in window.status_panel.text("lost")
-    lost = window.session.stats().samples_lost
-    assert lost > 0
-    assert f"{lost:,}" in window.status_panel.text("lost") or lost > 0
+    # every sample the board's own log says the faults cost, counted once per sampled
+    # channel (the angle and the table lose the same board samples)
+    wait_until(
+        qapp,
+        lambda: window.session.stats().lost_per_stream["angle"] >= faults.samples_lost(),
+        10,
+        "the engine to count the lost samples",
+    )
+    stats = window.session.stats()
+    board_lost = faults.samples_lost()
+    assert board_lost > 0
+    assert stats.lost_per_stream["angle"] == stats.lost_per_stream["table"] == board_lost
+    assert stats.samples_lost == 2 * board_lost
+    shown = f"{stats.samples_lost:,} (gaps in the data)"
+    wait_until(qapp, lambda: window.status_panel.text("lost") == shown, 5, f"the panel: {shown}")
+    assert window.status_panel.fields["lost"].styleSheet() == "color: #b00000"

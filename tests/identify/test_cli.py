@@ -64,7 +64,7 @@ def test_missing_sidecar_is_a_clear_error(decay_csv, capsys):
 
 
 def test_corrupt_hdf5_recording_is_a_clear_error(tmp_path, capsys):
-    # .h5 dispatches to the recorder's loader through analysis.records; a file that is
+    # .h5 dispatches to the recorder's loader through analysis.record_loaders; a file that is
     # not HDF5 at all must be named in a one-line error, not a traceback.
     h5 = tmp_path / "run.h5"
     h5.write_bytes(b"not an hdf5 file")

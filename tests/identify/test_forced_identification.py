@@ -16,7 +16,7 @@ import pytest
 from analysis.identify import fit_forced, identify_forced, measure_drive
 from analysis.identify.equation_error import TableMotion, excursion_maxima, flight_regression
 from analysis.identify.forced import forced_data
-from analysis.records import load_record
+from analysis.record_loaders import load_record
 from tests.reference.forced_records import draw_forced_case, write_forced_case
 
 # (seed, cause, frequency, laser): both frequencies, with and without the laser, clean, and a

@@ -16,7 +16,7 @@ import pytest
 
 from analysis.identify import fit_free_decay
 from analysis.identify.free_decay import _period_factor
-from analysis.records import load_record
+from analysis.record_loaders import load_record
 
 REAL = Path(__file__).resolve().parents[1] / "data" / "real_exchange"  # SOURCE.md there
 

@@ -18,7 +18,7 @@ from analysis.identify.forced import (
     free_parameters,
     record_segments,
 )
-from analysis.records import load_record
+from analysis.record_loaders import load_record
 from tests.reference.forced_records import draw_forced_case, write_forced_case
 
 THROWN = 17  # the segment thrown off

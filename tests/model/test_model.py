@@ -12,8 +12,6 @@ from analysis.model import (
     Drive,
     Model,
     Nondimensional,
-    P,
-    ParameterError,
     RigParameters,
     acceleration,
     contact_force,
@@ -21,6 +19,7 @@ from analysis.model import (
     paper_case,
     to_nondimensional,
 )
+from analysis.packed import P, ParameterError
 
 MODEL_MD_CAUSES = {
     "coulomb_friction", "quadratic_drag", "barrier_offset", "contact_exponent",

@@ -126,7 +126,8 @@ class TrueMotion:
 class ForcedCase:
     """Everything drawn for one forced record: the truth the analysis must find.
 
-    ``causes`` maps each named cause at work (docs/MODEL.md section 6) to its parameters;
+    ``causes`` maps each named cause at work (docs/MODEL.md section 6) to its parameters,
+    ``effects`` each effect outside the named ones (:mod:`tests.reference.unregistered`);
     ``attempt`` is the sub-seed that met a requested regime (0: the seed itself).
     ``regime_truth.settling`` tells how settled a periodic record's start still is;
     ``visibility`` how much of the cause shows after the baseline refits its own
@@ -148,6 +149,7 @@ class ForcedCase:
     regime_truth: RegimeTruth
     visibility: Visibility | None = None
     motion: TrueMotion | None = field(default=None, compare=False, repr=False)
+    effects: dict[str, dict[str, float]] = field(default_factory=dict)
 
     @property
     def cause(self) -> str:
@@ -174,12 +176,12 @@ class ForcedCase:
         return self.regime_truth.lyapunov_per_s
 
     def pendulum(self) -> Pendulum:
-        """The true dynamics: the rig with every dynamics cause at work."""
-        return true_pendulum(self.rig, self.causes)
+        """The true dynamics: the rig with every dynamics cause (and effect) at work."""
+        return true_pendulum(self.rig, self.causes, self.effects)
 
     def table(self) -> TableMotion:
         """The true table motion, phase counted from the first recorded sample."""
-        return true_table(self.drive, self.causes)
+        return true_table(self.drive, self.causes, self.effects)
 
     def time_s(self) -> np.ndarray:
         """Sample times of the record, 0 at the first sample."""
@@ -197,8 +199,10 @@ class GeneratedRecord:
     true_angle_rad: np.ndarray
 
 
-def true_pendulum(rig: RigTruth, causes: dict[str, dict[str, float]]) -> Pendulum:
-    """The rig's pendulum with the dynamics causes of ``causes`` applied."""
+def true_pendulum(rig: RigTruth, causes: dict[str, dict[str, float]],
+                  effects: dict[str, dict[str, float]] | None = None) -> Pendulum:
+    """The rig's pendulum with the dynamics causes of ``causes`` (and of ``effects``)
+    applied."""
     values: dict[str, float] = {
         "m_kg": rig.m_kg, "l_m": rig.l_m, "L_m": rig.L_m, "g_m_s2": rig.g_m_s2,
         "zeta": rig.zeta, "K_n": rig.K_N_per_m1_5, "mu0_s_per_m": rig.mu0_s_per_m,
@@ -215,19 +219,28 @@ def true_pendulum(rig: RigTruth, causes: dict[str, dict[str, float]]) -> Pendulu
     if "contact_damping_law" in causes:  # Kelvin-Voigt replaces Hunt-Crossley's damping
         values["mu0_s_per_m"] = 0.0
         values["c_N_s_per_m"] = causes["contact_damping_law"]["c_N_s_per_m"]
+    effects = effects or {}
+    values["c3_per_s2"] = effects.get("pivot_hairspring", {}).get("c3_per_s2", 0.0)
+    values["K_drift_per_s"] = effects.get("barrier_warming", {}).get("K_drift_per_s", 0.0)
     return Pendulum(**values)
 
 
-def true_table(drive: DriveTruth, causes: dict[str, dict[str, float]]) -> TableMotion:
-    """The table's true motion with the excitation causes of ``causes`` applied."""
+def true_table(drive: DriveTruth, causes: dict[str, dict[str, float]],
+               effects: dict[str, dict[str, float]] | None = None) -> TableMotion:
+    """The table's true motion with the excitation causes of ``causes`` (and the
+    amplifier's wandering gain of ``effects``) applied."""
     eps = causes.get("excitation_amplitude", {}).get("eps", 0.0)
     distortion = causes.get("excitation_distortion", {})
+    wander = (effects or {}).get("drive_gain_wander", {})
     return TableMotion(
         amplitude_m=drive.stated_amplitude_m * (1.0 + eps),
         frequency_hz=drive.frequency_hz,
         phase_rad=drive.phase_rad,
         h2=distortion.get("h2", 0.0),
         phi2_rad=distortion.get("phi2_rad", 0.0),
+        am_depth=wander.get("depth", 0.0),
+        am_frequency_hz=wander.get("frequency_hz", 0.0),
+        am_phase_rad=wander.get("phase_rad", 0.0),
     )
 
 
@@ -434,7 +447,8 @@ def visibility_of(case: ForcedCase, motion: TrueMotion) -> Visibility:
     rig's values, the stated table as a pure sine) refits its own parameters."""
     return cause_visibility(
         true_pendulum(case.rig, {}), true_table(case.drive, {}), motion.time_s,
-        motion.theta_rad, motion.theta_dot_rad_s, sensor_reading(motion, case.causes),
+        motion.theta_rad, motion.theta_dot_rad_s,
+        sensor_reading(motion, case.causes, case.effects),
         case.measurement.angle_noise_rad,
     )
 
@@ -486,13 +500,26 @@ def simulate_true_motion(case: ForcedCase) -> TrueMotion:
     )
 
 
-def sensor_reading(motion: TrueMotion, causes: dict[str, dict[str, float]]) -> np.ndarray:
+def sensor_reading(motion: TrueMotion, causes: dict[str, dict[str, float]],
+                   effects: dict[str, dict[str, float]] | None = None) -> np.ndarray:
     """The angle sensor's noiseless output: the (low-passed) angle, its cubic linearity
-    error, its zero offset."""
+    error, its zero offset; and the sensor effects of ``effects``: a gain and a zero that
+    drift linearly over the record, an interference line."""
     angle = motion.theta_rad if motion.lowpass_rad is None else motion.lowpass_rad
     k3 = causes.get("sensor_nonlinearity", {}).get("k3", 0.0)
     offset = causes.get("sensor_offset", {}).get("offset_rad", 0.0)
-    return angle + k3 * angle**3 + offset
+    reading = angle + k3 * angle**3 + offset
+    effects = effects or {}
+    t = motion.time_s
+    along = (t - t[0]) / max(float(t[-1] - t[0]), 1e-300)  # 0 at the start, 1 at the end
+    reading = reading * (1.0 + effects.get("sensor_gain_drift", {}).get("gain_change", 0.0)
+                         * along)
+    reading = reading + effects.get("sensor_zero_drift", {}).get("offset_change_rad", 0.0) * along
+    hum = effects.get("sensor_hum")
+    if hum:
+        reading = reading + hum["amplitude_rad"] * np.sin(
+            2.0 * math.pi * hum["frequency_hz"] * t + hum["phase_rad"])
+    return reading
 
 
 def quantise(values: np.ndarray, step: float) -> np.ndarray:
@@ -501,10 +528,12 @@ def quantise(values: np.ndarray, step: float) -> np.ndarray:
     return np.clip(np.round(values / step), -half, half - 1) * step
 
 
-def tach_pulses(time_s: np.ndarray, table: TableMotion) -> np.ndarray:
-    """1 on the first sample at or after each instant the true drive phase passes 2 pi k."""
+def tach_pulses(time_s: np.ndarray, table: TableMotion, delay_s: float = 0.0) -> np.ndarray:
+    """1 on the first sample at or after each instant the true drive phase passes 2 pi k
+    (``delay_s`` later: a tach whose pulse lags the table)."""
     tach = np.zeros(time_s.size, dtype=np.int64)
-    instants = strobe_times(table, float(time_s[0]), float(time_s[-1]))
+    instants = strobe_times(table, float(time_s[0]), float(time_s[-1])) + delay_s
+    instants = instants[instants <= time_s[-1]]
     tach[np.searchsorted(time_s, instants, side="left")] = 1
     return tach
 
@@ -516,7 +545,14 @@ def generate(case: ForcedCase) -> GeneratedRecord:
     rng = np.random.default_rng(chain.noise_seed)
     angle_noise = rng.normal(0.0, chain.angle_noise_rad, motion.time_s.size)
     table_noise = rng.normal(0.0, chain.table_noise_m, motion.time_s.size)
-    angle = quantise(sensor_reading(motion, case.causes) + angle_noise, chain.angle_step_rad)
+    heavy = case.effects.get("heavy_tailed_noise")
+    if heavy:  # Student's t, scaled to the same median absolute deviation as the normal
+        t_noise = rng.standard_t(heavy["dof"], motion.time_s.size)
+        scale = 0.6744897501960817 / float(np.median(np.abs(rng.standard_t(heavy["dof"],
+                                                                          200_001))))
+        angle_noise = chain.angle_noise_rad * scale * t_noise
+    reading = sensor_reading(motion, case.causes, case.effects)
+    angle = quantise(reading + angle_noise, chain.angle_step_rad)
     table = case.table()
     table_m = None
     if chain.laser:
@@ -525,7 +561,8 @@ def generate(case: ForcedCase) -> GeneratedRecord:
         time_s=motion.time_s,
         angle_rad=angle,
         table_m=table_m,
-        tach=tach_pulses(motion.time_s, table),
+        tach=tach_pulses(motion.time_s, table,
+                         case.effects.get("tach_delay", {}).get("delay_s", 0.0)),
         true_angle_rad=motion.theta_rad,
     )
 

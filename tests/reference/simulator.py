@@ -40,6 +40,10 @@ class Pendulum:
     ``K_n`` is the contact stiffness in N/m^n (Hertz: n = 1.5, K = (4/3) E sqrt(R));
     ``c_N_s_per_m`` adds Kelvin-Voigt contact damping, ``Tc_N_m`` pivot dry friction with
     stiction, ``c2_per_rad`` aerodynamic drag; ``barrier=False`` removes the barrier.
+    Two effects outside the named causes (for tests of what the analysis cannot name):
+    ``c3_per_s2`` a cubic restoring term c3 theta^3 in theta'' (a hairspring at the pivot),
+    ``K_drift_per_s`` a contact stiffness K_n (1 + K_drift_per_s t) that drifts in time (a
+    barrier warming up).
     """
 
     m_kg: float
@@ -55,13 +59,16 @@ class Pendulum:
     Tc_N_m: float = 0.0
     c2_per_rad: float = 0.0
     barrier: bool = True
+    c3_per_s2: float = 0.0
+    K_drift_per_s: float = 0.0
 
     def __post_init__(self) -> None:
         for name in ("m_kg", "l_m", "L_m", "g_m_s2", "K_n", "n"):
             _require_finite(name, getattr(self, name), lower=0.0, strict=True)
         for name in ("zeta", "mu0_s_per_m", "c_N_s_per_m", "Tc_N_m", "c2_per_rad"):
             _require_finite(name, getattr(self, name), lower=0.0, strict=False)
-        _require_finite("theta_b_rad", self.theta_b_rad, lower=-math.inf, strict=False)
+        for name in ("theta_b_rad", "c3_per_s2", "K_drift_per_s"):
+            _require_finite(name, getattr(self, name), lower=-math.inf, strict=False)
         if abs(self.theta_b_rad) >= math.pi / 2:
             raise ValueError(
                 f"theta_b_rad = {self.theta_b_rad!r}: the barrier must sit below the pivot "
@@ -76,9 +83,11 @@ class Pendulum:
 
 @dataclass(frozen=True)
 class TableMotion:
-    """x_t(t) = A sin(phase) + A h2 sin(2 phase + phi2), phase = 2 pi f t + phase_rad.
+    """x_t(t) = A g(t) (sin(phase) + h2 sin(2 phase + phi2)), phase = 2 pi f t + phase_rad.
 
-    ``phase_rad`` is the drive phase at t = 0; amplitude 0 leaves the table at rest.
+    ``phase_rad`` is the drive phase at t = 0; amplitude 0 leaves the table at rest.  The
+    gain g(t) = 1 + am_depth sin(2 pi am_frequency_hz t + am_phase_rad) is 1 unless an
+    amplifier's wandering gain is modelled (an effect outside the named causes).
     """
 
     amplitude_m: float = 0.0
@@ -86,11 +95,16 @@ class TableMotion:
     phase_rad: float = 0.0
     h2: float = 0.0
     phi2_rad: float = 0.0
+    am_depth: float = 0.0
+    am_frequency_hz: float = 0.0
+    am_phase_rad: float = 0.0
 
     def __post_init__(self) -> None:
-        for name in ("amplitude_m", "frequency_hz", "h2"):
+        for name in ("amplitude_m", "frequency_hz", "h2", "am_depth", "am_frequency_hz"):
             _require_finite(name, getattr(self, name), lower=0.0, strict=False)
-        for name in ("phase_rad", "phi2_rad"):
+        if self.am_depth >= 1.0:
+            raise ValueError(f"am_depth = {self.am_depth!r}: must be below 1")
+        for name in ("phase_rad", "phi2_rad", "am_phase_rad"):
             _require_finite(name, getattr(self, name), lower=-math.inf, strict=False)
         if self.amplitude_m > 0 and self.frequency_hz <= 0:
             raise ValueError(
@@ -115,17 +129,33 @@ class TableMotion:
     def displacement(self, t: float | np.ndarray) -> float | np.ndarray:
         """Table displacement x_t(t) [m]."""
         phase = self.phase(t)
-        return self.amplitude_m * (np.sin(phase) + self.h2 * np.sin(2.0 * phase + self.phi2_rad))
+        gain = 1.0 + self.am_depth * np.sin(
+            2.0 * math.pi * self.am_frequency_hz * np.asarray(t) + self.am_phase_rad)
+        return self.amplitude_m * gain * (
+            np.sin(phase) + self.h2 * np.sin(2.0 * phase + self.phi2_rad))
 
     def acceleration(self, t: float) -> float:
-        """Table acceleration x_t''(t) [m/s^2] at one instant."""
+        """Table acceleration x_t''(t) [m/s^2] at one instant (the gain's derivatives
+        included)."""
         if not self.is_moving:
             return 0.0
         w = 2.0 * math.pi * self.frequency_hz
         phase = w * t + self.phase_rad
-        return -w * w * self.amplitude_m * (
-            math.sin(phase) + 4.0 * self.h2 * math.sin(2.0 * phase + self.phi2_rad)
-        )
+        if self.am_depth == 0.0:  # a steady gain (kept in this order: records stay bitwise)
+            return -w * w * self.amplitude_m * (
+                math.sin(phase) + 4.0 * self.h2 * math.sin(2.0 * phase + self.phi2_rad)
+            )
+        second = 2.0 * phase + self.phi2_rad
+        shape = math.sin(phase) + self.h2 * math.sin(second)
+        shape_rate = w * (math.cos(phase) + 2.0 * self.h2 * math.cos(second))
+        shape_acc = -w * w * (math.sin(phase) + 4.0 * self.h2 * math.sin(second))
+        wm = 2.0 * math.pi * self.am_frequency_hz
+        psi = wm * t + self.am_phase_rad
+        gain = 1.0 + self.am_depth * math.sin(psi)
+        gain_rate = self.am_depth * wm * math.cos(psi)
+        gain_acc = -self.am_depth * wm * wm * math.sin(psi)
+        return self.amplitude_m * (gain_acc * shape + 2.0 * gain_rate * shape_rate
+                                   + gain * shape_acc)
 
 
 @dataclass(frozen=True)
@@ -186,16 +216,21 @@ class _Equations:
         """sin(theta) - sin(theta_b): the penetration over l, > 0 in contact."""
         return math.sin(theta) - self.sin_b
 
-    def unclamped_force(self, theta: float, theta_dot: float) -> float:
+    def stiffness(self, t: float) -> float:
+        """K_n at time t (drifting when K_drift_per_s is not 0)."""
+        return self.p.K_n * (1.0 + self.p.K_drift_per_s * t)
+
+    def unclamped_force(self, t: float, theta: float, theta_dot: float) -> float:
         """K_n delta^n (1 + mu0 deltadot) + c deltadot in contact, else 0 [N]."""
         p = self.p
         delta = p.l_m * self.surface(theta)
         if not p.barrier or delta <= 0.0 or math.cos(theta) <= 0.0:
             return 0.0
         delta_dot = p.l_m * math.cos(theta) * theta_dot
-        return p.K_n * delta**p.n * (1.0 + p.mu0_s_per_m * delta_dot) + p.c_N_s_per_m * delta_dot
+        return (self.stiffness(t) * delta**p.n * (1.0 + p.mu0_s_per_m * delta_dot)
+                + p.c_N_s_per_m * delta_dot)
 
-    def clamp_indicator(self, theta: float, theta_dot: float) -> float:
+    def clamp_indicator(self, t: float, theta: float, theta_dot: float) -> float:
         """A smooth function with the sign of the unclamped force inside the contact.
 
         Pure Hunt-Crossley's force has the sign of 1 + mu0 deltadot, which stays away from 0
@@ -208,14 +243,16 @@ class _Equations:
         if p.c_N_s_per_m == 0.0:
             return 1.0 + p.mu0_s_per_m * delta_dot
         delta = max(p.l_m * self.surface(theta), 0.0)
-        return p.K_n * delta**p.n * (1.0 + p.mu0_s_per_m * delta_dot) + p.c_N_s_per_m * delta_dot
+        return (self.stiffness(t) * delta**p.n * (1.0 + p.mu0_s_per_m * delta_dot)
+                + p.c_N_s_per_m * delta_dot)
 
     def acceleration_without_friction(self, t: float, theta: float, theta_dot: float) -> float:
         """theta'' from every term except Coulomb friction."""
         p = self.p
-        force = max(self.unclamped_force(theta, theta_dot), 0.0)
+        force = max(self.unclamped_force(t, theta, theta_dot), 0.0)
         return (
-            -self.two_zeta_omega * theta_dot
+            -p.c3_per_s2 * theta**3
+            - self.two_zeta_omega * theta_dot
             - p.c2_per_rad * theta_dot * abs(theta_dot)
             - self.table.acceleration(t) / p.L_m * math.cos(theta)
             - self.omega2 * math.sin(theta)
@@ -355,7 +392,7 @@ def _initial_mode(equations: _Equations, t: float, y: np.ndarray) -> _Mode:
     """The mode of a state that is not on an event surface (or is at rest: may stick)."""
     theta, theta_dot = float(y[0]), float(y[1])
     in_contact = equations.p.barrier and equations.surface(theta) > 0.0
-    clamped = in_contact and equations.clamp_indicator(theta, theta_dot) < 0.0
+    clamped = in_contact and equations.clamp_indicator(t, theta, theta_dot) < 0.0
     mode = _Mode(in_contact=in_contact, clamped=clamped, direction=1.0, stuck=False)
     if equations.friction_acc > 0.0:
         if theta_dot != 0.0:
@@ -411,7 +448,7 @@ def _piece_events(equations: _Equations, mode: _Mode):
     if mode.in_contact and not mode.stuck:
 
         def clamp(t: float, y: np.ndarray) -> float:
-            return equations.clamp_indicator(y[0], y[1])
+            return equations.clamp_indicator(t, y[0], y[1])
 
         def toggle_clamp(t: float, y: np.ndarray, mode: _Mode) -> str:
             mode.clamped = not mode.clamped

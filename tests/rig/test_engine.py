@@ -1,4 +1,4 @@
-"""The acquisition engine: fan-out without blocking, per-subscriber losses, gaps, alignment."""
+"""The acquisition engine: fan-out without blocking, per-subscriber losses, gaps."""
 
 from __future__ import annotations
 
@@ -8,7 +8,6 @@ import numpy as np
 import pytest
 
 from drivers.interfaces import PulseBlock, SampleBlock
-from rig.alignment import ChannelAligner
 from rig.engine import AcquisitionEngine, SubscriberOverrunError
 from rig.events import Gap
 from tests.rig.streams import CounterStream, TachStream
@@ -117,28 +116,6 @@ def test_live_quantities_rate_tach_and_drive():
     assert stats.channels["tach"].tach_frequency_hz == pytest.approx(10.0)
     assert stats.drive == setting
     assert setting.sample_index > 0
-
-
-def test_aligner_joins_channels_on_the_index_and_never_fills_a_gap():
-    aligner = ChannelAligner(["angle", "table"])
-
-    def block(channel, first, n, scale):
-        index = np.arange(first, first + n)
-        return SampleBlock(channel, first, first / 100, 100.0, index, index * scale)
-
-    aligner.add(block("angle", 0, 30, 1.0))
-    aligner.add(block("table", 0, 10, 2.0))
-    aligner.add(block("table", 10, 5, 2.0))
-    aligner.add(block("table", 20, 20, 2.0))  # table lost 15..19
-    out = aligner.pop()
-    assert [(a.first_index, len(a)) for a in out] == [(0, 15), (20, 10)]
-    for aligned in out:
-        index = np.arange(aligned.first_index, aligned.first_index + len(aligned))
-        np.testing.assert_array_equal(aligned.values["angle"], index * 1.0)
-        np.testing.assert_array_equal(aligned.values["table"], index * 2.0)
-    assert aligner.unaligned_samples == 5
-    aligner.add(block("angle", 30, 10, 1.0))
-    assert [(a.first_index, len(a)) for a in aligner.pop()] == [(30, 10)]
 
 
 def test_pulse_blocks_are_fanned_out_with_their_edges():

@@ -2,17 +2,14 @@
 
 from __future__ import annotations
 
-import subprocess
-import sys
 import time
-from pathlib import Path
 
 import numpy as np
 import pytest
 
-import analysis.hdf5_records  # noqa: F401 - registers the .h5 loader
 from analysis.hdf5_records import load_hdf5_segments
-from analysis.records import RecordFormatError, load_record
+from analysis.record_loaders import load_record
+from analysis.records import RecordFormatError
 from tests.rig.test_replay import _make_recording
 
 
@@ -60,19 +57,3 @@ def test_a_recording_with_gaps_is_refused_whole_and_split_into_uniform_segments(
         np.testing.assert_allclose(segment.angle_rad, index * 1e-3, rtol=1e-7)
         np.testing.assert_allclose(segment.table_m, index * 2e-3, rtol=1e-7)
         assert np.all(np.diff(segment.time_s) == pytest.approx(1e-4))
-
-
-def test_load_record_reads_a_recording_without_importing_the_loader_first(tmp_path):
-    path = _make_recording(tmp_path / "gappy.h5")
-    probe = (
-        "import sys; from analysis.records import load_record, RecordFormatError\n"
-        "try:\n    load_record(sys.argv[1])\nexcept RecordFormatError as e:\n    print(e)"
-    )
-    done = subprocess.run(
-        [sys.executable, "-c", probe, str(path)],
-        capture_output=True,
-        text=True,
-        check=True,
-        cwd=Path(__file__).resolve().parents[2],
-    )
-    assert "gap(s) in the samples" in done.stdout

@@ -14,7 +14,7 @@ from drivers.shaker import RegisterBackend, ShakerAmplifier
 from hardware_sim.amplifier_emulator import AmplifierEmulator
 from hardware_sim.amplifier_firmware import AmplifierFirmware
 from hardware_sim.shaker_response import ShakerDynamics, ShakerResponse
-from hardware_sim.sim_shaker_backend import SimShakerBackend
+from tests.shaker.sim_shaker_backend import SimShakerBackend
 
 # Quick mechanics so that tests settle in a fraction of a second.
 FAST = ShakerDynamics(frequency_slew_hz_s=200.0, amplitude_tau_s=0.01, frequency_tau_s=0.01)

@@ -12,8 +12,8 @@ from drivers.interfaces import Actuator, DeviceError, LimitError, WrongDeviceErr
 from drivers.modbus_shaker import ModbusTcpBackend
 from drivers.shaker import CommandRefusedError, ShakerAmplifier
 from hardware_sim.amplifier_emulator import AmplifierEmulator
-from hardware_sim.sim_shaker_backend import SimShakerBackend
 from tests.shaker.conftest import LIMITS, Bench, make_firmware
+from tests.shaker.sim_shaker_backend import SimShakerBackend
 
 
 def test_settings_reach_the_registers_with_the_documented_scaling(bench: Bench) -> None:

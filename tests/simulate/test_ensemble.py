@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from analysis.model import Model, P, paper_case
+from analysis.model import Model, paper_case
+from analysis.packed import P
 from analysis.simulate import SimulationSettings, simulate_ensemble, simulate_packed
 
 

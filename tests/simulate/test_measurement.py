@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from analysis.measurement import MeasurementModel, has_measurement_causes
-from analysis.model import Model, ParameterError
+from analysis.model import Model
+from analysis.packed import ParameterError
 
 
 def test_noise_statistics_quantization_and_reproducibility():

@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from analysis.model import Model, P, acceleration, paper_case
+from analysis.model import Model, acceleration, paper_case
+from analysis.packed import P
 from analysis.simulate import SimulationSettings, simulate
 
 INITIAL_STATES = [(-0.2, 0.0), (-0.8, 3.0), (0.0, -6.0), (-1.2, 0.0)]

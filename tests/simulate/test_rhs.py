@@ -1,7 +1,7 @@
 """The integrator's compiled right-hand side is analysis.model's equation in every region.
 
-The integrator inlines the model's equations into its own kernels (compiled with fused
-multiply-adds, and cached per file); here states drawn into each region of the motion
+The integrator inlines the model's equations into its own kernels (compiled there, with
+their flags, and cached per file); here states drawn into each region of the motion
 are evaluated both ways, for the baseline and for every cause that changes the dynamics.
 The integrator's side is what a run uses: the region ``new_state`` puts the state in
 (contact or free flight, sliding direction or stuck) and the kernel ``rhs`` there.
@@ -18,7 +18,6 @@ from analysis.extensions import CAUSES
 from analysis.model import (
     Drive,
     Model,
-    P,
     RigParameters,
     acceleration,
     coefficients,
@@ -27,6 +26,7 @@ from analysis.model import (
     penetration,
     smooth_acceleration,
 )
+from analysis.packed import P
 from analysis.simulate import integrator as ig
 
 DYNAMICS_CAUSES = sorted(name for name, c in CAUSES.items() if c.acts_on == "dynamics")
@@ -42,8 +42,9 @@ GEOMETRIC_REGIONS = {
 }
 REST_REGIONS = {"at_rest_stuck", "at_rest_released"}  # theta' = 0 with Coulomb friction
 
-# Both sides round each term a few times, in a different order (the kernels fuse
-# multiply-adds); the drive's phase Omega t + phase0 is rounded at its own size.
+# Both sides round each term a few times; the drive's phase Omega t + phase0 is rounded at
+# its own size.  With no fast-math flags on either side they agree to the last bit under
+# this numba and LLVM; the bound does not rely on that.
 ROUNDINGS = 8.0 * np.finfo(float).eps
 
 

@@ -6,7 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from analysis.model import Model, P, paper_case
+from analysis.model import Model, paper_case
+from analysis.packed import P
 from analysis.simulate import SimulationSettings, simulate_packed
 from analysis.simulate.integrator import STATUS_NAMES
 from analysis.simulate.segments import integrate_segments

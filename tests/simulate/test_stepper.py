@@ -8,7 +8,8 @@ from itertools import pairwise
 import numpy as np
 import pytest
 
-from analysis.model import Drive, Model, P, RigParameters, paper_case
+from analysis.model import Drive, Model, RigParameters, paper_case
+from analysis.packed import P
 from analysis.simulate import (
     SimulationSettings,
     SimulationStoppedError,

@@ -16,13 +16,13 @@ from drivers.limits import ShakerLimits
 from drivers.shaker import ShakerAmplifier
 from hardware_sim.amplifier_firmware import AmplifierFirmware
 from hardware_sim.sample_source import SampleSource
-from hardware_sim.sim_shaker_backend import SimShakerBackend
 from hardware_sim.virtual_rig import (
     LaserOutput,
     PotentiometerOutput,
     VirtualRig,
     VirtualRigSettings,
 )
+from tests.shaker.sim_shaker_backend import SimShakerBackend
 
 
 def _angle_rad(settings: VirtualRigSettings, counts: np.ndarray) -> np.ndarray:

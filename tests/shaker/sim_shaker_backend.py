@@ -1,7 +1,7 @@
 """In-process simulated backend of the shaker amplifier: the firmware's registers without a wire.
 
 It implements :class:`drivers.shaker.RegisterBackend`, so ``ShakerAmplifier``
-runs unchanged on it: fast tests, teaching, the GUI's ``--sim`` mode.  Refusals
+runs unchanged on it: the driver's tests run on it beside Modbus TCP.  Refusals
 answer like the Modbus device would (CommandRefusedError with the exception code).
 """
 

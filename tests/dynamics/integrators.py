@@ -1,4 +1,4 @@
-"""Generic fixed-step integrators over user-supplied numba functions (flows and maps).
+"""Orbits of the reference systems for the tests: fixed-step integrators over numba functions.
 
 ``rhs(t, y, p) -> dy/dt`` and ``step(k, y, p) -> y_next`` must be ``numba.njit``
 functions; they are compiled into the loops below once per function and process

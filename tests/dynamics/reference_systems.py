@@ -1,7 +1,7 @@
 """Textbook chaotic systems with published Lyapunov exponents, as numba functions (test oracles).
 
-Each has a right-hand side (or map) and its Jacobian in the form the generic
-integrators of :mod:`analysis.dynamics.lyapunov` take: ``f(t, y, p) -> array`` and
+Each has a right-hand side (or map) and its Jacobian in the form the Lyapunov
+estimators of :mod:`analysis.dynamics.lyapunov` take: ``f(t, y, p) -> array`` and
 ``jacobian(t, y, p) -> (n, n) array`` (maps take the iteration count as ``t``).
 """
 

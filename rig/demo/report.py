@@ -1,18 +1,75 @@
-"""The demo's report folder: figures (matplotlib, Agg) and the Markdown report that ties the
-recordings, the identified parameters, the discrepancy findings and the regimes together."""
+"""What the demo tells: its result and the terminal summary, the report folder's figures
+(matplotlib, Agg), the Markdown report that ties the recordings, the identified parameters,
+the discrepancy findings and the regimes together, and the JSON files."""
 
 from __future__ import annotations
 
 import json
 import math
 from collections.abc import Mapping
+from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from analysis.provenance import markdown_provenance, png_metadata, provenance
-from rig.demo import FIGURES
+from rig.demo.settings import FIGURES, RECORDINGS, DemoSettings, HiddenCause
+
+
+@dataclass
+class DemoResult:
+    """What the demo left behind and found."""
+
+    folder: Path
+    report: Path
+    hidden: HiddenCause
+    parameters: dict[str, dict[str, Any]]  # the explained model's (baseline + found causes)
+    baseline: dict[str, dict[str, Any]]  # the baseline model's identification
+    causes: dict[str, dict[str, float]]  # causes found, with their fitted values
+    truth: dict[str, float]
+    findings: dict[str, str]  # record -> cause named by the discrepancy analysis
+    regimes: list[dict[str, Any]]
+    timings_s: dict[str, float]
+    notes: list[str]
+
+    def _cause_keys(self) -> list[str]:
+        return [key for values in self.causes.values() for key in values]
+
+    def summary(self) -> str:
+        """A few lines for the terminal."""
+        lines = [f"impact-rig demo: report in {self.report}"]
+        for key in ("L_m", "zeta", "K_N_per_m1.5", "mu0_s_per_m", *self._cause_keys()):
+            if key in self.parameters:
+                lines.append("  " + _estimate_text(key, self.parameters[key], self.truth.get(key)))
+        if self.findings:
+            found = ", ".join(f"{rec}: {cause}" for rec, cause in self.findings.items())
+            lines.append(f"  discrepancy analysis named: {found}")
+        lines.append(f"  hidden in the virtual rig: {self.hidden.describe()}")
+        lines.append(
+            "  (parameters of the model the analysis arrived at: the baseline model"
+            + "".join(f" + {name}" for name in self.causes)
+            + ")"
+        )
+        if self.regimes:
+            kinds = ", ".join(
+                f"{r['beta']:.3g}{'^' if r['direction'] == 'up' else 'v'} {r['short']}"
+                for r in self.regimes
+            )
+            lines.append(f"  sweep regimes (beta, ^up/v down): {kinds}")
+        lines.extend(f"  note: {n}" for n in self.notes)
+        lines.append(f"  total {self.timings_s.get('total', math.nan):.0f} s")
+        return "\n".join(lines)
+
+
+def _estimate_text(key: str, estimate: Mapping[str, Any], truth: float | None) -> str:
+    ci = estimate.get("ci95")
+    text = f"{key} = {estimate['value']:.6g}"
+    if ci:
+        text += f"  95% CI [{ci[0]:.6g}, {ci[1]:.6g}]"
+    if truth is not None:
+        text += f"  (virtual rig: {truth:.6g})"
+    return text
 
 
 def write_figures(folder: Path, diagrams, settings) -> dict[str, str]:
@@ -215,3 +272,29 @@ def _plain(value: Any) -> Any:
     if isinstance(value, Path):
         return str(value)
     return value
+
+
+def demo_json(
+    result: DemoResult, settings: DemoSettings, recordings: Mapping[str, Any]
+) -> dict[str, Any]:
+    """demo.json: the settings, the hidden and the found causes, the recordings and timings."""
+    return {
+        "report": result.report.name,
+        "settings": asdict(settings),
+        "hidden_cause": {"cause": result.hidden.name, "parameters": dict(result.hidden.values)},
+        "found": result.findings,
+        "parameters": result.parameters,
+        "virtual_rig": result.truth,
+        "recordings": {
+            name: {
+                "path": str(Path(RECORDINGS) / r.path.name),
+                "samples_written": r.samples_written,
+                "samples_lost": r.samples_lost,
+                "stop_reason": r.stop_reason,
+                "wall_time_s": round(r.duration_s, 2),
+            }
+            for name, r in recordings.items()
+        },
+        "timings_s": result.timings_s,
+        "notes": result.notes,
+    }

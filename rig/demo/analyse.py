@@ -16,8 +16,8 @@ from typing import Any
 import numpy as np
 
 from analysis.experiments import FREE_DECAY, IMPACT_DECAY
-from rig.demo import ANALYSIS, NONE, DemoError, DemoSettings, Progress, indented
-from rig.demo_report import write_json
+from rig.demo.report import write_json
+from rig.demo.settings import ANALYSIS, NONE, DemoError, DemoSettings, Progress, indented
 
 
 def load_records(results: Mapping[str, Any], notes: list[str]) -> dict[str, Any]:
@@ -138,13 +138,9 @@ def analyse_discrepancies(
 ) -> dict[str, dict[str, Any]]:
     """The discrepancy analysis (analysis.discrepancy) on each decay, then on one sweep step
     started from the model the decays arrived at (``baseline`` when they found nothing)."""
-    try:
-        from analysis.discrepancy import AnalysisError, analyze_record
-        from analysis.report import write_report as write_analysis_report
-    except ImportError as error:
-        notes.append(f"the discrepancy analysis is not available in this installation ({error})")
-        say(f"  skipped: {notes[-1]}")
-        return {}
+    from analysis.discrepancy import AnalysisError, analyze_record
+    from analysis.report import write_report as write_analysis_report
+
     chosen = {kind.name: records[kind.name] for kind in (FREE_DECAY, IMPACT_DECAY)}
     steps = records["sweep_steps"]
     if steps and settings.analyze_forced_step:
