@@ -1,10 +1,11 @@
 """The impact-pendulum model of docs/MODEL.md: parameters, nondimensional form, equations of motion.
 
 The equations are written once, as numba-compiled functions of a packed parameter
-vector (layout in :mod:`analysis.packed`), so the simulator, the virtual rig and the
-analysis all integrate exactly the same physics.  Every term of the superset equation is off
-(zero) by default; the named causes of docs/MODEL.md section 6 switch terms on through
-the registry in :mod:`analysis.extensions`, never by editing these equations.
+vector (layout in :mod:`analysis.packed`) hoisted into a tuple of coefficients, so the
+simulator's compiled integrator, the virtual rig and the analysis all integrate exactly the
+same physics.  Every term of the superset equation is off (zero) by default; the named
+causes of docs/MODEL.md section 6 switch terms on through the registry in
+:mod:`analysis.extensions`, never by editing these equations.
 """
 
 from __future__ import annotations
@@ -294,49 +295,155 @@ class Model:
 
 
 # --------------------------------------------------------------------------- compiled equations
+# The equations of motion are defined once, here, as functions of the coefficient tuple
+# below; the compiled integrator (analysis.simulate.integrator) calls these same functions
+# for its right-hand side in every region, and the functions of the packed vector further
+# down (what the rest of the analysis calls) are these functions too.  Each is inlined
+# into its caller (numba inline="always"), so it is compiled with the caller's own flags;
+# no caller may set fast-math flags, not even "contract" (fused multiply-adds): the
+# integrator's comment on its kernels says why, and without them the integrator and these
+# entry points round every term alike.  numba caches a kernel by its own file only: after
+# editing these equations, delete analysis/simulate/__pycache__ (tests/simulate/test_rhs.py
+# fails on a stale cache).
+
+# Positions in the coefficient tuple: the packed vector's entries hoisted into scalars once
+# per call, with flags that skip the drive, its second harmonic and the general power law
+# when they are off.
+K_OMEGA2, K_TWO_ZETA_OMEGA, K_C2, K_INV_L, K_OMEGA_DRIVE, K_PHASE0 = 0, 1, 2, 3, 4, 5
+K_A1, K_A2, K_PHI2, K_GAIN, K_SHAFT, K_STIFFNESS, K_EXPONENT = 6, 7, 8, 9, 10, 11, 12
+K_MU0, K_C_VISCOUS, K_SIN_THETA_B, K_CONTACT_ON, K_HERTZ, K_FORCED, K_HARMONIC2 = (
+    13,
+    14,
+    15,
+    16,
+    17,
+    18,
+    19,
+)
 
 
 @numba.njit(cache=True, inline="always")
-def penetration(theta: float, p: np.ndarray) -> float:
+def coefficients(p: np.ndarray, contact: bool) -> tuple[float, ...]:
+    """The packed vector as the equations' coefficient tuple; ``contact`` False drops the
+    barrier term (the integrator's free-flight region)."""
+    forced = p[P.OMEGA_DRIVE] != 0.0 and (p[P.A1] != 0.0 or p[P.A2] != 0.0)
+    return (
+        p[P.OMEGA2],
+        p[P.TWO_ZETA_OMEGA],
+        p[P.C2],
+        p[P.INV_L],
+        p[P.OMEGA_DRIVE],
+        p[P.PHASE0],
+        p[P.A1],
+        p[P.A2],
+        p[P.PHI2],
+        p[P.CONTACT_GAIN],
+        p[P.SHAFT_L],
+        p[P.K],
+        p[P.EXPONENT],
+        p[P.MU0],
+        p[P.C_VISCOUS],
+        p[P.SIN_THETA_B],
+        1.0 if (contact and p[P.BARRIER] != 0.0) else 0.0,
+        1.0 if p[P.EXPONENT] == 1.5 else 0.0,
+        1.0 if forced else 0.0,
+        1.0 if p[P.A2] != 0.0 else 0.0,
+    )
+
+
+@numba.njit(cache=True, inline="always")
+def indentation(sin_theta: float, k: tuple[float, ...]) -> float:
     """Penetration delta = l (sin theta - sin theta_b) [m], > 0 in contact."""
-    return p[P.SHAFT_L] * (math.sin(theta) - p[P.SIN_THETA_B])
+    return k[K_SHAFT] * (sin_theta - k[K_SIN_THETA_B])
 
 
-@numba.njit(cache=True)
-def contact_force(theta: float, theta_dot: float, p: np.ndarray) -> float:
+@numba.njit(cache=True, inline="always")
+def barrier_force(sin_theta: float, cos_theta: float, theta_dot: float, k: tuple[float, ...]
+                  ) -> float:
     """Barrier force Fc [N] of docs/MODEL.md section 2, generalised by the contact extensions.
 
-    Fc = K delta^n (1 + mu0 deltadot) + c deltadot, clamped at 0 (no adhesion);
-    zero out of contact, with the barrier removed, or beyond the horizontal.
+    Fc = K delta^n (1 + mu0 deltadot) + c deltadot, clamped at 0 (no adhesion); zero out of
+    contact, with the barrier off, or beyond the horizontal (the barrier is at the bottom).
     """
-    if p[P.BARRIER] == 0.0 or math.cos(theta) <= 0.0:
+    if not (k[K_CONTACT_ON] != 0.0 and cos_theta > 0.0):
         return 0.0
-    delta = penetration(theta, p)
-    if delta <= 0.0:
+    delta = indentation(sin_theta, k)
+    if not delta > 0.0:
         return 0.0
-    delta_dot = p[P.SHAFT_L] * math.cos(theta) * theta_dot
-    force = p[P.K] * delta ** p[P.EXPONENT] * (1.0 + p[P.MU0] * delta_dot)
-    force += p[P.C_VISCOUS] * delta_dot
+    delta_dot = k[K_SHAFT] * cos_theta * theta_dot
+    power = delta * math.sqrt(delta) if k[K_HERTZ] != 0.0 else delta ** k[K_EXPONENT]
+    force = k[K_STIFFNESS] * power * (1.0 + k[K_MU0] * delta_dot)
+    force += k[K_C_VISCOUS] * delta_dot
     return force if force > 0.0 else 0.0
 
 
 @numba.njit(cache=True, inline="always")
-def table_acceleration(t: float, p: np.ndarray) -> float:
-    """x_t''(t) for x_t = A1 sin(phase) + A2 sin(2 phase + phi2), phase = Omega t + phase0."""
-    w = p[P.OMEGA_DRIVE]
-    phase = w * t + p[P.PHASE0]
-    return -w * w * (p[P.A1] * math.sin(phase) + 4.0 * p[P.A2] * math.sin(2.0 * phase + p[P.PHI2]))
+def table_forcing(t: float, cos_theta: float, k: tuple[float, ...]) -> float:
+    """-(x_t''(t) / L) cos(theta), the table's push on the pendulum [1/s^2], for
+    x_t = A1 sin(phase) + A2 sin(2 phase + phi2), phase = Omega t + phase0."""
+    w = k[K_OMEGA_DRIVE]
+    phase = w * t + k[K_PHASE0]
+    drive = k[K_A1] * math.sin(phase)
+    if k[K_HARMONIC2] != 0.0:
+        drive += 4.0 * k[K_A2] * math.sin(2.0 * phase + k[K_PHI2])
+    return w * w * drive * k[K_INV_L] * cos_theta
 
 
 @numba.njit(cache=True, inline="always")
+def region_acceleration(t: float, theta: float, theta_dot: float, k: tuple[float, ...]
+                        ) -> float:
+    """theta'' from every term but Coulomb friction: damping, drag, gravity, table, barrier."""
+    s = math.sin(theta)
+    c = math.cos(theta)
+    acc = -k[K_TWO_ZETA_OMEGA] * theta_dot - k[K_C2] * theta_dot * abs(theta_dot)
+    acc -= k[K_OMEGA2] * s
+    if k[K_FORCED] != 0.0:
+        acc += table_forcing(t, c, k)
+    force = barrier_force(s, c, theta_dot, k)
+    if force > 0.0:
+        acc -= k[K_GAIN] * force
+    return acc
+
+
+@numba.njit(cache=True, inline="always")
+def sliding_acceleration(t: float, theta: float, theta_dot: float, k: tuple[float, ...],
+                         direction: float, friction: float) -> float:
+    """theta'' while sliding in ``direction`` (+1, -1; 0 adds no friction) against the
+    Coulomb friction acceleration ``friction`` = Tc / (m L^2)."""
+    return region_acceleration(t, theta, theta_dot, k) - direction * friction
+
+
+@numba.njit(cache=True, inline="always")
+def sliding_direction(t: float, theta: float, theta_dot: float, k: tuple[float, ...],
+                      friction: float) -> float:
+    """Direction of motion for Coulomb friction: the sign of theta', and at theta' = 0 the
+    sign of the other torques, or 0 (stuck) while they stay within the friction torque."""
+    if theta_dot > 0.0:
+        return 1.0
+    if theta_dot < 0.0:
+        return -1.0
+    acc = region_acceleration(t, theta, 0.0, k)
+    if abs(acc) <= friction:
+        return 0.0
+    return 1.0 if acc > 0.0 else -1.0
+
+
+@numba.njit(cache=True)
+def penetration(theta: float, p: np.ndarray) -> float:
+    """Penetration delta = l (sin theta - sin theta_b) [m] of a packed vector, > 0 in contact."""
+    return indentation(math.sin(theta), coefficients(p, True))
+
+
+@numba.njit(cache=True)
+def contact_force(theta: float, theta_dot: float, p: np.ndarray) -> float:
+    """Barrier force Fc [N] of a packed vector (see :func:`barrier_force`)."""
+    return barrier_force(math.sin(theta), math.cos(theta), theta_dot, coefficients(p, True))
+
+
+@numba.njit(cache=True)
 def smooth_acceleration(t: float, theta: float, theta_dot: float, p: np.ndarray) -> float:
     """theta'' from every term but Coulomb friction (that needs the integrator's stick logic)."""
-    acc = -p[P.TWO_ZETA_OMEGA] * theta_dot
-    acc -= p[P.C2] * theta_dot * abs(theta_dot)
-    acc -= table_acceleration(t, p) * p[P.INV_L] * math.cos(theta)
-    acc -= p[P.OMEGA2] * math.sin(theta)
-    acc -= p[P.CONTACT_GAIN] * contact_force(theta, theta_dot, p)
-    return acc
+    return region_acceleration(t, theta, theta_dot, coefficients(p, True))
 
 
 @numba.njit(cache=True)
@@ -345,11 +452,10 @@ def acceleration(t: float, theta: float, theta_dot: float, p: np.ndarray) -> flo
     (theta' != 0).
 
     Coulomb friction enters as -Tc/(m L^2) sign(theta'); at theta' = 0 the pendulum
-    sticks unless the other torques exceed Tc, which the integrator resolves.
+    sticks unless the other torques exceed Tc (:func:`sliding_direction`), which the
+    integrator resolves.
     """
-    acc = smooth_acceleration(t, theta, theta_dot, p)
-    if theta_dot > 0.0:
-        acc -= p[P.COULOMB_ACC]
-    elif theta_dot < 0.0:
-        acc += p[P.COULOMB_ACC]
-    return acc
+    direction = 1.0 if theta_dot > 0.0 else (-1.0 if theta_dot < 0.0 else 0.0)
+    return sliding_acceleration(
+        t, theta, theta_dot, coefficients(p, True), direction, p[P.COULOMB_ACC]
+    )

@@ -39,25 +39,25 @@ from analysis.dynamics import (  # noqa: E402
 from analysis.dynamics.sweeps import default_workers  # noqa: E402
 from analysis.model import Model, paper_case  # noqa: E402
 from analysis.packed import P  # noqa: E402
-from analysis.simulate import simulate_ensemble, simulate_packed  # noqa: E402
+from analysis.simulate import SimulationSettings, simulate_ensemble, simulate_packed  # noqa: E402
 
 
 def serial_seconds_per_run(packed: np.ndarray, initial: np.ndarray, periods: int) -> float:
     """Mean time of plain in-process simulate_packed calls over a sample of the job's runs."""
     period = 2.0 * math.pi / packed[0, P.OMEGA_DRIVE]
     # load (or compile) the numba code of both paths before timing anything
-    simulate_packed(packed[0], 0.0, 0.0, duration_s=period, fs_hz=1.0 / period)
+    simulate_packed(
+        packed[0], 0.0, 0.0,
+        settings=SimulationSettings(duration_s=period, fs_hz=1.0 / period),
+    )
     simulate_ensemble(packed[:2], initial[:2], duration_s=period)
     start = time.perf_counter()
     for p, (theta0, theta_dot0) in zip(packed, initial, strict=True):
         simulate_packed(
-            p,
-            theta0,
-            theta_dot0,
-            duration_s=periods * period,
-            fs_hz=1.0 / period,
-            rtol=1e-8,
-            atol=1e-10,
+            p, theta0, theta_dot0,
+            settings=SimulationSettings(
+                duration_s=periods * period, fs_hz=1.0 / period, rtol=1e-8, atol=1e-10,
+            ),
         )
     return (time.perf_counter() - start) / packed.shape[0]
 

@@ -27,7 +27,7 @@ sys.path.insert(0, str(ROOT))
 from analysis.identify import fit_free_decay, fit_impact_decay  # noqa: E402
 from analysis.model import Model, RigParameters  # noqa: E402
 from analysis.records import Record  # noqa: E402
-from analysis.simulate import simulate  # noqa: E402
+from analysis.simulate import SimulationSettings, simulate  # noqa: E402
 from tests.identify.oracle import free_decay  # noqa: E402
 
 RIG_KEYS = {"m_kg": 0.0326, "l_m": 0.05, "R_m": 0.0095, "g": 9.81}
@@ -44,8 +44,10 @@ def _impact_truth(rng: np.random.Generator) -> tuple[RigParameters, float, float
 
 
 def _impact_record(rng, truth, theta0, offset, duration_s, fs_hz) -> Record:
-    sim = simulate(Model(rig=truth, barrier=True), theta0, 0.0, duration_s=duration_s,
-                   fs_hz=fs_hz, poincare_phase=None)
+    sim = simulate(
+        Model(rig=truth, barrier=True), theta0, 0.0,
+        settings=SimulationSettings(duration_s=duration_s, fs_hz=fs_hz, poincare_phase=None),
+    )
     angle = sim.theta + offset + rng.normal(0.0, 2e-4, sim.t.size)
     return Record(sim.t, angle, "impact_decay", rig=RIG_KEYS)
 
@@ -58,8 +60,10 @@ def bench_impact_fit_time(repeats: int) -> None:
     sim_times, fit_times = [], []
     for _ in range(repeats):
         start = time.perf_counter()
-        simulate(Model(rig=truth, barrier=True), theta0, 0.0, duration_s=10.0, fs_hz=10_000.0,
-                 poincare_phase=None)
+        simulate(
+            Model(rig=truth, barrier=True), theta0, 0.0,
+            settings=SimulationSettings(duration_s=10.0, fs_hz=10_000.0, poincare_phase=None),
+        )
         sim_times.append(time.perf_counter() - start)
         start = time.perf_counter()
         result = fit_impact_decay(record)

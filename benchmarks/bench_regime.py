@@ -30,7 +30,7 @@ from analysis.dynamics import (  # noqa: E402
     poincare_from_pulses,
 )
 from analysis.model import Drive, Model, RigParameters, paper_case  # noqa: E402
-from analysis.simulate import simulate  # noqa: E402
+from analysis.simulate import SimulationSettings, simulate  # noqa: E402
 from hardware_sim.virtual_rig import VirtualRig, VirtualRigSettings  # noqa: E402
 from rig.demo.settings import FULL  # noqa: E402
 
@@ -58,7 +58,10 @@ def analytic(kind: str, rng: np.random.Generator) -> np.ndarray:
 def simulated(case: str) -> tuple[np.ndarray, float]:
     rig, drive = paper_case(case).dimensional()
     skip = 10.0 * round(drive.frequency_hz) / drive.frequency_hz
-    run = simulate(Model(rig, drive), 0.0, 0.0, duration_s=SECONDS, fs_hz=FS, skip_s=skip)
+    run = simulate(
+        Model(rig, drive), 0.0, 0.0,
+        settings=SimulationSettings(duration_s=SECONDS, fs_hz=FS, skip_s=skip),
+    )
     return run.theta, drive.frequency_hz
 
 

@@ -34,7 +34,7 @@ if str(ROOT) not in sys.path:
 
 from analysis.model import Model, acceleration, paper_case  # noqa: E402
 from analysis.packed import P  # noqa: E402
-from analysis.simulate import Stepper, simulate_packed  # noqa: E402
+from analysis.simulate import SimulationSettings, Stepper, simulate_packed  # noqa: E402
 
 GRID_HZ = 1000.0
 BASELINE_RTOL = 1e-9
@@ -103,14 +103,11 @@ def scenario(
 
     def ours(rtol: float):
         return simulate_packed(
-            p,
-            theta0,
-            0.0,
-            duration_s=duration_s,
-            fs_hz=GRID_HZ,
-            poincare_phase=None,
-            rtol=rtol,
-            atol=rtol * 1e-2,
+            p, theta0, 0.0,
+            settings=SimulationSettings(
+                duration_s=duration_s, fs_hz=GRID_HZ, poincare_phase=None, rtol=rtol,
+                atol=rtol * 1e-2,
+            ),
         )
 
     ours(1e-9)  # compile / load the cache outside the timing

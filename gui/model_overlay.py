@@ -118,7 +118,7 @@ def _free_decay_response(
 def _impact_decay_response(
     record: Record, t: np.ndarray, result: IdentificationResult
 ) -> tuple[np.ndarray, np.ndarray]:
-    from analysis.simulate import simulate
+    from analysis.simulate import SimulationSettings, simulate
 
     fitted = result.details["fitted"]
     p = result.parameters
@@ -136,9 +136,7 @@ def _impact_decay_response(
         Model(rig=rig, drive=Drive(), barrier=True),
         fitted["theta0_rad"],
         fitted["theta_dot0_rad_s"],
-        duration_s=model_t.size / fs,
-        fs_hz=fs,
-        poincare_phase=None,
+        settings=SimulationSettings(duration_s=model_t.size / fs, fs_hz=fs, poincare_phase=None),
     )
     theta = np.asarray(run.theta, dtype=float)[: model_t.size]
     return model_t[: theta.size], theta + fitted["offset_rad"]

@@ -24,7 +24,7 @@ from analysis.identify.intervals import Z95, sandwich_covariance
 from analysis.identify.result import Estimate, Residuals
 from analysis.model import Drive, Model, RigParameters
 from analysis.model_values import measured_angle, model_from_values, packed_from_values
-from analysis.simulate import SimulationResult, simulate_packed
+from analysis.simulate import SimulationResult, SimulationSettings, simulate_packed
 
 RTOL = 1e-8
 ATOL = 1e-10
@@ -102,8 +102,10 @@ def predict(
     p = packed_from_values(data.rig, data.drive, data.barrier, values, (cause_name,),
                            data.phase0_rad)
     sim = simulate_packed(
-        p, values["theta0_rad"], values["theta_dot0_rad_s"], n * data.dt, 1.0 / data.dt,
-        poincare_phase=None, rtol=RTOL, atol=ATOL,
+        p, values["theta0_rad"], values["theta_dot0_rad_s"],
+        settings=SimulationSettings(
+            duration_s=n * data.dt, fs_hz=1.0 / data.dt, poincare_phase=None, rtol=RTOL, atol=ATOL,
+        ),
     )
     theta = np.asarray(sim.theta, dtype=float)[:n]
     if theta.size < n:

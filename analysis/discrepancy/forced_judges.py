@@ -15,7 +15,7 @@ from analysis.extensions import NONE, causes_in, implausibility
 from analysis.identify.forced import ForcedData
 from analysis.identify.shooting import Segments, ShootingFit
 from analysis.model_values import measured_angle, packed_from_values
-from analysis.simulate import simulate_packed
+from analysis.simulate import SimulationSettings, simulate_packed
 
 MODEL_INVARIANT_SPAN = 4  # a model's invariants come from a run this many records long
 
@@ -31,8 +31,12 @@ def model_invariants_distance(
     drive = data.drive.model_drive(values.get("drive_frequency_hz"))
     p = packed_from_values(data.rig, drive, True, values, causes, phase)
     n = MODEL_INVARIANT_SPAN * data.t.size
-    sim = simulate_packed(p, float(fit.states[0, 0]), float(fit.states[0, 1]), n * data.dt,
-                          1.0 / data.dt, poincare_phase=None, rtol=1e-8, atol=1e-10)
+    sim = simulate_packed(
+        p, float(fit.states[0, 0]), float(fit.states[0, 1]),
+        settings=SimulationSettings(
+            duration_s=n * data.dt, fs_hz=1.0 / data.dt, poincare_phase=None, rtol=1e-8, atol=1e-10,
+        ),
+    )
     t = np.arange(sim.theta.size) * data.dt
     theta = measured_angle(causes, values, t, np.asarray(sim.theta, dtype=float))
     if theta.size < 16:

@@ -31,8 +31,8 @@ import numpy as np
 from analysis.dynamics.model_parameters import model_with, parameter_value
 from analysis.model import Model
 from analysis.packed import P
+from analysis.simulate import SimulationSettings, simulate_packed
 from analysis.simulate import integrator as ig
-from analysis.simulate import simulate_packed
 from analysis.simulate.result import ContactEvents
 from analysis.simulate.segments import integrate_segments
 
@@ -232,9 +232,13 @@ class PeriodMap:
         duration = self.duration_s(value)
         fs = samples_per_period * self.periods / duration
         # the second pass is kept: a contact under way at drive phase 0 then counts once
-        run = simulate_packed(p, float(state[0]), float(state[1]), duration_s=duration,
-                              fs_hz=fs, skip_s=duration, poincare_phase=None,
-                              rtol=self.rtol, atol=self.atol)
+        run = simulate_packed(
+            p, float(state[0]), float(state[1]),
+            settings=SimulationSettings(
+                duration_s=duration, fs_hz=fs, skip_s=duration, poincare_phase=None, rtol=self.rtol,
+                atol=self.atol,
+            ),
+        )
         if run.status != "ok":
             raise MapError(
                 f"the integrator stopped ({run.status}) on the orbit from (theta, theta') = "

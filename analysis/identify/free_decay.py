@@ -64,15 +64,17 @@ def simulated_free_decay(
 ) -> np.ndarray:
     """The full pendulum equation, no barrier nor drive, sampled at uniform ``t`` (t[0] = 0)."""
     from analysis.model import Drive, Model, RigParameters
-    from analysis.simulate import simulate
+    from analysis.simulate import SimulationSettings, simulate
 
     dt = float(t[1] - t[0])
     model = Model(
         rig=RigParameters(L_m=g / omega**2, zeta=zeta, g_m_s2=g), drive=Drive(), barrier=False
     )
     result = simulate(
-        model, theta0, theta_dot0, duration_s=t.size * dt, fs_hz=1.0 / dt,
-        poincare_phase=None, rtol=1e-10, atol=1e-12,
+        model, theta0, theta_dot0,
+        settings=SimulationSettings(
+            duration_s=t.size * dt, fs_hz=1.0 / dt, poincare_phase=None, rtol=1e-10, atol=1e-12,
+        ),
     )
     theta = np.asarray(result.theta, dtype=float)[: t.size]
     if theta.size < t.size:

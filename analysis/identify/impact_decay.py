@@ -331,11 +331,13 @@ def _e_from_k(K: float, lo: float, hi: float, R: float) -> tuple[float, tuple[fl
 
 
 def _simulate(rig: RigParameters, theta0: float, theta_dot0: float, dt: float, n: int):
-    from analysis.simulate import simulate
+    from analysis.simulate import SimulationSettings, simulate
 
     result = simulate(
         Model(rig=rig, drive=Drive(), barrier=True), theta0, theta_dot0,
-        duration_s=n * dt, fs_hz=1.0 / dt, poincare_phase=None, rtol=1e-9, atol=1e-11,
+        settings=SimulationSettings(
+            duration_s=n * dt, fs_hz=1.0 / dt, poincare_phase=None, rtol=1e-9, atol=1e-11,
+        ),
     )
     theta = np.asarray(result.theta, dtype=float)[:n]
     if theta.size < n:

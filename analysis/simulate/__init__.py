@@ -3,6 +3,7 @@
 from analysis.simulate.ensemble import EnsembleResult, simulate_ensemble
 from analysis.simulate.result import ContactEvents, SimulationResult, StickEvents, Trajectory
 from analysis.simulate.simulation import (
+    SimulationSettings,
     drive_period_s,
     poincare_times,
     record_start_s,
@@ -15,6 +16,7 @@ __all__ = [
     "ContactEvents",
     "EnsembleResult",
     "SimulationResult",
+    "SimulationSettings",
     "SimulationStoppedError",
     "Stepper",
     "StickEvents",

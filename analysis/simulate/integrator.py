@@ -30,6 +30,14 @@ import numba
 import numpy as np
 from scipy.integrate._ivp import dop853_coefficients as _dop853
 
+from analysis.model import (
+    K_GAIN,
+    K_SHAFT,
+    K_STIFFNESS,
+    coefficients,
+    sliding_acceleration,
+    sliding_direction,
+)
 from analysis.packed import P
 
 # Strict IEEE arithmetic, no fast-math flags, not even "contract": with it, LLVM fuses
@@ -121,9 +129,9 @@ def _power_basis() -> np.ndarray:
         for j in range(DEGREE - 1, -1, -1):
             poly = poly + (1.0 if j == i else 0.0)
             poly = poly * (s if j % 2 == 0 else 1.0 - s)
-        coefficients = np.zeros(DEGREE + 1)
-        coefficients[: poly.coef.size] = poly.coef
-        basis[:, i] = coefficients[1:]
+        padded = np.zeros(DEGREE + 1)
+        padded[: poly.coef.size] = poly.coef
+        basis[:, i] = padded[1:]
     return basis
 
 
@@ -145,90 +153,26 @@ STUCK_SCAN_PER_PERIOD = 128  # release search resolution while stuck under forci
 
 
 # ----------------------------------------------------------------------------- right-hand side
-# The kernel evaluates analysis.model.smooth_acceleration with the packed vector's entries
-# hoisted into a tuple of scalars once per call, sin/cos of theta taken once per stage, the
-# drive's second harmonic and the general power law skipped when they are off.  The terms
-# are exactly those of analysis.model (tests/simulate/test_rhs.py checks equality over
-# random packed vectors); the physics is defined there, not here.
-
-K_OMEGA2, K_TWO_ZETA_OMEGA, K_C2, K_INV_L, K_OMEGA_DRIVE, K_PHASE0 = 0, 1, 2, 3, 4, 5
-K_A1, K_A2, K_PHI2, K_GAIN, K_SHAFT, K_STIFFNESS, K_EXPONENT = 6, 7, 8, 9, 10, 11, 12
-K_MU0, K_C_VISCOUS, K_SIN_THETA_B, K_CONTACT_ON, K_HERTZ, K_FORCED, K_HARMONIC2 = (
-    13,
-    14,
-    15,
-    16,
-    17,
-    18,
-    19,
-)
+# The right-hand side is analysis.model's definition of the equations, not a copy: its
+# functions are inlined into these kernels (and compiled with their flags).  numba's cache
+# tracks only a kernel's own file, so after editing the equations in analysis/model.py
+# delete this folder's __pycache__ (tests/simulate/test_rhs.py finds a stale cache: the
+# kernels' right-hand side then differs from the model's).
 
 
 @kernel
-def coefficients(p, contact):
-    """The packed vector as a tuple of scalars for the kernel; ``contact`` False drops the
-    barrier term (free-flight region)."""
-    forced = p[P.OMEGA_DRIVE] != 0.0 and (p[P.A1] != 0.0 or p[P.A2] != 0.0)
-    return (
-        p[P.OMEGA2],
-        p[P.TWO_ZETA_OMEGA],
-        p[P.C2],
-        p[P.INV_L],
-        p[P.OMEGA_DRIVE],
-        p[P.PHASE0],
-        p[P.A1],
-        p[P.A2],
-        p[P.PHI2],
-        p[P.CONTACT_GAIN],
-        p[P.SHAFT_L],
-        p[P.K],
-        p[P.EXPONENT],
-        p[P.MU0],
-        p[P.C_VISCOUS],
-        p[P.SIN_THETA_B],
-        1.0 if (contact and p[P.BARRIER] != 0.0) else 0.0,
-        1.0 if p[P.EXPONENT] == 1.5 else 0.0,
-        1.0 if forced else 0.0,
-        1.0 if p[P.A2] != 0.0 else 0.0,
-    )
+def rhs(t, th, om, pr, slide, tc):
+    """The right-hand side theta'' every step integrates: the model's equation for the
+    region's coefficients ``pr`` (contact term or not), sliding in direction ``slide``
+    against the friction acceleration ``tc``."""
+    return sliding_acceleration(t, th, om, pr, slide, tc)
 
 
-@kernel
-def region_acceleration(t, th, om, k):
-    """analysis.model.smooth_acceleration for the coefficient tuple ``k`` (see above)."""
-    s = math.sin(th)
-    c = math.cos(th)
-    acc = -k[K_TWO_ZETA_OMEGA] * om - k[K_C2] * om * abs(om) - k[K_OMEGA2] * s
-    if k[K_FORCED] != 0.0:
-        w = k[K_OMEGA_DRIVE]
-        phase = w * t + k[K_PHASE0]
-        drive = k[K_A1] * math.sin(phase)
-        if k[K_HARMONIC2] != 0.0:
-            drive += 4.0 * k[K_A2] * math.sin(2.0 * phase + k[K_PHI2])
-        acc += w * w * drive * k[K_INV_L] * c
-    if k[K_CONTACT_ON] != 0.0 and c > 0.0:
-        delta = k[K_SHAFT] * (s - k[K_SIN_THETA_B])
-        if delta > 0.0:
-            delta_dot = k[K_SHAFT] * c * om
-            power = delta * math.sqrt(delta) if k[K_HERTZ] != 0.0 else delta ** k[K_EXPONENT]
-            force = k[K_STIFFNESS] * power * (1.0 + k[K_MU0] * delta_dot)
-            force += k[K_C_VISCOUS] * delta_dot
-            if force > 0.0:
-                acc -= k[K_GAIN] * force
-    return acc
-
-
-@kernel
-def _acc(t, th, om, pr, slide, tc):
-    """theta'' of the current region: smooth terms plus friction in a fixed direction."""
-    return region_acceleration(t, th, om, pr) - slide * tc
-
-
-@kernel(inline="always")  # one call site; a call would pass ~40 arguments
-def _rk_step(t, th, om, a0, h, pr, slide, tc, kth, kom, rtol, atol, om_floor):
-    """One DOP853 step: fills the stage slopes; returns theta, theta', theta'' at the end and
-    the scaled error norm (Hairer's blend of the 5th- and 3rd-order estimates), with theta'
-    measured relative to max(|theta'|, om_floor).
+@kernel(inline="always")  # two call sites; a call would pass ~40 arguments
+def _rk_step(t, th, om, a0, h, pr, slide, tc, rtol, atol, om_floor):
+    """One DOP853 step: returns theta, theta', theta'' at the end, the scaled error norm
+    (Hairer's blend of the 5th- and 3rd-order estimates), with theta' measured relative to
+    max(|theta'|, om_floor), and the stages the dense output needs (``_store_stages``).
 
     The stages are written out term by term, zeros of the tableau left out (as in Hairer's
     own code): a loop over the tableau costs ~10 % more per step.  Stage s is at
@@ -237,30 +181,30 @@ def _rk_step(t, th, om, a0, h, pr, slide, tc, kth, kom, rtol, atol, om_floor):
     A = A853
     v0 = om
     v1 = om + h * (A[1, 0] * a0)
-    a1 = _acc(t + C853[1] * h, th + h * (A[1, 0] * v0), v1, pr, slide, tc)
+    a1 = rhs(t + C853[1] * h, th + h * (A[1, 0] * v0), v1, pr, slide, tc)
     v2 = om + h * (A[2, 0] * a0 + A[2, 1] * a1)
-    a2 = _acc(t + C853[2] * h, th + h * (A[2, 0] * v0 + A[2, 1] * v1), v2, pr, slide, tc)
+    a2 = rhs(t + C853[2] * h, th + h * (A[2, 0] * v0 + A[2, 1] * v1), v2, pr, slide, tc)
     v3 = om + h * (A[3, 0] * a0 + A[3, 2] * a2)
-    a3 = _acc(t + C853[3] * h, th + h * (A[3, 0] * v0 + A[3, 2] * v2), v3, pr, slide, tc)
+    a3 = rhs(t + C853[3] * h, th + h * (A[3, 0] * v0 + A[3, 2] * v2), v3, pr, slide, tc)
     v4 = om + h * (A[4, 0] * a0 + A[4, 2] * a2 + A[4, 3] * a3)
-    a4 = _acc(
+    a4 = rhs(
         t + C853[4] * h, th + h * (A[4, 0] * v0 + A[4, 2] * v2 + A[4, 3] * v3), v4, pr, slide, tc
     )
     v5 = om + h * (A[5, 0] * a0 + A[5, 3] * a3 + A[5, 4] * a4)
-    a5 = _acc(
+    a5 = rhs(
         t + C853[5] * h, th + h * (A[5, 0] * v0 + A[5, 3] * v3 + A[5, 4] * v4), v5, pr, slide, tc
     )
     v6 = om + h * (A[6, 0] * a0 + A[6, 3] * a3 + A[6, 4] * a4 + A[6, 5] * a5)
     d6 = A[6, 0] * v0 + A[6, 3] * v3 + A[6, 4] * v4 + A[6, 5] * v5
-    a6 = _acc(t + C853[6] * h, th + h * d6, v6, pr, slide, tc)
+    a6 = rhs(t + C853[6] * h, th + h * d6, v6, pr, slide, tc)
     v7 = om + h * (A[7, 0] * a0 + A[7, 3] * a3 + A[7, 4] * a4 + A[7, 5] * a5 + A[7, 6] * a6)
     d7 = A[7, 0] * v0 + A[7, 3] * v3 + A[7, 4] * v4 + A[7, 5] * v5 + A[7, 6] * v6
-    a7 = _acc(t + C853[7] * h, th + h * d7, v7, pr, slide, tc)
+    a7 = rhs(t + C853[7] * h, th + h * d7, v7, pr, slide, tc)
     v8 = om + h * (
         A[8, 0] * a0 + A[8, 3] * a3 + A[8, 4] * a4 + A[8, 5] * a5 + A[8, 6] * a6 + A[8, 7] * a7
     )
     d8 = A[8, 0] * v0 + A[8, 3] * v3 + A[8, 4] * v4 + A[8, 5] * v5 + A[8, 6] * v6 + A[8, 7] * v7
-    a8 = _acc(t + C853[8] * h, th + h * d8, v8, pr, slide, tc)
+    a8 = rhs(t + C853[8] * h, th + h * d8, v8, pr, slide, tc)
     v9 = om + h * (
         A[9, 0] * a0
         + A[9, 3] * a3
@@ -279,7 +223,7 @@ def _rk_step(t, th, om, a0, h, pr, slide, tc, kth, kom, rtol, atol, om_floor):
         + A[9, 7] * v7
         + A[9, 8] * v8
     )
-    a9 = _acc(t + C853[9] * h, th + h * d9, v9, pr, slide, tc)
+    a9 = rhs(t + C853[9] * h, th + h * d9, v9, pr, slide, tc)
     v10 = om + h * (
         A[10, 0] * a0
         + A[10, 3] * a3
@@ -300,7 +244,7 @@ def _rk_step(t, th, om, a0, h, pr, slide, tc, kth, kom, rtol, atol, om_floor):
         + A[10, 8] * v8
         + A[10, 9] * v9
     )
-    a10 = _acc(t + C853[10] * h, th + h * d10, v10, pr, slide, tc)
+    a10 = rhs(t + C853[10] * h, th + h * d10, v10, pr, slide, tc)
     v11 = om + h * (
         A[11, 0] * a0
         + A[11, 3] * a3
@@ -323,7 +267,7 @@ def _rk_step(t, th, om, a0, h, pr, slide, tc, kth, kom, rtol, atol, om_floor):
         + A[11, 9] * v9
         + A[11, 10] * v10
     )
-    a11 = _acc(t + C853[11] * h, th + h * d11, v11, pr, slide, tc)
+    a11 = rhs(t + C853[11] * h, th + h * d11, v11, pr, slide, tc)
     # the 8th-order solution and the two error estimates share stages 0 and 5-11
     B = B853
     th1 = th + h * (
@@ -346,7 +290,7 @@ def _rk_step(t, th, om, a0, h, pr, slide, tc, kth, kom, rtol, atol, om_floor):
         + B[10] * a10
         + B[11] * a11
     )
-    a12 = _acc(t + h, th1, om1, pr, slide, tc)
+    a12 = rhs(t + h, th1, om1, pr, slide, tc)
     e5th = (
         E5[0] * v0
         + E5[5] * v5
@@ -387,23 +331,26 @@ def _rk_step(t, th, om, a0, h, pr, slide, tc, kth, kom, rtol, atol, om_floor):
         + E3[10] * a10
         + E3[11] * a11
     )
-    # the stages the dense output needs
-    kth[0], kom[0] = v0, a0
-    kth[5], kom[5] = v5, a5
-    kth[6], kom[6] = v6, a6
-    kth[7], kom[7] = v7, a7
-    kth[8], kom[8] = v8, a8
-    kth[9], kom[9] = v9, a9
-    kth[10], kom[10] = v10, a10
-    kth[11], kom[11] = v11, a11
-    kth[12], kom[12] = om1, a12
+    # the stages the dense output needs: theta' and theta'' of stages 0 and 5-12
+    stages = (v0, v5, v6, v7, v8, v9, v10, v11, om1, a0, a5, a6, a7, a8, a9, a10, a11, a12)
     sth = atol + rtol * max(abs(th), abs(th1))
     som = atol + rtol * max(abs(om), abs(om1), om_floor)
     e5 = (e5th / sth) ** 2 + (e5om / som) ** 2
     e3 = (e3th / sth) ** 2 + (e3om / som) ** 2
     if e5 == 0.0 and e3 == 0.0:
-        return th1, om1, a12, 0.0
-    return th1, om1, a12, abs(h) * e5 / math.sqrt(2.0 * (e5 + 0.01 * e3))
+        return th1, om1, a12, 0.0, stages
+    return th1, om1, a12, abs(h) * e5 / math.sqrt(2.0 * (e5 + 0.01 * e3)), stages
+
+
+@kernel(inline="always")
+def _store_stages(kth, kom, stages):
+    """Keep a step's stages (from ``_rk_step``) in kth/kom for its dense output."""
+    kth[0], kth[5], kth[6] = stages[0], stages[1], stages[2]
+    kth[7], kth[8], kth[9] = stages[3], stages[4], stages[5]
+    kth[10], kth[11], kth[12] = stages[6], stages[7], stages[8]
+    kom[0], kom[5], kom[6] = stages[9], stages[10], stages[11]
+    kom[7], kom[8], kom[9] = stages[12], stages[13], stages[14]
+    kom[10], kom[11], kom[12] = stages[15], stages[16], stages[17]
 
 
 @kernel
@@ -414,12 +361,14 @@ def _step_factor(err):
 
 
 @kernel
-def _dense_coefficients(t, th, om, th1, om1, h, pr, slide, tc, kth, kom, S):
-    """Coefficients of the 7th-order dense-output polynomials of a step, into S.
+def _dense_coefficients(step, pr, slide, tc, kth, kom, S):
+    """Coefficients of the 7th-order dense-output polynomials of ``step`` = (t, theta,
+    theta', theta1, theta1', h), into S.
 
     Needs the step's stages in kth/kom; evaluates the three extra stages of the
     interpolant (only for steps that are sampled or searched for events).
     """
+    t, th, om, th1, om1, h = step
     for s in range(N_STAGES + 1, N_EXTENDED):
         dth = A853[s, 0] * kth[0]
         dom = A853[s, 0] * kom[0]
@@ -429,7 +378,7 @@ def _dense_coefficients(t, th, om, th1, om1, h, pr, slide, tc, kth, kom, S):
             dom += a * kom[j]
         v = om + h * dom
         kth[s] = v
-        kom[s] = _acc(t + C853[s] * h, th + h * dth, v, pr, slide, tc)
+        kom[s] = rhs(t + C853[s] * h, th + h * dth, v, pr, slide, tc)
     for comp in range(2):
         k = kth if comp == 0 else kom
         delta = (th1 - th) if comp == 0 else (om1 - om)
@@ -491,15 +440,27 @@ def _poly_slope(S, base, s):
     return acc
 
 
-@kernel
-def _first_exit(y0, S, base, level, sign):
-    """First s in [0, 1] where d(s) = sign (poly(s) - level) goes from >= 0 to < 0, else -1.
+@kernel(inline="always")
+def _slope_root(S, base, sign, lo, hi, flo):
+    """The root of the polynomial's slope bracketed by [lo, hi] (slope times ``sign`` is
+    ``flo`` at lo), by bisection."""
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        fm = sign * _poly_slope(S, base, mid)
+        if (fm < 0.0) == (flo < 0.0):
+            lo = mid
+            flo = fm
+        else:
+            hi = mid
+        if hi - lo < 1e-16:
+            break
+    return 0.5 * (lo + hi)
 
-    The interval is cut at the polynomial's critical points (roots of its cubic
-    derivative, bracketed on a fine grid), so d is monotone on each piece and an
-    excursion that starts and ends inside the step (grazing) is found as well.
-    """
-    nodes = np.empty(DEGREE + 2)
+
+@kernel(inline="always")
+def _monotone_pieces(S, base, sign, nodes):
+    """Cut [0, 1] at the polynomial's critical points (roots of its slope, bracketed on a
+    grid of 24): the pieces' ends go into ``nodes``, their number is returned."""
     nodes[0] = 0.0
     count = 1
     samples = 24
@@ -508,25 +469,50 @@ def _first_exit(y0, S, base, level, sign):
         s = j / samples
         cur = sign * _poly_slope(S, base, s)
         if (prev < 0.0 <= cur) or (prev > 0.0 >= cur):
-            lo = (j - 1) / samples
-            hi = s
-            flo = prev
-            for _ in range(60):
-                mid = 0.5 * (lo + hi)
-                fm = sign * _poly_slope(S, base, mid)
-                if (fm < 0.0) == (flo < 0.0):
-                    lo = mid
-                    flo = fm
-                else:
-                    hi = mid
-                if hi - lo < 1e-16:
-                    break
+            root = _slope_root(S, base, sign, (j - 1) / samples, s, prev)
             if count < DEGREE:
-                nodes[count] = 0.5 * (lo + hi)
+                nodes[count] = root
                 count += 1
         prev = cur
     nodes[count] = 1.0
-    count += 1
+    return count + 1
+
+
+@kernel(inline="always")
+def _illinois(y0, S, base, level, sign, a, b, da, db):
+    """The root of d(s) = sign (poly(s) - level) on a monotone piece [a, b] where d goes
+    from da > 0 to db < 0, by the Illinois method (modified regula falsi)."""
+    side = 0
+    s = a
+    for _ in range(100):
+        s = (a * db - b * da) / (db - da)
+        ds = sign * (_poly(y0, S, base, s) - level)
+        if ds >= 0.0:
+            a = s
+            da = ds
+            if side == 1:
+                db *= 0.5
+            side = 1
+        else:
+            b = s
+            db = ds
+            if side == -1:
+                da *= 0.5
+            side = -1
+        if b - a < 1e-15 or ds == 0.0:
+            break
+    return s
+
+
+@kernel
+def _first_exit(y0, S, base, level, sign):
+    """First s in [0, 1] where d(s) = sign (poly(s) - level) goes from >= 0 to < 0, else -1.
+
+    The interval is cut at the polynomial's critical points, so d is monotone on each
+    piece and an excursion that starts and ends inside the step (grazing) is found as well.
+    """
+    nodes = np.empty(DEGREE + 2)
+    count = _monotone_pieces(S, base, sign, nodes)
     for i in range(count - 1):
         a = nodes[i]
         b = nodes[i + 1]
@@ -535,26 +521,7 @@ def _first_exit(y0, S, base, level, sign):
         if da >= 0.0 and db < 0.0:
             if da == 0.0:
                 return a
-            # Illinois (modified regula falsi) on the monotone piece [a, b]
-            side = 0
-            for _ in range(100):
-                s = (a * db - b * da) / (db - da)
-                ds = sign * (_poly(y0, S, base, s) - level)
-                if ds >= 0.0:
-                    a = s
-                    da = ds
-                    if side == 1:
-                        db *= 0.5
-                    side = 1
-                else:
-                    b = s
-                    db = ds
-                    if side == -1:
-                        da *= 0.5
-                    side = -1
-                if b - a < 1e-15 or ds == 0.0:
-                    break
-            return s
+            return _illinois(y0, S, base, level, sign, a, b, da, db)
     return -1.0
 
 
@@ -569,19 +536,19 @@ def _land_theta(t, th, om, target, pr, slide, tc):
     if dth == 0.0 or om == 0.0:
         return t, om
     k1t = 1.0 / om
-    k1v = _acc(t, th, om, pr, slide, tc) / om
+    k1v = rhs(t, th, om, pr, slide, tc) / om
     t2 = t + 0.5 * dth * k1t
     v2 = om + 0.5 * dth * k1v
     k2t = 1.0 / v2
-    k2v = _acc(t2, th + 0.5 * dth, v2, pr, slide, tc) / v2
+    k2v = rhs(t2, th + 0.5 * dth, v2, pr, slide, tc) / v2
     t3 = t + 0.5 * dth * k2t
     v3 = om + 0.5 * dth * k2v
     k3t = 1.0 / v3
-    k3v = _acc(t3, th + 0.5 * dth, v3, pr, slide, tc) / v3
+    k3v = rhs(t3, th + 0.5 * dth, v3, pr, slide, tc) / v3
     t4 = t + dth * k3t
     v4 = om + dth * k3v
     k4t = 1.0 / v4
-    k4v = _acc(t4, target, v4, pr, slide, tc) / v4
+    k4v = rhs(t4, target, v4, pr, slide, tc) / v4
     t_new = t + dth * (k1t + 2.0 * k2t + 2.0 * k3t + k4t) / 6.0
     om_new = om + dth * (k1v + 2.0 * k2v + 2.0 * k3v + k4v) / 6.0
     return t_new, om_new
@@ -593,7 +560,7 @@ def _land_rest(t, th, om, pr, slide, tc):
     dom = -om
     if dom == 0.0:
         return t, th
-    a = _acc(t, th, om, pr, slide, tc)
+    a = rhs(t, th, om, pr, slide, tc)
     if a == 0.0:
         return t, th
     k1t = 1.0 / a
@@ -601,17 +568,17 @@ def _land_rest(t, th, om, pr, slide, tc):
     v2 = om + 0.5 * dom
     t2 = t + 0.5 * dom * k1t
     y2 = th + 0.5 * dom * k1y
-    a2 = _acc(t2, y2, v2, pr, slide, tc)
+    a2 = rhs(t2, y2, v2, pr, slide, tc)
     k2t = 1.0 / a2
     k2y = v2 / a2
     t3 = t + 0.5 * dom * k2t
     y3 = th + 0.5 * dom * k2y
-    a3 = _acc(t3, y3, v2, pr, slide, tc)
+    a3 = rhs(t3, y3, v2, pr, slide, tc)
     k3t = 1.0 / a3
     k3y = v2 / a3
     t4 = t + dom * k3t
     y4 = th + dom * k3y
-    a4 = _acc(t4, y4, 0.0, pr, slide, tc)
+    a4 = rhs(t4, y4, 0.0, pr, slide, tc)
     k4t = 1.0 / a4
     k4y = 0.0
     t_new = t + dom * (k1t + 2.0 * k2t + 2.0 * k3t + k4t) / 6.0
@@ -643,15 +610,6 @@ def _push_dense(dense, n_dense, t, th, om):
 
 
 @kernel
-def _stick_test(t, th, pr, tc):
-    """Sliding direction on leaving theta' = 0: 0 stays stuck, else the sign of the net torque."""
-    a = region_acceleration(t, th, 0.0, pr)
-    if abs(a) <= tc:
-        return 0.0
-    return 1.0 if a > 0.0 else -1.0
-
-
-@kernel
 def _contact_entry_step(k_contact, om):
     """A fraction of the Hertz contact time at entry speed ``om`` (0 when it has none): the
     force's delta^1.5 onset makes larger first steps fail repeatedly."""
@@ -680,14 +638,9 @@ def initialise_regions(S, p):
         S[S_EXIT_H] = _contact_entry_step(coefficients(p, True), om)
     tc = p[P.COULOMB_ACC]
     if tc > 0.0:
-        if om > 0.0:
-            S[S_SLIDE] = 1.0
-        elif om < 0.0:
-            S[S_SLIDE] = -1.0
-        else:
-            S[S_SLIDE] = _stick_test(S[S_TB], th, coefficients(p, contact), tc)
-            if S[S_SLIDE] == 0.0:
-                S[S_STICK_T] = S[S_TB]
+        S[S_SLIDE] = sliding_direction(S[S_TB], th, om, coefficients(p, contact), tc)
+        if S[S_SLIDE] == 0.0:
+            S[S_STICK_T] = S[S_TB]
     else:
         S[S_SLIDE] = 1.0
     S[S_ACC_OK] = 0.0
@@ -743,12 +696,398 @@ def _initial_step(t, th, om, a, pr, slide, tc, rtol, atol):
     h0 = 1e-6 if (d0 < 1e-5 or d1 < 1e-5) else 0.01 * d0 / d1
     th1 = th + h0 * om
     om1 = om + h0 * a
-    a1 = _acc(t + h0, th1, om1, pr, slide, tc)
+    a1 = rhs(t + h0, th1, om1, pr, slide, tc)
     d2 = math.sqrt(0.5 * (((om1 - om) / sc0) ** 2 + ((a1 - a) / sc1) ** 2)) / h0
     h1 = max(1e-06, h0 * 0.001) if max(d1, d2) <= 1e-15 else (0.01 / max(d1, d2)) ** 0.125
     return min(100.0 * h0, h1)
 
 
+# ------------------------------------------------------------------------- the integration loop
+# ``integrate`` reads as the loop over segments; its regions are the helpers below, which
+# numba inlines (inline="always": compiled as if written out in the loop; called instead,
+# the rarer ones cost 3 % of the run).  An array passed to an inlined helper is a new
+# reference that numba counts (two atomic operations per array and pass, about 1 % of a
+# step each) unless the helper uses it in straight-line code: so on the path of every step
+# the helpers that branch take scalars and those that take arrays do not branch; only the
+# rarer paths (a step with an event or a search of its dense output, a stuck interval)
+# pass arrays to helpers that branch.
+
+
+@kernel(inline="always")
+def _longest_step(max_step, omega2):
+    """The step cap: at most ``max_step``, and never longer than a swing.  A state at rest
+    (on the barrier, undriven) has a zero error estimate, and its step would grow tenfold
+    per step to infinity, past every later output; no step in motion comes near a swing."""
+    if omega2 > 0.0:
+        return min(max_step, 2.0 * math.pi / math.sqrt(omega2))
+    return max_step
+
+
+@kernel(inline="always")
+def _final_dense(poly_ok, step, pr, slide, tc, kth, kom, S):
+    """At the end of a call, the dense output of the last step into S (the segment a
+    streaming caller continues from), unless it is there already or there was no step."""
+    if poly_ok or not step[5] > 0.0:
+        return
+    _dense_coefficients(step, pr, slide, tc, kth, kom, S)
+
+
+@kernel(inline="always")
+def _segment_fraction(t, ta, span):
+    """Where t lies in the current segment [ta, ta + span], as a fraction (1 if it has none)."""
+    return (t - ta) / span if span > 0.0 else 1.0
+
+
+@kernel(inline="always")
+def _dense_state(S, s):
+    """(theta, theta') at fraction s of the current segment, from its dense output."""
+    return _poly(S[S_THA], S, S_POLY, s), _poly(S[S_OMA], S, S_POLY + DEGREE, s)
+
+
+@kernel(inline="always")
+def _run_status(status, finished, steps_this_call, max_steps):
+    """(stop, status): the loop stops when every output is written or the run stopped, and
+    with status max_steps when this call's step budget is spent."""
+    if finished or status != STATUS_OK:
+        return True, status
+    if steps_this_call >= max_steps:
+        return True, STATUS_MAX_STEPS
+    return False, status
+
+
+@kernel(inline="always")
+def _release_time(t, t_end, th, pr, tc, period):
+    """First time after t when the other torques exceed the friction torque, scanned at
+    STUCK_SCAN_PER_PERIOD points per drive period and bisected; (inf, end of the scan) when
+    they do not before t_end."""
+    dt_scan = period / STUCK_SCAN_PER_PERIOD
+    lo = t
+    while lo < t_end:
+        hi = lo + dt_scan
+        if sliding_direction(hi, th, 0.0, pr, tc) != 0.0:
+            for _ in range(200):
+                mid = 0.5 * (lo + hi)
+                if mid <= lo or mid >= hi:
+                    break
+                if sliding_direction(mid, th, 0.0, pr, tc) != 0.0:
+                    hi = mid
+                else:
+                    lo = mid
+            return hi, t_end
+        lo = hi
+    return math.inf, lo
+
+
+@kernel(inline="always")
+def _stuck_segment(S, t, th, pr, tc, forced, period, t_final, events, n_events, row):
+    """Stuck: theta constant until the other torques exceed the friction torque (never,
+    undriven).  The segment ends at the release (a stick event, sliding resumes) or at
+    t_final; returns the event buffer and count."""
+    t_release = math.inf
+    t_end = max(t_final, t)
+    if forced:
+        t_release, t_end = _release_time(t, t_end, th, pr, tc, period)
+    S[S_TA] = t
+    S[S_THA] = th
+    S[S_OMA] = 0.0
+    for i in range(2 * DEGREE):
+        S[S_POLY + i] = 0.0
+    S[S_ACC_OK] = 0.0
+    S[S_TB] = t_end
+    if t_release < math.inf:
+        S[S_TB] = t_release
+        S[S_SLIDE] = sliding_direction(t_release, th, 0.0, pr, tc)
+        row[:] = 0.0
+        row[EV_KIND] = KIND_STICK
+        row[EV_T_IN] = S[S_STICK_T]
+        row[EV_TH_IN] = th
+        row[EV_T_OUT] = t_release
+        row[EV_TH_OUT] = th
+        events = _push_event(events, n_events, row)
+        n_events += 1
+    S[S_THB] = th
+    S[S_OMB] = 0.0
+    return events, n_events
+
+
+@kernel(inline="always")
+def _exit_approach_step(h, exit_h, t, th, om, a1, thb):
+    """The step size leaving contact: a fraction of the time to the surface at the current
+    deceleration (an underestimate, as the force fades on the way out); ``exit_h`` is the
+    shortest step of the approach."""
+    depth = th - thb
+    disc = om * om - 2.0 * a1 * depth
+    if depth > 0.0 and disc > 0.0:
+        tau = 2.0 * depth / (math.sqrt(disc) - om)
+        if EXIT_STEP_FRACTION * tau > exit_h:
+            return min(h, EXIT_STEP_FRACTION * tau)
+        # close enough: cross the surface just beyond the estimated exit, so that little
+        # of the step lies past it (a step reaching far past the exit has a large error
+        # estimate and is rejected, several times); not below a hundredth of the entry
+        # step, where the force is too weak to matter and tau can fall under the smallest
+        # step the clock resolves
+        floor = max(0.01 * exit_h, 10.0 * H_MIN_RELATIVE * max(1.0, abs(t)))
+        return min(h, max(EXIT_CROSSING_FACTOR * tau, floor))
+    return h
+
+
+@kernel(inline="always")
+def _trial_step_size(proposed, exit_h, t, th, om, a1, contact, thb, max_step, pr, slide, tc,
+                     rtol, atol):
+    """The size of the next step to try: the controller's ``proposed`` one (a fresh one when
+    <= 0), capped, and shortened on the way out of a contact (``exit_h`` > 0)."""
+    h = proposed
+    if h <= 0.0:
+        h = _initial_step(t, th, om, a1, pr, slide, tc, rtol, atol)
+    h = min(h, max_step)
+    if contact and om < 0.0 and exit_h > 0.0:
+        h = _exit_approach_step(h, exit_h, t, th, om, a1, thb)
+    return h
+
+
+@kernel(inline="always")
+def _accepted_step(t, th, om, a1, h, pr, slide, tc, rtol, atol, om_floor):
+    """Try steps from (t, theta, theta'), shrinking h after each rejection, until one passes
+    the error test or h underflows.  Returns theta, theta', theta'' at its end, its error,
+    its size, its stages, the steps tried, the rejections and whether one was accepted."""
+    th1 = om1 = a7 = err = 0.0
+    stages = (0.0,) * 18
+    tried = 0
+    rejects = 0
+    accepted = False
+    while not accepted:
+        if h < H_MIN_RELATIVE * max(1.0, abs(t)):
+            break
+        th1, om1, a7, err, stages = _rk_step(
+            t, th, om, a1, h, pr, slide, tc, rtol, atol, om_floor
+        )
+        tried += 1
+        accepted = err <= 1.0
+        if not accepted:
+            rejects += 1
+            h *= MIN_FACTOR if not err < math.inf else max(MIN_FACTOR, _step_factor(err))
+    return th1, om1, a7, err, h, stages, tried, rejects, accepted
+
+
+@kernel(inline="always")
+def _next_step_size(h, err, rejected, max_step):
+    """The controller's proposal after an accepted step (no growth right after a rejection)."""
+    factor = MAX_FACTOR if err == 0.0 else min(MAX_FACTOR, _step_factor(err))
+    if rejected:
+        factor = min(factor, 1.0)
+    return min(h * factor, max_step)
+
+
+@kernel(inline="always")
+def _may_cross(step, a1, a7, slide, tc, barrier, contact, thb):
+    """What the step's dense output must be searched for: a crossing of the contact surface
+    (the step ends beyond it, or an extremum of it may lie beyond: grazing), theta' reaching
+    0 against friction, and in contact the deepest point (theta' from + to -)."""
+    _, _, om, th1, om1, _ = step
+    sign = 1.0 if contact else -1.0
+    surface = barrier and (sign * (th1 - thb) < 0.0 or (sign * om < 0.0 and sign * om1 > 0.0))
+    rest = tc > 0.0 and (slide * om1 < 0.0 or (slide * a1 < 0.0 and slide * a7 > 0.0))
+    deepest = contact and om > 0.0 and om1 < 0.0
+    return surface, rest, deepest
+
+
+@kernel(inline="always")
+def _search_step(S, step, pr, slide, tc, kth, kom, surface, rest, deepest, contact, thb):
+    """Search an accepted step's dense output (computed into S) for its first event:
+    (fraction of the step, kind 0 none, 1 contact surface, 2 theta' = 0 under friction,
+    grazing: the step ends on the side it began).  Without an event, the deepest point
+    inside a contact step counts for the contact's largest penetration."""
+    _, th, om, th1, _, _ = step
+    S[S_THA] = th
+    S[S_OMA] = om
+    _dense_coefficients(step, pr, slide, tc, kth, kom, S)
+    s_event = 2.0
+    kind = 0
+    grazing = False
+    sign = 1.0 if contact else -1.0
+    if surface:
+        s = _first_exit(th, S, S_POLY, thb, sign)
+        if s >= 0.0:
+            s_event = s
+            kind = 1
+            grazing = sign * (th1 - thb) >= 0.0
+    if rest:
+        s = _first_exit(om, S, S_POLY + DEGREE, 0.0, slide)
+        if 0.0 <= s < s_event:
+            s_event = s
+            kind = 2
+    if deepest and kind == 0:
+        S[S_THMAX] = max(S[S_THMAX], _poly_max(th, S, S_POLY))
+    return s_event, kind, grazing
+
+
+@kernel(inline="always")
+def _deepest_so_far(thmax, th1, contact):
+    """The contact's deepest angle after a step ending at th1 (unchanged in free flight)."""
+    return th1 if contact and th1 > thmax else thmax
+
+
+@kernel(inline="always")
+def _status_after(status, th1):
+    """The run's status after a step ending at th1: over_the_top beyond pi."""
+    return STATUS_OVER_THE_TOP if abs(th1) > math.pi else status
+
+
+@kernel(inline="always")
+def _plain_step(S, step, a7, h_next, thmax, status):
+    """An accepted step without event becomes the current segment."""
+    t, th, om, th1, om1, h = step
+    S[S_TA] = t
+    S[S_THA] = th
+    S[S_OMA] = om
+    S[S_TB] = t + h
+    S[S_THB] = th1
+    S[S_OMB] = om1
+    S[S_ACC_B] = a7
+    S[S_ACC_OK] = 1.0
+    S[S_H] = h_next
+    S[S_THMAX] = thmax
+    S[S_STATUS] = status
+
+
+@kernel(inline="always")
+def _slow_entry(s_event, kind, contact, om_event, om, om1):
+    """A contact entry sets the whole contact; the dense output's error, about rtol |theta'|
+    of the step, is large against a slow, near-grazing entry speed: there a step of its own
+    (~100x more accurate) is taken to the event instead."""
+    entry = kind == 1 and not contact
+    return entry and s_event > 0.0 and abs(om_event) < SLOW_ENTRY * max(abs(om), abs(om1))
+
+
+@kernel(inline="always")
+def _land(t, t_land, thl, oml, kind, thb, pr, slide, tc):
+    """One Henon step from the state near the event exactly onto its surface: theta = theta_b
+    (kind 1) or theta' = 0 (kind 2), not back past the step's start t.  Returns
+    (t, theta, theta') there."""
+    if kind == 1:
+        t_ev, om_ev = _land_theta(t_land, thl, oml, thb, pr, slide, tc)
+        th_ev = thb
+    else:
+        t_ev, th_ev = _land_rest(t_land, thl, oml, pr, slide, tc)
+        om_ev = 0.0
+    if not (t_ev >= t):
+        t_ev = t_land
+    return t_ev, th_ev, om_ev
+
+
+@kernel(inline="always")
+def _event_segment(S, t, th, h, h_next, s_event, thl, event, poly_ok, contact):
+    """The current segment ends at the event (t, theta, theta'): the step's polynomials are
+    restricted to it, and the next step starts from the event."""
+    t_ev, th_ev, om_ev = event
+    if poly_ok:  # the step's polynomials, restricted to the segment [t, t_ev]
+        _rescale_poly(S, (t_ev - t) / h)
+    S[S_TB] = t_ev
+    S[S_THB] = th_ev
+    S[S_OMB] = om_ev
+    S[S_ACC_OK] = 0.0
+    S[S_H] = max(h_next, 1e-3 * h)
+    if contact and s_event > 0.0:
+        S[S_THMAX] = max(S[S_THMAX], thl, _poly_max(th, S, S_POLY))
+
+
+@kernel(inline="always")
+def _leave_contact(S, p, event, events, n_events, row):
+    """The contact ends at ``event``: record it; free flight resumes from the step size it
+    had before the contact, not from the short contact steps (saves regrowing them, with
+    rejections on the way).  Returns the event buffer and count."""
+    t_ev, th_ev, om_ev = event
+    row[:] = 0.0
+    row[EV_KIND] = KIND_CONTACT
+    row[EV_T_IN] = S[S_ENTRY_T]
+    row[EV_TH_IN] = S[S_ENTRY_TH]
+    row[EV_OM_IN] = S[S_ENTRY_OM]
+    row[EV_T_OUT] = t_ev
+    row[EV_TH_OUT] = th_ev
+    row[EV_OM_OUT] = om_ev
+    row[EV_DELTA_MAX] = p[P.SHAFT_L] * (math.sin(S[S_THMAX]) - p[P.SIN_THETA_B])
+    row[EV_GRAZING] = S[S_ENTRY_GRAZE]
+    events = _push_event(events, n_events, row)
+    S[S_CONTACT] = 0.0
+    S[S_H] = max(S[S_H], S[S_FREE_H])
+    return events, n_events + 1
+
+
+@kernel(inline="always")
+def _enter_contact(S, event, grazing, k_contact):
+    """A contact begins at ``event``: remember its entry, and start it with a short step."""
+    t_ev, th_ev, om_ev = event
+    S[S_CONTACT] = 1.0
+    S[S_ENTRY_T] = t_ev
+    S[S_ENTRY_TH] = th_ev
+    S[S_ENTRY_OM] = om_ev
+    S[S_ENTRY_GRAZE] = 1.0 if grazing else 0.0
+    S[S_THMAX] = th_ev
+    S[S_FREE_H] = S[S_H]
+    h_entry = _contact_entry_step(k_contact, om_ev)
+    S[S_EXIT_H] = h_entry
+    if h_entry > 0.0:
+        S[S_H] = min(S[S_H], h_entry)
+
+
+@kernel(inline="always")
+def _change_region(S, p, kind, contact, grazing, event, pr, tc, k_contact, events, n_events,
+                   row):
+    """Pass into the region beyond the event: out of or into contact (kind 1), stuck or
+    sliding on from theta' = 0 (kind 2).  Returns the event buffer and count."""
+    if kind == 1 and contact:
+        return _leave_contact(S, p, event, events, n_events, row)
+    if kind == 1:
+        _enter_contact(S, event, grazing, k_contact)
+        return events, n_events
+    t_ev, th_ev, _ = event
+    S[S_SLIDE] = sliding_direction(t_ev, th_ev, 0.0, pr, tc)
+    if S[S_SLIDE] == 0.0:
+        S[S_STICK_T] = t_ev
+    return events, n_events
+
+
+@kernel(inline="always")
+def _event_step(S, p, step, a1, h_next, s_event, kind, grazing, contact, pr, slide, tc,
+                k_contact, kth, kom, rtol, atol, om_floor, events, n_events, row):
+    """An accepted step with an event (its dense output in S) ends the segment there: the
+    state at the event (from the dense output, or a step of its own for a slow entry), one
+    Henon step exactly onto the surface, then the region beyond it.  Returns the event
+    buffer and count, the last step, whether its dense output is in S, and the extra steps
+    taken."""
+    t, th, om, _, om1, h = step
+    S[S_TA] = t
+    S[S_THA] = th
+    S[S_OMA] = om
+    # the step's dense output, as solve_ivp takes its events
+    thl = _poly(th, S, S_POLY, s_event)
+    oml = _poly(om, S, S_POLY + DEGREE, s_event)
+    # the event's time on the step; a slow entry below takes a step of that length
+    t_land = t + s_event * h
+    poly_ok = True
+    extra = 0
+    if _slow_entry(s_event, kind, contact, oml, om, om1):
+        h_land = s_event * h
+        thl, oml, _, _, stages = _rk_step(
+            t, th, om, a1, h_land, pr, slide, tc, rtol, atol, om_floor
+        )
+        _store_stages(kth, kom, stages)
+        S[S_STEPS] += 1
+        extra = 1
+        step = (t, th, om, thl, oml, h_land)
+        poly_ok = False
+    event = _land(t, t_land, thl, oml, kind, p[P.THETA_B], pr, slide, tc)
+    _event_segment(S, t, th, h, h_next, s_event, thl, event, poly_ok, contact)
+    events, n_events = _change_region(
+        S, p, kind, contact, grazing, event, pr, tc, k_contact, events, n_events, row
+    )
+    return events, n_events, step, poly_ok, extra
+
+
+# C901 (12 > 10): the loop keeps in itself the branches that pass arrays on the path of
+# every step (writing the outputs, a stuck or a moving segment, the step's outcome, the dense
+# record): moved into helpers they would cost a few % of the run (see above).  Each branch
+# is a line or two that names its helper.
 @kernel(nogil=True)  # nogil: ensembles run members in threads
 def integrate(
     p,
@@ -785,11 +1124,7 @@ def integrate(
     barrier = p[P.BARRIER] != 0.0
     forced = p[P.OMEGA_DRIVE] > 0.0 and (p[P.A1] != 0.0 or p[P.A2] != 0.0)
     period = 2.0 * math.pi / p[P.OMEGA_DRIVE] if p[P.OMEGA_DRIVE] > 0.0 else math.inf
-    # A state at rest (on the barrier, undriven) has a zero error estimate, and its step
-    # would grow tenfold per step to infinity, past every later output.  No step need be
-    # longer than a swing: far beyond any step the error test accepts in motion.
-    if p[P.OMEGA2] > 0.0:
-        max_step = min(max_step, 2.0 * math.pi / math.sqrt(p[P.OMEGA2]))
+    max_step = _longest_step(max_step, p[P.OMEGA2])
     k_contact = coefficients(p, True)
     k_free = coefficients(p, False)
     kth = np.empty(N_EXTENDED)
@@ -798,324 +1133,97 @@ def integrate(
     n_pc = pc_th.shape[0]
     gi = 0
     pk = 0
-    for j in range(n_out):
-        out_th[j] = math.nan
-        out_om[j] = math.nan
-    for j in range(n_pc):
-        pc_th[j] = math.nan
-        pc_om[j] = math.nan
+    out_th[:] = math.nan
+    out_om[:] = math.nan
+    pc_th[:] = math.nan
+    pc_om[:] = math.nan
     steps_this_call = 0
     row = np.zeros(EV_SIZE)
-    # the last step whose stages sit in kth/kom (last_h = 0: none), for its dense output
-    last_h = 0.0
-    last_t = last_th = last_om = last_th1 = last_om1 = 0.0
+    # the last step (t, theta, theta', theta1, theta1', h; h = 0: none) whose stages sit in
+    # kth/kom, for its dense output, and its region
+    last = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
     last_pr = k_free
     last_slide = 1.0
     poly_ok = True
 
     while True:
-        # ---- emit outputs that fall inside the current segment [TA, TB]
+        # ---- the outputs inside the current segment [TA, TB], from its dense output
         ta = S[S_TA]
         tb = S[S_TB]
-        need = (gi < n_out and out_t[gi] <= tb) or (pk < n_pc and pc_t0 + pk * pc_dt <= tb)
-        if need:
+        if (gi < n_out and out_t[gi] <= tb) or (pk < n_pc and pc_t0 + pk * pc_dt <= tb):
             if not poly_ok:
-                _dense_coefficients(
-                    last_t,
-                    last_th,
-                    last_om,
-                    last_th1,
-                    last_om1,
-                    last_h,
-                    last_pr,
-                    last_slide,
-                    tc,
-                    kth,
-                    kom,
-                    S,
-                )
+                _dense_coefficients(last, last_pr, last_slide, tc, kth, kom, S)
                 poly_ok = True
-            span = tb - ta
             while gi < n_out and out_t[gi] <= tb:
-                s = (out_t[gi] - ta) / span if span > 0.0 else 1.0
-                out_th[gi] = _poly(S[S_THA], S, S_POLY, s)
-                out_om[gi] = _poly(S[S_OMA], S, S_POLY + DEGREE, s)
+                out_th[gi], out_om[gi] = _dense_state(S, _segment_fraction(out_t[gi], ta, tb - ta))
                 gi += 1
             while pk < n_pc and pc_t0 + pk * pc_dt <= tb:
-                s = (pc_t0 + pk * pc_dt - ta) / span if span > 0.0 else 1.0
-                pc_th[pk] = _poly(S[S_THA], S, S_POLY, s)
-                pc_om[pk] = _poly(S[S_OMA], S, S_POLY + DEGREE, s)
+                s = _segment_fraction(pc_t0 + pk * pc_dt, ta, tb - ta)
+                pc_th[pk], pc_om[pk] = _dense_state(S, s)
                 pk += 1
-        if gi >= n_out and pk >= n_pc and tb >= t_final:
-            break
-        if S[S_STATUS] != STATUS_OK:
-            break
-        if steps_this_call >= max_steps:
-            S[S_STATUS] = STATUS_MAX_STEPS
+        finished = gi >= n_out and pk >= n_pc and tb >= t_final
+        stop, S[S_STATUS] = _run_status(S[S_STATUS], finished, steps_this_call, max_steps)
+        if stop:
             break
 
-        # ---- next segment, from the state at TB
+        # ---- the next segment, from the state at TB
         t = tb
         th = S[S_THB]
         om = S[S_OMB]
         contact = S[S_CONTACT] != 0.0
         slide = S[S_SLIDE]
         pr = k_contact if contact else k_free
-
         if slide == 0.0:
-            # stuck: theta constant until the other torques exceed the friction torque
-            t_release = math.inf
-            t_end = max(t_final, t)
-            if forced:
-                dt_scan = period / STUCK_SCAN_PER_PERIOD
-                lo = t
-                while lo < t_end:
-                    hi = lo + dt_scan
-                    if abs(region_acceleration(hi, th, 0.0, pr)) > tc:
-                        for _ in range(200):
-                            mid = 0.5 * (lo + hi)
-                            if mid <= lo or mid >= hi:
-                                break
-                            if abs(region_acceleration(mid, th, 0.0, pr)) > tc:
-                                hi = mid
-                            else:
-                                lo = mid
-                        t_release = hi
-                        break
-                    lo = hi
-                if t_release == math.inf:
-                    t_end = lo
-            S[S_TA] = t
-            S[S_THA] = th
-            S[S_OMA] = 0.0
-            for i in range(2 * DEGREE):
-                S[S_POLY + i] = 0.0
+            events, n_events = _stuck_segment(
+                S, t, th, pr, tc, forced, period, t_final, events, n_events, row
+            )
             poly_ok = True
-            S[S_ACC_OK] = 0.0
-            if t_release < math.inf:
-                S[S_TB] = t_release
-                a = region_acceleration(t_release, th, 0.0, pr)
-                S[S_SLIDE] = 1.0 if a > 0.0 else -1.0
-                row[:] = 0.0
-                row[EV_KIND] = KIND_STICK
-                row[EV_T_IN] = S[S_STICK_T]
-                row[EV_TH_IN] = th
-                row[EV_T_OUT] = t_release
-                row[EV_TH_OUT] = th
-                events = _push_event(events, n_events, row)
-                n_events += 1
-            else:
-                S[S_TB] = t_end
-            S[S_THB] = th
-            S[S_OMB] = 0.0
-            if want_dense:
-                dense = _push_dense(dense, n_dense, S[S_TB], th, 0.0)
-                n_dense += 1
-            continue
-
-        a1 = S[S_ACC_B] if S[S_ACC_OK] != 0.0 else _acc(t, th, om, pr, slide, tc)
-        h = S[S_H]
-        if h <= 0.0:
-            h = _initial_step(t, th, om, a1, pr, slide, tc, rtol, atol)
-        h = min(h, max_step)
-        if contact and om < 0.0 and S[S_EXIT_H] > 0.0:
-            # leaving contact: time to the surface at the current deceleration (an
-            # underestimate, as the force fades on the way out)
-            depth = th - thb
-            disc = om * om - 2.0 * a1 * depth
-            if depth > 0.0 and disc > 0.0:
-                tau = 2.0 * depth / (math.sqrt(disc) - om)
-                if EXIT_STEP_FRACTION * tau > S[S_EXIT_H]:
-                    h = min(h, EXIT_STEP_FRACTION * tau)
-                else:
-                    # close enough: cross the surface just beyond the estimated exit, so
-                    # that little of the step lies past it (a step reaching far past the
-                    # exit has a large error estimate and is rejected, several times); not
-                    # below a hundredth of the entry step, where the force is too weak to
-                    # matter and tau can fall under the smallest step the clock resolves
-                    floor = max(0.01 * S[S_EXIT_H], 10.0 * H_MIN_RELATIVE * max(1.0, abs(t)))
-                    h = min(h, max(EXIT_CROSSING_FACTOR * tau, floor))
-        # in contact theta' passes through zero at the deepest point, where a test relative
-        # to |theta'| alone would ask for atol; its scale there is the entry speed
-        om_floor = abs(S[S_ENTRY_OM]) if contact else 0.0
-        rejected = False
-        while True:
-            h_min = H_MIN_RELATIVE * max(1.0, abs(t))
-            if h < h_min:
+        else:
+            a1 = S[S_ACC_B] if S[S_ACC_OK] != 0.0 else rhs(t, th, om, pr, slide, tc)
+            h = _trial_step_size(
+                S[S_H], S[S_EXIT_H], t, th, om, a1, contact, thb, max_step, pr, slide, tc,
+                rtol, atol,
+            )
+            # in contact theta' passes through zero at the deepest point, where a test
+            # relative to |theta'| alone would ask for atol; its scale there is the entry speed
+            om_floor = abs(S[S_ENTRY_OM]) if contact else 0.0
+            th1, om1, a7, err, h, stages, tried, rejects, accepted = _accepted_step(
+                t, th, om, a1, h, pr, slide, tc, rtol, atol, om_floor
+            )
+            steps_this_call += tried
+            S[S_REJECTS] += rejects
+            if not accepted:
                 S[S_STATUS] = STATUS_STEP_UNDERFLOW
                 break
-            th1, om1, a7, err = _rk_step(
-                t, th, om, a1, h, pr, slide, tc, kth, kom, rtol, atol, om_floor
-            )
-            steps_this_call += 1
-            if err <= 1.0:
-                break
-            S[S_REJECTS] += 1
-            rejected = True
-            if not err < math.inf:  # NaN or inf
-                h *= MIN_FACTOR
-            else:
-                h *= max(MIN_FACTOR, _step_factor(err))
-        if S[S_STATUS] != STATUS_OK:
-            break
-        factor = MAX_FACTOR if err == 0.0 else min(MAX_FACTOR, _step_factor(err))
-        if rejected:
-            factor = min(factor, 1.0)
-        h_next = min(h * factor, max_step)
-        S[S_STEPS] += 1
-
-        # ---- events inside the accepted step
-        last_t, last_th, last_om, last_th1, last_om1, last_h = t, th, om, th1, om1, h
-        last_pr = pr
-        last_slide = slide
-        poly_ok = False
-        s_event = 2.0
-        kind = 0  # 1: contact surface, 2: theta' = 0
-        grazing = False
-        if barrier:
-            sign = 1.0 if contact else -1.0
-            d1 = sign * (th1 - thb)
-            if d1 < 0.0 or (sign * om < 0.0 and sign * om1 > 0.0):
-                S[S_THA] = th
-                S[S_OMA] = om
-                _dense_coefficients(t, th, om, th1, om1, h, pr, slide, tc, kth, kom, S)
-                poly_ok = True
-                s = _first_exit(th, S, S_POLY, thb, sign)
-                if s >= 0.0:
-                    s_event = s
-                    kind = 1
-                    grazing = d1 >= 0.0
-        if tc > 0.0:
-            d1 = slide * om1
-            if d1 < 0.0 or (slide * a1 < 0.0 and slide * a7 > 0.0):
-                if not poly_ok:
-                    S[S_THA] = th
-                    S[S_OMA] = om
-                    _dense_coefficients(t, th, om, th1, om1, h, pr, slide, tc, kth, kom, S)
-                    poly_ok = True
-                s = _first_exit(om, S, S_POLY + DEGREE, 0.0, slide)
-                if 0.0 <= s < s_event:
-                    s_event = s
-                    kind = 2
-
-        if kind == 0:
-            # plain step
-            S[S_TA] = t
-            S[S_THA] = th
-            S[S_OMA] = om
-            S[S_TB] = t + h
-            S[S_THB] = th1
-            S[S_OMB] = om1
-            S[S_ACC_B] = a7
-            S[S_ACC_OK] = 1.0
-            S[S_H] = h_next
-            if contact:
-                if th1 > S[S_THMAX]:
-                    S[S_THMAX] = th1
-                if om > 0.0 and om1 < 0.0:
-                    if not poly_ok:
-                        _dense_coefficients(t, th, om, th1, om1, h, pr, slide, tc, kth, kom, S)
-                        poly_ok = True
-                    S[S_THMAX] = max(S[S_THMAX], _poly_max(th, S, S_POLY))
-            if abs(th1) > math.pi:
-                S[S_STATUS] = STATUS_OVER_THE_TOP
-            if want_dense:
-                dense = _push_dense(dense, n_dense, t + h, th1, om1)
-                n_dense += 1
-            continue
-
-        # ---- the state at the event, then one Henon step exactly onto the surface
-        S[S_TA] = t
-        S[S_THA] = th
-        S[S_OMA] = om
-        t_land = t + s_event * h
-        # the step's dense output, as solve_ivp takes its events
-        thl = _poly(th, S, S_POLY, s_event)
-        oml = _poly(om, S, S_POLY + DEGREE, s_event)
-        entry = kind == 1 and not contact
-        if entry and s_event > 0.0 and abs(oml) < SLOW_ENTRY * max(abs(om), abs(om1)):
-            # a contact entry sets the whole contact; the dense output's error, about
-            # rtol |theta'| of the step, is large against a slow, near-grazing entry speed:
-            # there a step of its own (~100x more accurate) is taken instead
-            h_land = s_event * h
-            thl, oml, _, _ = _rk_step(
-                t, th, om, a1, h_land, pr, slide, tc, kth, kom, rtol, atol, om_floor
-            )
+            _store_stages(kth, kom, stages)
+            h_next = _next_step_size(h, err, rejects > 0, max_step)
             S[S_STEPS] += 1
-            steps_this_call += 1
-            last_th1, last_om1, last_h = thl, oml, h_land
-            poly_ok = False
-        if kind == 1:
-            t_ev, om_ev = _land_theta(t_land, thl, oml, thb, pr, slide, tc)
-            th_ev = thb
-        else:
-            t_ev, th_ev = _land_rest(t_land, thl, oml, pr, slide, tc)
-            om_ev = 0.0
-        if not (t_ev >= t):  # the Henon correction must not go back past the step start
-            t_ev = t_land
-        if poly_ok:  # the step's polynomials, restricted to the segment [t, t_ev]
-            _rescale_poly(S, (t_ev - t) / h)
-        S[S_TB] = t_ev
-        S[S_THB] = th_ev
-        S[S_OMB] = om_ev
-        S[S_ACC_OK] = 0.0
-        S[S_H] = max(h_next, 1e-3 * h)
-        if contact and s_event > 0.0:
-            S[S_THMAX] = max(S[S_THMAX], thl, _poly_max(th, S, S_POLY))
-        if want_dense:
-            dense = _push_dense(dense, n_dense, t_ev, th_ev, om_ev)
-            n_dense += 1
-        if kind == 1:
-            if contact:
-                row[:] = 0.0
-                row[EV_KIND] = KIND_CONTACT
-                row[EV_T_IN] = S[S_ENTRY_T]
-                row[EV_TH_IN] = S[S_ENTRY_TH]
-                row[EV_OM_IN] = S[S_ENTRY_OM]
-                row[EV_T_OUT] = t_ev
-                row[EV_TH_OUT] = th_ev
-                row[EV_OM_OUT] = om_ev
-                row[EV_DELTA_MAX] = p[P.SHAFT_L] * (math.sin(S[S_THMAX]) - p[P.SIN_THETA_B])
-                row[EV_GRAZING] = S[S_ENTRY_GRAZE]
-                events = _push_event(events, n_events, row)
-                n_events += 1
-                S[S_CONTACT] = 0.0
-                # free flight resumes from the step size it had before the contact, not from
-                # the short contact steps (saves regrowing them, with rejections on the way)
-                S[S_H] = max(S[S_H], S[S_FREE_H])
-            else:
-                S[S_CONTACT] = 1.0
-                S[S_ENTRY_T] = t_ev
-                S[S_ENTRY_TH] = th_ev
-                S[S_ENTRY_OM] = om_ev
-                S[S_ENTRY_GRAZE] = 1.0 if grazing else 0.0
-                S[S_THMAX] = th_ev
-                S[S_FREE_H] = S[S_H]
-                h_entry = _contact_entry_step(k_contact, om_ev)
-                S[S_EXIT_H] = h_entry
-                if h_entry > 0.0:
-                    S[S_H] = min(S[S_H], h_entry)
-        else:
-            new_slide = _stick_test(t_ev, th_ev, pr, tc)
-            S[S_SLIDE] = new_slide
-            if new_slide == 0.0:
-                S[S_STICK_T] = t_ev
+            last = (t, th, om, th1, om1, h)
+            last_pr = pr
+            last_slide = slide
 
-    if not poly_ok and last_h > 0.0:
-        _dense_coefficients(
-            last_t,
-            last_th,
-            last_om,
-            last_th1,
-            last_om1,
-            last_h,
-            last_pr,
-            last_slide,
-            tc,
-            kth,
-            kom,
-            S,
-        )
+            # ---- events inside the accepted step
+            surface, rest, deepest = _may_cross(last, a1, a7, slide, tc, barrier, contact, thb)
+            s_event, kind, grazing = 2.0, 0, False
+            poly_ok = surface or rest or deepest
+            if poly_ok:
+                s_event, kind, grazing = _search_step(
+                    S, last, pr, slide, tc, kth, kom, surface, rest, deepest, contact, thb
+                )
+            if kind == 0:
+                thmax = _deepest_so_far(S[S_THMAX], th1, contact)
+                _plain_step(S, last, a7, h_next, thmax, _status_after(S[S_STATUS], th1))
+            else:
+                events, n_events, last, poly_ok, extra = _event_step(
+                    S, p, last, a1, h_next, s_event, kind, grazing, contact, pr, slide, tc,
+                    k_contact, kth, kom, rtol, atol, om_floor, events, n_events, row,
+                )
+                steps_this_call += extra
+        if want_dense:
+            dense = _push_dense(dense, n_dense, S[S_TB], S[S_THB], S[S_OMB])
+            n_dense += 1
+
+    _final_dense(poly_ok, last, last_pr, last_slide, tc, kth, kom, S)
     return events, n_events, dense, n_dense, gi, pk
 
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -68,69 +69,68 @@ def check_record_settings(duration_s: float, fs_hz: float | None, skip_s: float)
         raise ValueError(f"skip_s = {skip_s!r}: must be >= 0")
 
 
+@dataclass(frozen=True)
+class SimulationSettings:
+    """What a run records and how accurately: ``duration_s`` recorded after a transient
+    ``skip_s`` (rounded up to whole drive periods when forced), samples at ``fs_hz`` from the
+    dense output, a Poincare sample each time the drive phase passes ``poincare_phase``
+    (None: none), every segment end with ``dense``; the integrator's tolerances ``rtol``,
+    ``atol`` and step cap ``max_step_s`` (inf: none).  Refused with ValueError, naming the
+    setting, when the integrator cannot honour it."""
+
+    duration_s: float = 10.0
+    fs_hz: float = 1000.0
+    skip_s: float = 0.0
+    poincare_phase: float | None = 0.0
+    dense: bool = False
+    rtol: float = 1e-9
+    atol: float = 1e-11
+    max_step_s: float = math.inf
+
+    def __post_init__(self) -> None:
+        check_record_settings(self.duration_s, self.fs_hz, self.skip_s)
+        check_step_settings(self.rtol, self.atol, self.max_step_s)
+
+
+DEFAULT_SETTINGS = SimulationSettings()
+
+
 def simulate(
     model: Model,
     theta0: float,
     theta_dot0: float = 0.0,
-    duration_s: float = 10.0,
-    fs_hz: float = 1000.0,
-    skip_s: float = 0.0,
-    poincare_phase: float | None = 0.0,
-    dense: bool = False,
-    rtol: float = 1e-9,
-    atol: float = 1e-11,
-    max_step_s: float = math.inf,
+    *,
+    settings: SimulationSettings = DEFAULT_SETTINGS,
 ) -> SimulationResult:
     """Simulate ``model`` from (theta0, theta_dot0) at t = 0; see :func:`simulate_packed`."""
-    return simulate_packed(
-        model.pack(),
-        theta0,
-        theta_dot0,
-        duration_s,
-        fs_hz,
-        skip_s,
-        poincare_phase,
-        dense,
-        rtol,
-        atol,
-        max_step_s,
-    )
+    return simulate_packed(model.pack(), theta0, theta_dot0, settings=settings)
 
 
 def simulate_packed(
     p: np.ndarray,
     theta0: float,
     theta_dot0: float = 0.0,
-    duration_s: float = 10.0,
-    fs_hz: float = 1000.0,
-    skip_s: float = 0.0,
-    poincare_phase: float | None = 0.0,
-    dense: bool = False,
-    rtol: float = 1e-9,
-    atol: float = 1e-11,
-    max_step_s: float = math.inf,
+    *,
+    settings: SimulationSettings = DEFAULT_SETTINGS,
 ) -> SimulationResult:
-    """Simulate a packed parameter vector (layout ``analysis.packed.P``).
+    """Simulate a packed parameter vector (layout ``analysis.packed.P``) as ``settings`` say.
 
-    The transient ``skip_s`` (rounded up to whole drive periods when forced) is
-    integrated and discarded; then ``duration_s`` is recorded: samples at ``fs_hz``
-    from the dense output, every contact, and a Poincare sample each time the drive
-    phase passes ``poincare_phase`` (None: none).  ``max_step_s`` caps the step size.
+    The transient is integrated and discarded; then the record holds the samples, every
+    contact and stick interval that ended in it, and the Poincare samples.
     """
     p = np.ascontiguousarray(p, dtype=float)
     if p.shape != (P.SIZE,):
         raise ValueError(f"packed vector has shape {p.shape}; expected ({int(P.SIZE)},)")
-    check_record_settings(duration_s, fs_hz, skip_s)
-    check_step_settings(rtol, atol, max_step_s)
     if not (math.isfinite(theta0) and math.isfinite(theta_dot0)):
         raise ValueError(f"initial state ({theta0!r}, {theta_dot0!r}) must be finite")
-    t_rec = record_start_s(p, skip_s)
-    n_samples = math.floor(duration_s * fs_hz + 1e-9)
+    fs_hz = settings.fs_hz
+    t_rec = record_start_s(p, settings.skip_s)
+    n_samples = math.floor(settings.duration_s * fs_hz + 1e-9)
     out_t = np.arange(n_samples, dtype=float)  # t_rec + k / fs, built in place
     out_t /= fs_hz
     out_t += t_rec
-    t_final = t_rec + duration_s
-    pc_t0, pc_dt, n_pc = poincare_times(p, t_rec, t_final, poincare_phase)
+    t_final = t_rec + settings.duration_s
+    pc_t0, pc_dt, n_pc = poincare_times(p, t_rec, t_final, settings.poincare_phase)
     out_th = np.empty(n_samples)
     out_om = np.empty(n_samples)
     pc_th = np.empty(n_pc)
@@ -147,14 +147,14 @@ def simulate_packed(
         pc_th,
         pc_om,
         t_final,
-        rtol,
-        atol,
-        float(max_step_s),
+        settings.rtol,
+        settings.atol,
+        float(settings.max_step_s),
         DEFAULT_MAX_STEPS,
         np.empty((16, ig.EV_SIZE)),
         0,
-        dense,
-        np.empty((1024 if dense else 0, 3)),
+        settings.dense,
+        np.empty((1024 if settings.dense else 0, 3)),
         0,
     )
     # contacts and stick intervals that ended during the record (not in the transient, nor
@@ -163,7 +163,7 @@ def simulate_packed(
     rows = rows[(rows[:, ig.EV_T_OUT] >= t_rec) & (rows[:, ig.EV_T_OUT] <= t_final)]
     pc_t = pc_t0 + np.arange(pc_written) * pc_dt
     trajectory = None
-    if dense:
+    if settings.dense:
         d = dense_buf[:n_dense]
         trajectory = Trajectory(d[:, 0].copy(), d[:, 1].copy(), d[:, 2].copy())
     return SimulationResult(

@@ -131,19 +131,10 @@ def run(args: argparse.Namespace) -> int:
     from analysis.output_paths import check_outputs
     from analysis.packed import ParameterError
     from analysis.provenance import provenance
-    from analysis.simulate import simulate
     from rig.commands.rig_options import ProgressLine
     from rig.commands.simulate import build_model, parse_assignments
 
-    if args.out.suffix.lower() not in (".h5", ".hdf5"):
-        raise CommandError(f"--out {args.out}: expected an .h5 file name")
-    if args.period < 1:
-        raise CommandError(f"--period {args.period}: must be at least 1")
-    if args.brute_force < 0 or args.brute_force == 1 or args.brute_force_periods < 5:
-        raise CommandError("--brute-force N needs N >= 2 values and --brute-force-periods >= 5")
-    for overlay in args.overlay:
-        if not overlay.is_file():
-            raise CommandError(f"--overlay {overlay}: no such file")
+    _check_arguments(args)
     figure_path = args.out.with_suffix(".png")
     check_outputs([args.out, figure_path], overwrite=args.overwrite)
     name, start, stop = _parse_vary(args.vary)
@@ -168,16 +159,7 @@ def run(args: argparse.Namespace) -> int:
     except (ParameterError, ValueError) as error:
         raise CommandError(f"--vary {args.vary}: {error}") from None
     progress = ProgressLine()
-    if args.from_state:
-        guess = np.array(_parse_state(args.from_state))
-    else:
-        progress(f"settling: {SETTLE_PERIODS} drive periods from rest at {name} = {start:g}")
-        period_s = 1.0 / model.drive.frequency_hz
-        settled = simulate(model, 0.0, 0.0, duration_s=period_s, fs_hz=1.0 / period_s,
-                           skip_s=SETTLE_PERIODS * period_s)
-        if not settled.ok or settled.poincare.theta.size == 0:
-            raise CommandError(f"the run from rest stopped ({settled.status}); give --from-state")
-        guess = np.array([settled.poincare.theta[-1], settled.poincare.theta_dot[-1]])
+    guess = _initial_state(args, model, f"{name} = {start:g}", progress)
     max_period = args.max_period if args.max_period is not None else 4 * args.period
     try:
         result = continue_orbits(period_map, start, stop, guess, max_periods=max_period,
@@ -201,6 +183,41 @@ def run(args: argparse.Namespace) -> int:
           f"({1e3 * result.seconds_per_point:.1f} ms per point) -> {args.out}, {figure_path.name}",
           file=sys.stdout)
     return 0
+
+
+def _check_arguments(args: argparse.Namespace) -> None:
+    """Refuse an output name, period, brute-force setting or overlay that cannot work."""
+    if args.out.suffix.lower() not in (".h5", ".hdf5"):
+        raise CommandError(f"--out {args.out}: expected an .h5 file name")
+    if args.period < 1:
+        raise CommandError(f"--period {args.period}: must be at least 1")
+    if args.brute_force < 0 or args.brute_force == 1 or args.brute_force_periods < 5:
+        raise CommandError("--brute-force N needs N >= 2 values and --brute-force-periods >= 5")
+    for overlay in args.overlay:
+        if not overlay.is_file():
+            raise CommandError(f"--overlay {overlay}: no such file")
+
+
+def _initial_state(args: argparse.Namespace, model, where: str, progress):
+    """Where the search for the first orbit starts: --from-state, or (theta, theta') at
+    drive phase 0 after SETTLE_PERIODS drive periods from rest."""
+    import numpy as np
+
+    from analysis.simulate import SimulationSettings, simulate
+
+    if args.from_state:
+        return np.array(_parse_state(args.from_state))
+    progress(f"settling: {SETTLE_PERIODS} drive periods from rest at {where}")
+    period_s = 1.0 / model.drive.frequency_hz
+    settled = simulate(
+        model, 0.0, 0.0,
+        settings=SimulationSettings(
+            duration_s=period_s, fs_hz=1.0 / period_s, skip_s=SETTLE_PERIODS * period_s,
+        ),
+    )
+    if not settled.ok or settled.poincare.theta.size == 0:
+        raise CommandError(f"the run from rest stopped ({settled.status}); give --from-state")
+    return np.array([settled.poincare.theta[-1], settled.poincare.theta_dot[-1]])
 
 
 def _overlays(args: argparse.Namespace, model, name: str, start: float, stop: float, progress):

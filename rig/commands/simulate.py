@@ -298,23 +298,8 @@ def _write_hdf5(path: Path, columns: dict[str, Any], metadata: dict) -> None:
         write_attributes(handle, {"metadata": json.dumps(metadata)})
 
 
-def run(args: argparse.Namespace) -> int:
-    """Build the model, simulate, apply the measurement model, write the record."""
-    import numpy as np
-
-    from analysis.exchange import ExchangeRecord, write_exchange
-    from analysis.measurement import MeasurementModel, has_measurement_causes
-    from analysis.output_paths import check_outputs
-    from analysis.packed import P, ParameterError
-    from analysis.simulate import simulate
-
-    suffix = args.out.suffix.lower()
-    if suffix not in (".csv", ".h5", ".hdf5"):
-        raise CommandError(f"--out {args.out}: expected a .csv or .h5 file name")
-    if not args.out.parent.exists():
-        raise CommandError(f"--out {args.out}: folder {args.out.parent} does not exist")
-    outputs = [args.out] + ([args.out.with_suffix(".json")] if suffix == ".csv" else [])
-    check_outputs(outputs, overwrite=args.overwrite)
+def _check_record_arguments(args: argparse.Namespace) -> None:
+    """Refuse a record length, sample rate or transient that makes no sense or no file."""
     for name in ("duration", "fs"):
         value = getattr(args, name)
         if not (math.isfinite(value) and value > 0):
@@ -326,6 +311,26 @@ def run(args: argparse.Namespace) -> int:
             f"--duration {args.duration} s at --fs {args.fs} Hz is "
             f"{args.duration * args.fs:.3g} samples; the limit is {MAX_SAMPLES:.0e}"
         )
+
+
+def run(args: argparse.Namespace) -> int:
+    """Build the model, simulate, apply the measurement model, write the record."""
+    import numpy as np
+
+    from analysis.exchange import ExchangeRecord, write_exchange
+    from analysis.measurement import MeasurementModel, has_measurement_causes
+    from analysis.output_paths import check_outputs
+    from analysis.packed import P, ParameterError
+    from analysis.simulate import SimulationSettings, simulate
+
+    suffix = args.out.suffix.lower()
+    if suffix not in (".csv", ".h5", ".hdf5"):
+        raise CommandError(f"--out {args.out}: expected a .csv or .h5 file name")
+    if not args.out.parent.exists():
+        raise CommandError(f"--out {args.out}: folder {args.out.parent} does not exist")
+    outputs = [args.out] + ([args.out.with_suffix(".json")] if suffix == ".csv" else [])
+    check_outputs(outputs, overwrite=args.overwrite)
+    _check_record_arguments(args)
     model, experiment = build_model(
         args.case, args.experiment, parse_assignments(args.param), args.cause
     )
@@ -341,15 +346,11 @@ def run(args: argparse.Namespace) -> int:
     started = time.perf_counter()
     try:
         result = simulate(
-            model,
-            args.theta0,
-            args.omega0,
-            duration_s=args.duration,
-            fs_hz=args.fs,
-            skip_s=args.skip,
-            poincare_phase=None,
-            rtol=args.rtol,
-            atol=args.rtol * 1e-2,
+            model, args.theta0, args.omega0,
+            settings=SimulationSettings(
+                duration_s=args.duration, fs_hz=args.fs, skip_s=args.skip, poincare_phase=None,
+                rtol=args.rtol, atol=args.rtol * 1e-2,
+            ),
         )
     except ValueError as error:
         raise CommandError(str(error)) from None

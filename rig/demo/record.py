@@ -59,12 +59,13 @@ def warm_up_physics(config: RigConfig) -> None:
     a first compilation takes tens of seconds, and a board that says nothing that long
     would be taken for a dead one."""
     from analysis.model import Drive, Model, RigParameters
-    from analysis.simulate import simulate
+    from analysis.simulate import SimulationSettings, simulate
 
     rig = RigParameters(L_m=config.constants.L_m)
     model = Model(rig=rig, drive=Drive(amplitude_m=1e-3, frequency_hz=10.0), barrier=True)
-    simulate(model, -0.1, duration_s=0.5, fs_hz=1000.0)
-    simulate(replace(model, drive=Drive(), barrier=False), 0.1, duration_s=0.5, fs_hz=1000.0)
+    settings = SimulationSettings(duration_s=0.5, fs_hz=1000.0)
+    simulate(model, -0.1, settings=settings)
+    simulate(replace(model, drive=Drive(), barrier=False), 0.1, settings=settings)
 
 
 def true_values(config: RigConfig) -> dict[str, float]:

@@ -7,7 +7,7 @@ import pytest
 
 from analysis.dynamics import NO_ATTRACTOR, basins_of_attraction, identify_attractors, plot_basins
 from analysis.model import Drive, Model, RigParameters, paper_case
-from analysis.simulate import simulate
+from analysis.simulate import SimulationSettings, simulate
 from tests.dynamics.integrators import iterate_map
 from tests.dynamics.reference_systems import HENON_CLASSIC, henon_map
 
@@ -76,14 +76,11 @@ def test_basin_labels_agree_with_independent_runs(tmp_path):
         i, j = rng.integers(0, theta_dot0.size), rng.integers(0, theta0.size)
         period = drive.period_s
         run = simulate(
-            model,
-            theta0[j],
-            theta_dot0[i],
-            duration_s=64 * period,
-            fs_hz=drive.frequency_hz,
-            skip_s=200 * period,
-            rtol=1e-8,
-            atol=1e-10,
+            model, theta0[j], theta_dot0[i],
+            settings=SimulationSettings(
+                duration_s=64 * period, fs_hz=drive.frequency_hz, skip_s=200 * period, rtol=1e-8,
+                atol=1e-10,
+            ),
         )
         attractor = basins.attractors[basins.labels[i, j]]
         final = np.array([run.poincare.theta[-1], run.poincare.theta_dot[-1]])

@@ -16,7 +16,7 @@ from analysis.dynamics.period_map import PeriodMap
 from analysis.dynamics.periodic_orbits import find_periodic_orbit
 from analysis.model import Drive, Model, RigParameters, paper_case
 from analysis.packed import P
-from analysis.simulate import simulate, simulate_packed
+from analysis.simulate import SimulationSettings, simulate, simulate_packed
 
 
 def _case_g(**values: float) -> Model:
@@ -41,8 +41,12 @@ def test_stable_orbit_is_the_attractor_of_a_long_simulation():
     orbit = find_periodic_orbit(PeriodMap(model, "beta", 2), 0.022, np.array([-0.12, -0.7]))
     assert orbit.stable and orbit.residual < 1e-10
     start = orbit.state + np.array([2e-3, -0.05])
-    run = simulate(model, *start, duration_s=0.4, fs_hz=100, skip_s=400.0, rtol=1e-10,
-                   atol=1e-12)
+    run = simulate(
+        model, *start,
+        settings=SimulationSettings(
+            duration_s=0.4, fs_hz=100, skip_s=400.0, rtol=1e-10, atol=1e-12,
+        ),
+    )
     assert run.contacts.count >= 2
     settled = np.column_stack([run.poincare.theta, run.poincare.theta_dot])
     # the run's phase-0 samples alternate between the orbit's state and its image
@@ -65,8 +69,10 @@ def test_multipliers_match_a_fit_to_single_runs():
     images = []
     for offset in offsets:
         start = orbit.state + offset
-        run = simulate_packed(p, *start, duration_s=0.2 + 1e-9, fs_hz=10.0, rtol=1e-12,
-                              atol=1e-14)
+        run = simulate_packed(
+            p, *start,
+            settings=SimulationSettings(duration_s=0.2 + 1e-9, fs_hz=10.0, rtol=1e-12, atol=1e-14),
+        )
         images.append([run.poincare.theta[2], run.poincare.theta_dot[2]])
     fitted, *_ = np.linalg.lstsq(offsets, np.array(images) - orbit.linearisation.image,
                                  rcond=None)
@@ -130,8 +136,12 @@ def test_grazing_matches_where_a_long_simulation_first_touches(gap_branches):
     distances = []
     offsets = np.array([-2e-6, 2e-6])
     for offset in offsets:
-        run = simulate(model_with(model, "beta", grazing.value + offset), *start,
-                       duration_s=0.1, fs_hz=1e5, skip_s=300.0, rtol=1e-10, atol=1e-12)
+        run = simulate(
+            model_with(model, "beta", grazing.value + offset), *start,
+            settings=SimulationSettings(
+                duration_s=0.1, fs_hz=1e5, skip_s=300.0, rtol=1e-10, atol=1e-12,
+            ),
+        )
         distances.append(0.02 - run.theta.max())
     assert distances[0] > 0 > distances[1]
     zero = offsets[0] - distances[0] * (offsets[1] - offsets[0]) / (distances[1] - distances[0])

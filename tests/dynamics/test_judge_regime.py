@@ -17,7 +17,7 @@ import pytest
 
 from analysis.dynamics import judge_record_regime, judge_regime, strobe_record
 from analysis.model import Drive, Model, paper_case
-from analysis.simulate import simulate
+from analysis.simulate import SimulationSettings, simulate
 from hardware_sim.virtual_rig import VirtualRig, VirtualRigSettings
 from rig.config import load_config
 from rig.demo.settings import FULL
@@ -141,7 +141,8 @@ def case_i_run():
     """Paper case i (chaotic) from rest, 10 s of transient skipped, 60 s at 1 kHz."""
     rig, drive = paper_case("i").dimensional()
     run = simulate(
-        Model(rig, drive), 0.0, 0.0, duration_s=60.0, fs_hz=FS, skip_s=10.0, rtol=1e-8, atol=1e-10
+        Model(rig, drive), 0.0, 0.0,
+        settings=SimulationSettings(duration_s=60.0, fs_hz=FS, skip_s=10.0, rtol=1e-8, atol=1e-10),
     )
     assert run.ok, run.status
     return run, drive.frequency_hz
@@ -204,7 +205,10 @@ def test_a_noisy_period_one_orbit_is_never_judged_chaotic():
     """Paper case a (2 Hz, period 1 with impacts) with 2 mrad of noise: period 1; and with
     its noise understated, where the 0-1 test reads the noise as chaos, still not chaotic."""
     rig, drive = paper_case("a").dimensional()
-    run = simulate(Model(rig, drive), 0.0, 0.0, duration_s=60.0, fs_hz=FS, skip_s=20.0)
+    run = simulate(
+        Model(rig, drive), 0.0, 0.0,
+        settings=SimulationSettings(duration_s=60.0, fs_hz=FS, skip_s=20.0),
+    )
     noise_rad = 2e-3
     for seed in SEEDS:
         rng = np.random.default_rng(seed)

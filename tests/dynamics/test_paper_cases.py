@@ -20,7 +20,7 @@ from analysis.dynamics import (
     rosenstein_lyapunov,
 )
 from analysis.model import Model, paper_case
-from analysis.simulate import simulate
+from analysis.simulate import SimulationSettings, simulate
 
 TRANSIENT_PERIODS = 200
 RECORD_PERIODS = 300
@@ -32,14 +32,11 @@ def _run(name: str, theta0: float = 0.0, theta_dot0: float = 0.0):
     model = Model(rig, drive)
     period = drive.period_s
     result = simulate(
-        model,
-        theta0,
-        theta_dot0,
-        duration_s=RECORD_PERIODS * period,
-        fs_hz=40 * drive.frequency_hz,
-        skip_s=TRANSIENT_PERIODS * period,
-        rtol=1e-8,
-        atol=1e-10,
+        model, theta0, theta_dot0,
+        settings=SimulationSettings(
+            duration_s=RECORD_PERIODS * period, fs_hz=40 * drive.frequency_hz,
+            skip_s=TRANSIENT_PERIODS * period, rtol=1e-8, atol=1e-10,
+        ),
     )
     assert result.ok, result.status
     return model, result
@@ -123,7 +120,10 @@ def test_case_i_exponent_from_the_angle_record_matches_the_variational_one():
     model = Model(rig, drive)
     period = drive.period_s
     fs_hz = 20 * drive.frequency_hz
-    run = simulate(model, 0.0, 0.0, duration_s=600 * period, fs_hz=fs_hz, skip_s=100 * period)
+    run = simulate(
+        model, 0.0, 0.0,
+        settings=SimulationSettings(duration_s=600 * period, fs_hz=fs_hz, skip_s=100 * period),
+    )
     delay = mutual_information_delay(run.theta, max_lag=60).delay
     dimension = fnn_dimension(run.theta, delay, max_dimension=7).dimension
     from_data = rosenstein_lyapunov(run.theta, fs_hz, dimension=dimension, delay=delay).exponent

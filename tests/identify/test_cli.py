@@ -100,11 +100,13 @@ def test_several_free_decays_are_pooled(tmp_path):
 
 def test_impact_decay_with_length_and_damping_held_from_a_free_decay(decay_csv, tmp_path):
     from analysis.model import Model, RigParameters
-    from analysis.simulate import simulate
+    from analysis.simulate import SimulationSettings, simulate
 
     truth = RigParameters(L_m=0.25, zeta=0.015, mu0_s_per_m=0.5).with_stiffness(3e5)
-    sim = simulate(Model(rig=truth, barrier=True), -0.3, 0.0, duration_s=4.0, fs_hz=3000.0,
-                   poincare_phase=None)
+    sim = simulate(
+        Model(rig=truth, barrier=True), -0.3, 0.0,
+        settings=SimulationSettings(duration_s=4.0, fs_hz=3000.0, poincare_phase=None),
+    )
     angle = sim.theta + np.random.default_rng(3).normal(0.0, 2e-4, sim.t.size)
     meta = ExchangeMeta("impact_decay", rig={"m_kg": 0.0326, "l_m": 0.05, "R_m": 0.0095,
                                              "g": 9.81})

@@ -8,7 +8,7 @@ import pytest
 from analysis.identify import IdentificationError, fit_impact_decay
 from analysis.model import Model, RigParameters
 from analysis.records import Record
-from analysis.simulate import simulate
+from analysis.simulate import SimulationSettings, simulate
 
 RIG_KEYS = {"m_kg": 0.0326, "l_m": 0.05, "R_m": 0.0095, "g": 9.81}
 
@@ -23,8 +23,10 @@ def _impact_record(rng: np.random.Generator, *, duration_s: float = 6.0, fs_hz: 
     ).with_stiffness(float(10 ** rng.uniform(5.0, 6.0)))
     theta0 = float(rng.uniform(-0.4, -0.25))
     offset = float(rng.uniform(-0.01, 0.01))
-    sim = simulate(Model(rig=truth, barrier=True), theta0, 0.0, duration_s=duration_s,
-                   fs_hz=fs_hz, poincare_phase=None)
+    sim = simulate(
+        Model(rig=truth, barrier=True), theta0, 0.0,
+        settings=SimulationSettings(duration_s=duration_s, fs_hz=fs_hz, poincare_phase=None),
+    )
     assert sim.contacts.t_in.size > 10
     angle = sim.theta + offset + rng.normal(0.0, 2e-4, sim.t.size)
     return Record(sim.t, angle, "impact_decay", rig=RIG_KEYS), truth, offset
@@ -59,8 +61,10 @@ def test_held_length_and_damping_are_kept():
 
 def test_record_without_impacts_is_refused():
     rig = RigParameters(theta_b_rad=0.3)  # the swing never reaches the barrier
-    sim = simulate(Model(rig=rig, barrier=True), -0.2, 0.0, duration_s=4.0, fs_hz=2000.0,
-                   poincare_phase=None)
+    sim = simulate(
+        Model(rig=rig, barrier=True), -0.2, 0.0,
+        settings=SimulationSettings(duration_s=4.0, fs_hz=2000.0, poincare_phase=None),
+    )
     assert sim.contacts.t_in.size == 0
     noisy = sim.theta + np.random.default_rng(0).normal(0.0, 2e-4, sim.t.size)
     with pytest.raises(IdentificationError, match="no impacts"):
@@ -74,8 +78,10 @@ def test_first_estimate_of_the_sensor_zero_holds_at_large_swings():
     from analysis.identify.preprocess import prepare
 
     rig = RigParameters()
-    sim = simulate(Model(rig=rig, barrier=True), -1.2, 0.0, duration_s=4.0, fs_hz=5000.0,
-                   poincare_phase=None)
+    sim = simulate(
+        Model(rig=rig, barrier=True), -1.2, 0.0,
+        settings=SimulationSettings(duration_s=4.0, fs_hz=5000.0, poincare_phase=None),
+    )
     angle = sim.theta + 0.05 + np.random.default_rng(2).normal(0.0, 2e-4, sim.t.size)
     signal = prepare(sim.t, angle)
     events = impact_events(signal, rig, omega_hint=rig.omega_rad_s)

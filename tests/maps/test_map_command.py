@@ -21,7 +21,7 @@ from analysis.maps.overlay import sweep_from_steps
 from analysis.model import Drive, Model, RigParameters
 from analysis.recording_file import clear_writer_flags
 from analysis.records import Record
-from analysis.simulate import simulate
+from analysis.simulate import SimulationSettings, simulate
 from tests.maps.conftest import TINY, assert_same_map, finite_fraction, map_main, run_map
 
 
@@ -188,8 +188,8 @@ def test_a_recorded_sweep_is_drawn_from_the_settled_poincare_points_of_its_steps
     base = Model(RigParameters(), Drive(amplitude_m=0.002, frequency_hz=10.0))
     steps, expected = [], []
     for beta in (0.05, 0.08, 0.05):  # up, up, down
-        result = simulate(model_at_beta(base, beta), 0.0, 0.0, duration_s=4.0, fs_hz=1000.0,
-                          skip_s=20.0, poincare_phase=0.0)
+        settings = SimulationSettings(duration_s=4.0, fs_hz=1000.0, skip_s=20.0, poincare_phase=0.0)
+        result = simulate(model_at_beta(base, beta), 0.0, 0.0, settings=settings)
         time_s = result.t - result.t[0]
         tach = np.arange(0, time_s.size, 100)  # a pulse at every drive phase 0 (100 samples)
         steps.append(Record(time_s, result.theta, "forced", rig={},

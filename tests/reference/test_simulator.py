@@ -225,12 +225,15 @@ def test_bad_input_is_named():
 def test_agrees_with_the_project_integrator(frequency_hz, beta, cause, values):
     """Two independent implementations of docs/MODEL.md: a test of both."""
     from analysis.model import Drive, Model, RigParameters
-    from analysis.simulate import simulate
+    from analysis.simulate import SimulationSettings, simulate
 
     rig = RigParameters()
     drive = Drive(amplitude_m=beta * rig.L_m, frequency_hz=frequency_hz)
     model = Model(rig=rig, drive=drive).with_extension(cause, **values)
-    project = simulate(model, -0.05, 0.0, duration_s=5.0, fs_hz=1000.0, rtol=1e-12, atol=1e-14)
+    project = simulate(
+        model, -0.05, 0.0,
+        settings=SimulationSettings(duration_s=5.0, fs_hz=1000.0, rtol=1e-12, atol=1e-14),
+    )
     pendulum = _pendulum(
         m_kg=rig.m_kg, l_m=rig.l_m, L_m=rig.L_m, zeta=rig.zeta, K_n=rig.K_N_per_m1_5,
         mu0_s_per_m=0.0 if cause == "contact_damping_law" else rig.mu0_s_per_m, **values,

@@ -12,7 +12,7 @@ import numpy as np
 
 from analysis.exchange import read_exchange
 from analysis.model import Model, paper_case
-from analysis.simulate import simulate
+from analysis.simulate import SimulationSettings, simulate
 from rig.cli import main
 
 
@@ -55,7 +55,10 @@ def test_quickstart_case_h_writes_the_exchange_format(tmp_path):
     expected_table = drive.amplitude_m * np.sin(2 * np.pi * drive.frequency_hz * record.time_s)
     assert np.abs(record.table_m - expected_table).max() < 1e-9 * drive.amplitude_m + 1e-12
     # the angle is the model's, after the transient rounded to whole periods
-    direct = simulate(Model(rig, drive), -0.3, 0.0, duration_s=2.0, fs_hz=2000, skip_s=10.0)
+    direct = simulate(
+        Model(rig, drive), -0.3, 0.0,
+        settings=SimulationSettings(duration_s=2.0, fs_hz=2000, skip_s=10.0),
+    )
     assert np.abs(record.angle_rad - direct.theta).max() < 1e-9
 
 
@@ -95,7 +98,8 @@ def test_measurement_model_and_hdf5_output(tmp_path):
     # quantized to the step, noise of the requested size around the model angle
     assert np.allclose(angle / 2e-4, np.round(angle / 2e-4), atol=1e-6)
     reference = simulate(
-        Model(Model().rig.with_values(zeta=0.01), barrier=False), 0.1, duration_s=5, fs_hz=1000
+        Model(Model().rig.with_values(zeta=0.01), barrier=False), 0.1,
+        settings=SimulationSettings(duration_s=5, fs_hz=1000),
     )
     residual = angle - reference.theta
     assert 0.9e-3 < residual.std() < 1.1e-3

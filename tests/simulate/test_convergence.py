@@ -5,12 +5,15 @@ from __future__ import annotations
 import numpy as np
 
 from analysis.model import Model, paper_case
-from analysis.simulate import simulate
+from analysis.simulate import SimulationSettings, simulate
 
 
 def _run(model: Model, rtol: float) -> np.ndarray:
     result = simulate(
-        model, 0.1, duration_s=2.0, fs_hz=1000, skip_s=10.0, rtol=rtol, atol=rtol * 1e-2
+        model, 0.1,
+        settings=SimulationSettings(
+            duration_s=2.0, fs_hz=1000, skip_s=10.0, rtol=rtol, atol=rtol * 1e-2,
+        ),
     )
     assert result.ok
     return result.theta

@@ -7,7 +7,7 @@ import pytest
 
 from analysis.model import Model, paper_case
 from analysis.packed import P
-from analysis.simulate import simulate_ensemble, simulate_packed
+from analysis.simulate import SimulationSettings, simulate_ensemble, simulate_packed
 
 
 def test_parameter_sweep_members_equal_individual_runs():
@@ -20,7 +20,10 @@ def test_parameter_sweep_members_equal_individual_runs():
     result = simulate_ensemble(packed, [-0.2, 0.5], duration_s=3.0, skip_s=2.0, fs_hz=500.0)
     assert result.samples is not None and result.samples.shape == (4, 1500, 2)
     for i in range(betas.size):
-        single = simulate_packed(packed[i], -0.2, 0.5, duration_s=3.0, fs_hz=500.0, skip_s=2.0)
+        single = simulate_packed(
+            packed[i], -0.2, 0.5,
+            settings=SimulationSettings(duration_s=3.0, fs_hz=500.0, skip_s=2.0),
+        )
         count = single.poincare.theta.size
         assert np.array_equal(result.poincare[i, :count, 0], single.poincare.theta)
         assert np.array_equal(result.poincare[i, :count, 1], single.poincare.theta_dot)
@@ -41,7 +44,10 @@ def test_initial_state_grid_with_one_parameter_vector():
     result = simulate_ensemble(p, grid, duration_s=1.0, skip_s=5.0)
     assert result.samples is None and result.ok.all()
     for (theta0, theta_dot0), poincare in zip(grid, result.poincare, strict=True):
-        single = simulate_packed(p, theta0, theta_dot0, duration_s=1.0, fs_hz=10, skip_s=5.0)
+        single = simulate_packed(
+            p, theta0, theta_dot0,
+            settings=SimulationSettings(duration_s=1.0, fs_hz=10, skip_s=5.0),
+        )
         assert np.array_equal(poincare[:, 0], single.poincare.theta)
 
 

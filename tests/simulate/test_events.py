@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from analysis.model import Model, RigParameters, paper_case
-from analysis.simulate import Stepper, simulate
+from analysis.simulate import SimulationSettings, Stepper, simulate
 
 
 def _case_h(theta_b: float) -> Model:
@@ -19,7 +19,10 @@ def _case_h(theta_b: float) -> Model:
 
 @pytest.mark.parametrize("theta_b", [0.0, 0.05, -0.04])
 def test_contact_events_lie_on_the_surface_and_steps_never_cross_it(theta_b):
-    result = simulate(_case_h(theta_b), -0.2, duration_s=4.0, fs_hz=20000, skip_s=1.0)
+    result = simulate(
+        _case_h(theta_b), -0.2,
+        settings=SimulationSettings(duration_s=4.0, fs_hz=20000, skip_s=1.0),
+    )
     c = result.contacts
     assert result.ok and c.count > 20
     assert np.abs(c.theta_in - theta_b).max() < 1e-12
@@ -45,7 +48,7 @@ def test_grazing_contact_inside_one_step_is_found_and_acts():
     theta_b = 0.3 - excess
     rig = RigParameters(zeta=0.0, mu0_s_per_m=0.0, E_Pa=2e12)
     model = Model(rig).with_extension("barrier_offset", theta_b_rad=theta_b)
-    loose = simulate(model, -0.3, duration_s=0.5, fs_hz=1000)
+    loose = simulate(model, -0.3, settings=SimulationSettings(duration_s=0.5, fs_hz=1000))
     assert loose.n_steps < 300
     assert loose.contacts.count == 1
     assert loose.contacts.grazing[0]  # the step ended in free flight: a sign test missed it
@@ -53,7 +56,10 @@ def test_grazing_contact_inside_one_step_is_found_and_acts():
     assert abs(loose.contacts.theta_out[0] - theta_b) < 1e-12
     # independent resolution: steps of 1e-5 s, many inside the contact, sign test suffices
     fine = simulate(
-        model, -0.3, duration_s=0.5, fs_hz=1000, rtol=1e-12, atol=1e-14, max_step_s=1e-5
+        model, -0.3,
+        settings=SimulationSettings(
+            duration_s=0.5, fs_hz=1000, rtol=1e-12, atol=1e-14, max_step_s=1e-5,
+        ),
     )
     assert fine.contacts.count == 1 and not fine.contacts.grazing[0]
     assert abs(loose.contacts.duration_s[0] / fine.contacts.duration_s[0] - 1) < 0.01
@@ -62,7 +68,10 @@ def test_grazing_contact_inside_one_step_is_found_and_acts():
     # 2 sqrt(2 excess / (omega^2 sin theta_b)), and the motion afterwards is changed by it
     free_excursion = 2.0 * math.sqrt(2.0 * excess / (rig.g_m_s2 / rig.L_m * math.sin(theta_b)))
     assert fine.contacts.duration_s[0] < 0.8 * free_excursion
-    unimpeded = simulate(Model(rig, barrier=False), -0.3, duration_s=0.5, fs_hz=1000)
+    unimpeded = simulate(
+        Model(rig, barrier=False), -0.3,
+        settings=SimulationSettings(duration_s=0.5, fs_hz=1000),
+    )
     after = loose.t > loose.contacts.t_out[0] + 0.05
     assert np.abs(loose.theta[after] - unimpeded.theta[after]).max() > 50 * 1e-6
 
@@ -71,7 +80,10 @@ def test_over_the_top_is_reported_not_turned_into_contact():
     rig = RigParameters(zeta=0.0)
     # enough speed at the bottom to pass the top going away from the barrier
     omega = rig.omega_rad_s
-    result = simulate(Model(rig), 0.0, -2.2 * omega, duration_s=2.0, fs_hz=1000)
+    result = simulate(
+        Model(rig), 0.0, -2.2 * omega,
+        settings=SimulationSettings(duration_s=2.0, fs_hz=1000),
+    )
     assert result.status == "over_the_top"
     assert result.contacts.count == 0
     assert result.t.size < 2000
@@ -104,7 +116,10 @@ def test_a_slow_near_grazing_entry_is_as_accurate_as_a_tight_run():
     critical = math.sqrt(2.0 * rig.g_m_s2 / rig.L_m * (1.0 - math.cos(theta_b)))
     model = Model(rig)
     runs = [
-        simulate(model, 0.0, critical * (1 + 1e-7), duration_s=0.3, fs_hz=1000, **tolerances)
+        simulate(
+            model, 0.0, critical * (1 + 1e-7),
+            settings=SimulationSettings(duration_s=0.3, fs_hz=1000, **tolerances),
+        )
         for tolerances in ({}, {"rtol": 1e-13, "atol": 1e-15})
     ]
     default, tight = (run.contacts for run in runs)

@@ -8,7 +8,7 @@ import numpy as np
 from scipy.integrate import quad
 
 from analysis.model import Drive, Model, RigParameters
-from analysis.simulate import simulate
+from analysis.simulate import SimulationSettings, simulate
 
 
 def _energy_per_mass(rig: RigParameters, theta_b: float, theta, theta_dot) -> np.ndarray:
@@ -37,7 +37,10 @@ def test_energy_is_conserved_through_many_impacts_without_damping():
         (0.08, Model(rig).with_extension("barrier_offset", theta_b_rad=0.08)),
     ):
         result = simulate(
-            model, -1.0, duration_s=6.0, fs_hz=400, poincare_phase=None, rtol=1e-10, atol=1e-12
+            model, -1.0,
+            settings=SimulationSettings(
+                duration_s=6.0, fs_hz=400, poincare_phase=None, rtol=1e-10, atol=1e-12,
+            ),
         )
         assert result.ok
         assert result.contacts.count >= 20
@@ -60,7 +63,10 @@ def test_single_impact_matches_hertz_contact_time_and_penetration():
     m_eff = rig.m_kg * rig.L_m**2 / rig.l_m**2
     K = rig.K_N_per_m1_5
     for theta0 in (-0.05, -0.15):
-        result = simulate(Model(rig), theta0, duration_s=0.6, fs_hz=10, rtol=1e-11, atol=1e-13)
+        result = simulate(
+            Model(rig), theta0,
+            settings=SimulationSettings(duration_s=0.6, fs_hz=10, rtol=1e-11, atol=1e-13),
+        )
         c = result.contacts
         assert c.count >= 1
         v = rig.l_m * c.theta_dot_in[0]
@@ -75,7 +81,10 @@ def test_restitution_approaches_one_minus_two_thirds_mu0_v():
     ratios = []
     for mu0 in (0.4, 0.2, 0.1):
         rig = RigParameters(zeta=0.0, mu0_s_per_m=mu0)
-        c = simulate(Model(rig), -0.1, duration_s=0.6, fs_hz=10, rtol=1e-11, atol=1e-13).contacts
+        c = simulate(
+            Model(rig), -0.1,
+            settings=SimulationSettings(duration_s=0.6, fs_hz=10, rtol=1e-11, atol=1e-13),
+        ).contacts
         v = rig.l_m * c.theta_dot_in[0]
         restitution = -c.theta_dot_out[0] / c.theta_dot_in[0]
         ratios.append((1.0 - restitution) / (2.0 / 3.0 * mu0 * v))
@@ -88,7 +97,8 @@ def test_free_decay_follows_the_averaging_solution():
     rig = RigParameters()
     omega, zeta, theta0 = rig.omega_rad_s, rig.zeta, 0.1
     result = simulate(
-        Model(rig, barrier=False), theta0, -zeta * omega * theta0, duration_s=10.0, fs_hz=500
+        Model(rig, barrier=False), theta0, -zeta * omega * theta0,
+        settings=SimulationSettings(duration_s=10.0, fs_hz=500),
     )
     t = result.t
     averaged = (
@@ -108,7 +118,10 @@ def test_coulomb_friction_decay_and_final_stick():
     model = Model(rig, barrier=False).with_extension(
         "coulomb_friction", Tc_N_m=friction_acc * rig.m_kg * rig.L_m**2
     )
-    result = simulate(model, 0.02, duration_s=8.0, fs_hz=100, dense=True, poincare_phase=None)
+    result = simulate(
+        model, 0.02,
+        settings=SimulationSettings(duration_s=8.0, fs_hz=100, dense=True, poincare_phase=None),
+    )
     d = result.dense
     at_rest = np.flatnonzero(d.theta_dot == 0.0)
     turning = d.theta[at_rest]
@@ -139,7 +152,7 @@ def test_stuck_pendulum_releases_when_the_table_acceleration_exceeds_friction():
         model = Model(rig, drive, barrier=False).with_extension(
             "coulomb_friction", Tc_N_m=friction_acc * rig.m_kg * rig.L_m**2
         )
-        result = simulate(model, 0.0, 0.0, duration_s=0.5, fs_hz=1000)
+        result = simulate(model, 0.0, 0.0, settings=SimulationSettings(duration_s=0.5, fs_hz=1000))
         if releases:
             # at rest at theta = 0 only the table acts: release when A Omega^2/L |sin| = Tc_acc
             expected = math.asin(friction_acc / table_acc) / drive.Omega_rad_s

@@ -8,7 +8,7 @@ from scipy.integrate import solve_ivp
 
 from analysis.model import Model, acceleration, paper_case
 from analysis.packed import P
-from analysis.simulate import simulate
+from analysis.simulate import SimulationSettings, simulate
 
 INITIAL_STATES = [(-0.2, 0.0), (-0.8, 3.0), (0.0, -6.0), (-1.2, 0.0)]
 
@@ -22,12 +22,11 @@ def _poincare(case: str, theta0: float, theta_dot0: float, transient: int, kept:
     model = _model(case)
     period = 1.0 / model.drive.frequency_hz
     result = simulate(
-        model,
-        theta0,
-        theta_dot0,
-        duration_s=(kept - 0.5) * period,
-        fs_hz=model.drive.frequency_hz,
-        skip_s=transient * period,
+        model, theta0, theta_dot0,
+        settings=SimulationSettings(
+            duration_s=(kept - 0.5) * period, fs_hz=model.drive.frequency_hz,
+            skip_s=transient * period,
+        ),
     )
     assert result.ok, result.status
     assert result.poincare.theta.size == kept
@@ -118,7 +117,10 @@ def test_case_h_agrees_with_an_independent_integrator():
             break
         t, y, contact = sol.t_events[0][0], sol.y_events[0][0], not contact
     ours = simulate(
-        model, -0.2, 0.0, duration_s=times[-1] + 0.5 * period, fs_hz=10, rtol=1e-11, atol=1e-13
+        model, -0.2, 0.0,
+        settings=SimulationSettings(
+            duration_s=times[-1] + 0.5 * period, fs_hz=10, rtol=1e-11, atol=1e-13,
+        ),
     )
     assert np.abs(ours.poincare.theta[:n] - reference).max() < 1e-6
     # and the attractor it reaches is the period-3 orbit, not a fixed point or chaos

@@ -8,7 +8,7 @@ import pytest
 
 from analysis.model import Model, paper_case
 from analysis.packed import P
-from analysis.simulate import simulate_packed
+from analysis.simulate import SimulationSettings, simulate_packed
 from analysis.simulate.integrator import STATUS_NAMES
 from analysis.simulate.segments import integrate_segments
 
@@ -17,8 +17,12 @@ def _chaotic_run():
     rig, drive = paper_case("h").dimensional()
     p = Model(rig, drive).pack()
     p[P.PHASE0] = 0.4
-    run = simulate_packed(p, -0.05, 0.0, 12.0, 1000.0, skip_s=5.0, rtol=1e-11, atol=1e-13,
-                          poincare_phase=None)
+    run = simulate_packed(
+        p, -0.05, 0.0,
+        settings=SimulationSettings(
+            duration_s=12.0, fs_hz=1000.0, skip_s=5.0, rtol=1e-11, atol=1e-13, poincare_phase=None,
+        ),
+    )
     return p, run
 
 

@@ -11,6 +11,7 @@ import pytest
 from analysis.model import Drive, Model, RigParameters, paper_case
 from analysis.packed import P
 from analysis.simulate import (
+    SimulationSettings,
     SimulationStoppedError,
     Stepper,
     simulate,
@@ -27,7 +28,10 @@ def _case_h() -> Model:
 def test_many_chunks_equal_one_run():
     model = _case_h()
     fs = 20000.0
-    whole = simulate(model, -0.3, 0.5, duration_s=2.0, fs_hz=fs, poincare_phase=None)
+    whole = simulate(
+        model, -0.3, 0.5,
+        settings=SimulationSettings(duration_s=2.0, fs_hz=fs, poincare_phase=None),
+    )
     stepper = Stepper(model, -0.3, 0.5)
     rng = np.random.default_rng(7)
     edges = np.unique(np.concatenate(([0], rng.integers(1, whole.t.size, 300), [whole.t.size])))
@@ -58,11 +62,17 @@ def test_set_model_changes_the_drive_with_continuous_phase():
     # reference: the second model started from the switch state, drive phase carried over
     p = second.pack()
     p[P.PHASE0] = phase_before
-    reference = simulate_packed(p, *state, duration_s=1.5005, fs_hz=2000.0, rtol=1e-11, atol=1e-13)
+    reference = simulate_packed(
+        p, *state,
+        settings=SimulationSettings(duration_s=1.5005, fs_hz=2000.0, rtol=1e-11, atol=1e-13),
+    )
     assert np.abs(theta - reference.theta[1:]).max() < 1e-7
     # a discontinuous phase (restart at phase 0) would give a clearly different motion
     p[P.PHASE0] = 0.0
-    jumped = simulate_packed(p, *state, duration_s=1.5005, fs_hz=2000.0)
+    jumped = simulate_packed(
+        p, *state,
+        settings=SimulationSettings(duration_s=1.5005, fs_hz=2000.0),
+    )
     assert np.abs(theta - jumped.theta[1:]).max() > 1e-3
 
 
@@ -74,7 +84,10 @@ def test_set_state_releases_the_pendulum_from_a_new_angle():
     stepper.set_state(0.2, 0.0)
     times = 0.5 + np.arange(1, 2001) / 1000.0
     theta, theta_dot = stepper.advance(times)
-    reference = simulate(model, 0.2, 0.0, duration_s=2.001, fs_hz=1000.0)
+    reference = simulate(
+        model, 0.2, 0.0,
+        settings=SimulationSettings(duration_s=2.001, fs_hz=1000.0),
+    )
     assert np.abs(theta - reference.theta[1:2001]).max() < 1e-8
     assert np.abs(theta_dot - reference.theta_dot[1:2001]).max() < 1e-7
 
@@ -108,7 +121,7 @@ def test_every_entry_point_refuses_step_settings_it_cannot_honour(settings, name
     model = Model()
     runs = (
         lambda: Stepper(model, -0.2, **settings),
-        lambda: simulate(model, -0.2, duration_s=0.1, **settings),
+        lambda: simulate(model, -0.2, settings=SimulationSettings(duration_s=0.1, **settings)),
         lambda: simulate_ensemble(model.pack(), np.array([-0.2, 0.0]), 0.1, **settings),
     )
     for run in runs:
