@@ -148,9 +148,13 @@ class RegisterSetting:
         counts = join_u32(*regs) if self.words == 2 else regs[0]
         return counts / self.counts_per_unit
 
+    def check(self, limits: ShakerLimits, value: float) -> float:
+        """``value`` as float when ``limits`` allow it, else LimitError (nothing is sent)."""
+        low, high = self.limits(limits)
+        return limits.check(self.name, value, low, high, self.unit)
+
     def __set__(self, device: ShakerAmplifier, value: float) -> None:
-        low, high = self.limits(device.limits)
-        checked = device.limits.check(self.name, value, low, high, self.unit)
+        checked = self.check(device.limits, value)
         counts = round(checked * self.counts_per_unit)
         regs = split_u32(counts) if self.words == 2 else [counts]
         device._io(f"write {self.name}", device.backend.write_registers, int(self.register), regs)
@@ -224,6 +228,19 @@ class ShakerAmplifier:
         self._heartbeat_stop = threading.Event()
         self._heartbeat_thread: threading.Thread | None = None
         self.identity: AmplifierIdentity | None = None
+
+    @classmethod
+    def check_settings(cls, limits: ShakerLimits, **settings: float) -> None:
+        """LimitError for the first of ``settings`` (``name=value``) that ``limits`` forbid.
+
+        The very check assigning the setting makes, without a device: a procedure refuses
+        a whole plan with it before anything is sent, and says what the shaker would say.
+        """
+        for name, value in settings.items():
+            setting = cls.__dict__.get(name)
+            if not isinstance(setting, RegisterSetting):
+                raise TypeError(f"{name!r} is not a setting of the shaker amplifier")
+            setting.check(limits, value)
 
     # ------------------------------------------------------------------ lifecycle
 

@@ -26,6 +26,7 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
+from drivers.interfaces import LimitError
 from gui.live_data import LiveData
 from gui.panels.analysis import AnalysisPanel
 from gui.panels.connection import RECORDING, RIG_FILE, VIRTUAL, ConnectionPanel
@@ -38,9 +39,10 @@ from gui.views.phase_view import PhasePortraitView
 from gui.views.poincare_view import PoincareView
 from gui.views.spectrum_view import SpectrumView
 from gui.views.time_view import TimeTraceView
-from gui.worker import LiveSession, ReplaySession, Session, SweepRun, TaskRunner, speed_from_text
+from gui.worker import LiveSession, ReplaySession, Session, TaskRunner, speed_from_text
 from rig.config import load_config
 from rig.devices import virtual_config
+from rig.procedures import ProcedureResult, SweepPlan
 
 DEFAULT_FRAME_RATE_HZ = 33.0  # a 30 ms timer: at least 30 frames drawn per second
 SPECTRUM_PERIOD_S = 0.5
@@ -72,6 +74,7 @@ class MainWindow(QMainWindow):
         self.stops = TaskRunner("gui-stop", self)  # STOP never waits behind another command
         self.analysis_tasks = TaskRunner("gui-analysis", self)
         self.view_tasks = TaskRunner("gui-views", self)  # heavy view computations (spectrum)
+        self.sweeps = TaskRunner("gui-sweep", self)  # the sweep procedure, for its whole run
         self._spectrum_busy = False
         self.session: Session | None = None
         self.data: LiveData | None = None
@@ -81,6 +84,7 @@ class MainWindow(QMainWindow):
         self._last_spectrum = 0.0
         self._last_status_poll_done = True
         self._sweep_total = 0
+        self._sweep_first_mark = 0  # where the running sweep's step marks begin in data.steps
 
         # always visible: the stop button
         self.stop_button = QPushButton("STOP DRIVE")
@@ -326,40 +330,58 @@ class MainWindow(QMainWindow):
             lambda error: self.recording_panel.show_recording(False, f"closing failed: {error}"),
         )
 
-    def start_sweep(self, plan, path: str, notes: str) -> None:
-        """Run a forced sweep on the live engine, recording it to ``path``."""
+    def start_sweep(self, plan: SweepPlan, path: str, notes: str) -> None:
+        """Run ``impact-rig sweep``'s procedure on the live rig, recording to ``path``.
+
+        The procedure runs on the sweep thread; the window only shows its progress (its
+        messages, and the step marks it publishes) and its end.
+        """
         session = self.session
         if not isinstance(session, LiveSession):
             return
-        try:
-            sweep = SweepRun(session, plan, path, notes, progress=self._sweep_progress)
-        except ValueError as error:
-            self.recording_panel.show_sweep(False, 0, 1, f"Refused: {error}")
-            return
         self._sweep_total = len(plan.steps())
+        self._sweep_first_mark = len(self.data.steps)
         self.recording_panel.show_sweep(True, 0, self._sweep_total, "starting ...")
         self.recording_panel.show_recording(True, f"sweep recording to {path}")
-        session.sweep = sweep
-        sweep.start()
+        self.shaker_panel.setEnabled(False)  # the procedure alone drives until it ends
+        self.sweeps.submit(
+            lambda: session.run_sweep(plan, path, notes, progress=self._sweep_progress),
+            lambda result: self._sweep_ended(session, result),
+            lambda error: self._sweep_ended(session, error),
+        )
 
-    def _sweep_progress(self, done: int, total: int, text: str) -> None:
+    def _sweep_progress(self, text: str) -> None:
         # called from the sweep's thread: hand over to the GUI thread
-        QTimer.singleShot(0, self, lambda: self._show_sweep(done, total, text))
+        QTimer.singleShot(0, self, lambda: self._show_sweep_progress(text))
 
-    def _show_sweep(self, done: int, total: int, text: str) -> None:
-        running = not text.startswith("sweep ")
-        self.recording_panel.show_sweep(running, done, total, text)
-        if not running:
+    def _show_sweep_progress(self, text: str) -> None:
+        if self.recording_panel.sweeping and self.data is not None:
+            marks = self.data.steps[self._sweep_first_mark :]
+            done = sum(mark.complete for mark in marks)
+            self.recording_panel.show_sweep(True, done, self._sweep_total, text)
+
+    def _sweep_ended(self, session: LiveSession, outcome: ProcedureResult | BaseException) -> None:
+        """Show how the sweep ended: its result, or why it was refused or failed."""
+        if isinstance(outcome, ProcedureResult):
+            done, text = outcome.steps, f"sweep {outcome.stop_reason}"
+            self.recording_panel.show_recording(False, f"saved {outcome.path}")
+            self.analysis_panel.current_recording = str(outcome.path)
+        else:
+            done = 0
+            text = (
+                f"Refused: {outcome}"
+                if isinstance(outcome, LimitError)
+                else f"sweep ended: {outcome}"
+            )
             self.recording_panel.show_recording(False, text)
-            session = self.session
-            if isinstance(session, LiveSession) and session.recording is not None:
-                self.analysis_panel.current_recording = str(session.recording.path)
+        self.recording_panel.show_sweep(False, done, self._sweep_total, text)
+        self.shaker_panel.setEnabled(self.session is session)
 
     def cancel_sweep(self) -> None:
         """Stop the running sweep (the drive ramps to zero, the file is closed)."""
         session = self.session
-        if isinstance(session, LiveSession) and session.sweep is not None:
-            session.sweep.cancel()
+        if isinstance(session, LiveSession):
+            session.cancel_sweep()
 
     # -- replay ---------------------------------------------------------------------------------
 
@@ -550,6 +572,7 @@ class MainWindow(QMainWindow):
         if session is not None:
             session.close()
         self.stops.shutdown()
+        self.sweeps.shutdown()
         self.tasks.shutdown()
         self.polls.shutdown()
         self.analysis_tasks.shutdown(wait=False)

@@ -2,9 +2,10 @@
 
 Acquisition runs in the engine's own threads and recording in the recorder's thread;
 the GUI only drains its own bounded subscription on a timer.  Everything that may
-block (opening devices, Modbus commands to the shaker, closing a recording,
+block (opening devices, Modbus commands to the shaker, closing a recording, a sweep,
 identification) runs on a :class:`TaskRunner` thread and reports back through Qt
-signals, which Qt delivers on the GUI thread.
+signals, which Qt delivers on the GUI thread.  A sweep is ``impact-rig sweep``'s own
+procedure (``rig.procedures.run_sweep``) run on the live engine: the GUI only shows it.
 """
 
 from __future__ import annotations
@@ -14,31 +15,35 @@ import math
 import os
 import threading
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from concurrent.futures import Future, ThreadPoolExecutor
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from pathlib import Path
 
 from PySide6.QtCore import QObject, Signal
 
 from analysis.recording_file import open_recording
-from drivers.interfaces import (
-    ActuatorStatus,
-    DeviceError,
-    InputStream,
-    PulseBlock,
-    SampleBlock,
-    StreamStatus,
-)
+from drivers.interfaces import ActuatorStatus, DeviceError, PulseBlock, SampleBlock, StreamStatus
+from drivers.shaker import ShakerAmplifier
 from rig.config import RigConfig
 from rig.devices import RigDevices, open_rig
 from rig.engine import AcquisitionEngine, EngineStats, Subscription
-from rig.events import StepMark
-from rig.procedures import SweepPlan, base_metadata
-from rig.recorder import ChannelSpec, Recorder, RecorderThread, attach_recorder
+from rig.procedures import (
+    Cancel,
+    ProcedureResult,
+    Progress,
+    SweepPlan,
+    base_metadata,
+    check_drives,
+    run_sweep,
+)
+from rig.recorder import Recorder, RecorderThread, attach_recorder
 from rig.replay import Replay
 
 VIEW_QUEUE_ITEMS = 4000  # the GUI's own bounded queue; when full it loses only its own view
+OPERATOR_STOP = "stopped by the operator"  # why a file ends when the operator ended it
+RAMP_DOWN_TIMEOUT_S = 30.0  # a hand-set drive ramping to zero before a sweep takes over
+SWEEP_END_TIMEOUT_S = 10.0  # closing the rig waits this long for a cancelled sweep to end
 
 
 @dataclass(frozen=True)
@@ -117,7 +122,7 @@ class RecordingRun:
             return os.stat(self.path).st_size
         return 0
 
-    def stop(self, reason: str = "stopped by the operator") -> Path:
+    def stop(self, reason: str = OPERATOR_STOP) -> Path:
         """Stop feeding the recorder, let it write what it holds, close the file (blocking)."""
         if self.stopped:
             return self.path
@@ -172,21 +177,17 @@ class LiveSession(Session):
 
     kind = "live"
 
-    def __init__(
-        self,
-        devices: RigDevices,
-        extra_streams: Sequence[InputStream] = (),
-        extra_specs: Sequence[ChannelSpec] = (),
-    ) -> None:
+    def __init__(self, devices: RigDevices) -> None:
         self.devices = devices
         self.config: RigConfig = devices.config
-        self.extra_specs = list(extra_specs)
-        self.engine = AcquisitionEngine([*devices.streams, *extra_streams])
+        self.engine = AcquisitionEngine(devices.streams)
         self.view = self.engine.subscribe("gui", max_items=VIEW_QUEUE_ITEMS)
         self.sample_rate_hz = devices.sample_rate_hz
         self.title = f"{self.config.name} ({'virtual' if self.config.is_virtual else 'real'})"
         self.recording: RecordingRun | None = None
-        self.sweep: SweepRun | None = None
+        self._sweep_cancel: Cancel | None = None  # the running sweep's, None between sweeps
+        self._sweep_ended = threading.Event()
+        self._sweep_ended.set()
         self._lock = threading.Lock()
         self._closed = False
 
@@ -216,13 +217,10 @@ class LiveSession(Session):
         self, frequency_hz: float, amplitude_m: float, ramp_rate_m_s: float | None = None
     ) -> None:
         """LimitError naming the setting when a value is outside the configured limits."""
-        lim = self.limits
-        lim.check("frequency_hz", frequency_hz, lim.min_frequency_hz, lim.max_frequency_hz, "Hz")
-        lim.check("amplitude_m", amplitude_m, 0.0, lim.max_amplitude_m, "m")
-        if ramp_rate_m_s is not None:
-            lim.check(
-                "ramp_rate_m_s", ramp_rate_m_s, lim.min_ramp_rate_m_s, lim.max_ramp_rate_m_s, "m/s"
-            )
+        ramp = {} if ramp_rate_m_s is None else {"ramp_rate_m_s": ramp_rate_m_s}
+        ShakerAmplifier.check_settings(
+            self.limits, frequency_hz=frequency_hz, amplitude_m=amplitude_m, **ramp
+        )
 
     def apply_drive(
         self,
@@ -246,11 +244,15 @@ class LiveSession(Session):
         self.engine.note_drive(frequency_hz, amplitude_m, enabled)
 
     def stop_drive(self) -> None:
-        """Ramp the drive to zero and disable it (the stop button)."""
-        if self.sweep is not None:
-            self.sweep.cancel()
+        """Ramp the drive to zero and disable it (the stop button): a running sweep is cancelled
+        too, and the ramp starts at once, not when the sweep notices."""
+        self.cancel_sweep()
+        self._ramp_to_zero()
+
+    def _ramp_to_zero(self, wait_s: float = 0.0) -> None:
+        """Drive off; with ``wait_s``, wait (at most that long) until the output is at zero."""
         with self._lock:
-            self.devices.shaker.stop()
+            self.devices.shaker.stop(wait_s)
         self.engine.note_drive(0.0, 0.0, False)
 
     def shaker_status(self) -> ActuatorStatus:
@@ -283,8 +285,7 @@ class LiveSession(Session):
         meta = base_metadata(
             self.devices, experiment, notes, drive_meta, plan or {"source": "impact-rig gui"}
         )
-        specs = self.devices.channel_specs() + self.extra_specs
-        recorder = Recorder(path, specs, meta)
+        recorder = Recorder(path, self.devices.channel_specs(), meta)
         self.recording = RecordingRun(self.engine, recorder)
         if drive is not None:
             self.engine.publish(drive)  # the file starts with the drive in force
@@ -297,14 +298,59 @@ class LiveSession(Session):
             return None
         return run.stop()
 
+    # -- sweeps (``impact-rig sweep``'s procedure on the live engine) -----------------------------
+
+    def run_sweep(
+        self,
+        plan: SweepPlan,
+        path: str | Path,
+        notes: str = "",
+        progress: Progress | None = None,
+    ) -> ProcedureResult:
+        """Run ``rig.procedures.run_sweep`` on the live engine (blocking: call on a TaskRunner).
+
+        The same procedure, checks, events and file as ``impact-rig sweep``.  A plan the
+        shaker's limits forbid is refused (LimitError) before anything moves.  The sweep
+        takes over the drive: one left on by hand ramps to zero first, so the procedure
+        starts from rest as on the command line.  ``cancel_sweep`` or STOP end it.
+        """
+        if self.recording is not None and not self.recording.stopped:
+            raise RuntimeError(f"already recording to {self.recording.path}")
+        # as the command line does before it opens the rig: a refused plan moves nothing,
+        # not even the hand-set drive (run_sweep checks again, the same way)
+        check_drives(self.limits, self.config.source, [(f, a) for _, f, a in plan.steps()])
+        cancel = Cancel()
+        self._sweep_cancel = cancel
+        self._sweep_ended.clear()
+        try:
+            self._ramp_to_zero(RAMP_DOWN_TIMEOUT_S)
+            return run_sweep(
+                self.devices,
+                path,
+                plan,
+                notes=notes,
+                progress=progress,
+                engine=self.engine,
+                cancel=cancel,
+            )
+        finally:
+            self._sweep_cancel = None
+            self._sweep_ended.set()
+
+    def cancel_sweep(self) -> None:
+        """Stop the running sweep at its next wait (the drive ramps to zero, the file is closed
+        saying the operator stopped it); nothing when no sweep runs."""
+        cancel = self._sweep_cancel
+        if cancel is not None:
+            cancel.request(OPERATOR_STOP)
+
     def close(self) -> None:
         """Drive to zero, close the recording, stop acquiring, release the devices."""
         if self._closed:
             return
         self._closed = True
-        if self.sweep is not None:
-            self.sweep.cancel()
-            self.sweep.join(10.0)
+        self.cancel_sweep()
+        self._sweep_ended.wait(SWEEP_END_TIMEOUT_S)  # the sweep closes its own file
         with contextlib.suppress(DeviceError):
             self.devices.shaker.stop()
         if self.recording is not None:
@@ -312,95 +358,6 @@ class LiveSession(Session):
                 self.recording.stop("application closed")
         self.engine.stop()
         self.devices.close()
-
-
-class SweepRun(threading.Thread):
-    """A forced sweep on the live engine: steps the drive, marks each step, records one file."""
-
-    def __init__(
-        self,
-        session: LiveSession,
-        plan: SweepPlan,
-        path: str | Path,
-        notes: str = "",
-        progress: Callable[[int, int, str], None] | None = None,
-    ) -> None:
-        super().__init__(name="gui-sweep", daemon=True)
-        self.session = session
-        self.plan = plan
-        self.path = Path(path)
-        self.notes = notes
-        self.progress = progress or (lambda done, total, text: None)
-        self.error: BaseException | None = None
-        self.completed_steps = 0
-        self._cancel = threading.Event()
-        for _, frequency_hz, amplitude_m in plan.steps():  # refuse the plan before anything moves
-            session.check_drive(frequency_hz, amplitude_m)
-
-    def cancel(self) -> None:
-        """Stop after the current wait; the drive ramps to zero and the file is closed."""
-        self._cancel.set()
-
-    @property
-    def cancelled(self) -> bool:
-        """True when the operator stopped the sweep."""
-        return self._cancel.is_set()
-
-    def run(self) -> None:
-        session, engine = self.session, self.session.engine
-        steps = self.plan.steps()
-        reason = "completed"
-        session.sweep = self
-        try:
-            session.start_recording(
-                self.path, self.notes, experiment="forced", plan={"sweep": asdict(self.plan)}
-            )
-            for number, (direction, frequency_hz, amplitude_m) in enumerate(steps):
-                if self._cancel.is_set():
-                    break
-                arrow = "up" if direction > 0 else "down"
-                self.progress(
-                    number,
-                    len(steps),
-                    f"step {number + 1}/{len(steps)} {arrow}: "
-                    f"{frequency_hz:g} Hz, {amplitude_m * 1e3:g} mm, settling",
-                )
-                session.apply_drive(frequency_hz, amplitude_m, True)
-                settle_start = engine.latest_index or 0
-                self._cancel.wait(self.plan.settle_s)
-                dwell_start = engine.latest_index or settle_start
-                if not self._cancel.is_set():
-                    self.progress(number, len(steps), f"step {number + 1}/{len(steps)}: dwell")
-                    self._cancel.wait(self.plan.dwell_s)
-                complete = not self._cancel.is_set()
-                engine.mark_step(
-                    StepMark(
-                        number,
-                        direction,
-                        frequency_hz,
-                        amplitude_m,
-                        settle_start,
-                        dwell_start,
-                        engine.latest_index or dwell_start,
-                        complete=complete,
-                    )
-                )
-                if complete:
-                    self.completed_steps += 1
-            if self._cancel.is_set():
-                reason = "stopped by the operator"
-        except BaseException as error:  # reported to the GUI; the drive still goes to zero
-            self.error = error
-            reason = f"error: {error}"
-        finally:
-            with contextlib.suppress(DeviceError):
-                session.devices.shaker.stop()
-            engine.note_drive(0.0, 0.0, False)
-            if session.recording is not None and not session.recording.stopped:
-                with contextlib.suppress(Exception):
-                    session.recording.stop(reason)
-            session.sweep = None
-            self.progress(self.completed_steps, len(steps), f"sweep {reason}")
 
 
 @dataclass(frozen=True)

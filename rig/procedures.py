@@ -1,8 +1,10 @@
 """Experiment procedures: free decay, impact decay, forced sweep, and a plain timed recording.
 
 Each runs inside a ``ProcedureSession``: the engine reads the devices, the recorder
-writes the file, and whatever happens (Ctrl-C, a device error, a full disk) the
-shaker is ramped to zero and the file is closed valid, with the reason it stopped.
+writes the file, and whatever happens (Ctrl-C, a ``Cancel`` from another thread, a
+device error, a full disk) the shaker is ramped to zero and the file is closed valid,
+with the reason it stopped.  The engine is the procedure's own (the command line) or
+one already running on the devices (the GUI's live view), so both write the same file.
 Decays wait for the release with a pre-trigger buffer (the file starts shortly
 before the pendulum moved); sweeps mark every step with its setting in the file.
 """
@@ -13,7 +15,7 @@ import contextlib
 import threading
 import time
 from collections import deque
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
@@ -21,11 +23,13 @@ import numpy as np
 
 from analysis.experiments import FORCED, experiment_kind
 from analysis.provenance import invocation_operator, provenance
-from drivers.interfaces import DeviceError, SampleBlock
+from drivers.interfaces import DeviceError, LimitError, SampleBlock
+from drivers.limits import ShakerLimits
+from drivers.shaker import ShakerAmplifier
 from rig.devices import ANGLE, TABLE, TACH, RigDevices
 from rig.drive_monitor import DriveMonitor
 from rig.engine import AcquisitionEngine, Delivery, Subscription
-from rig.events import StepMark
+from rig.events import COMMANDED, DriveSetting, StepMark
 from rig.recorder import Recorder, RecorderThread, RecordingMetadata
 
 Progress = Callable[[str], None]
@@ -35,6 +39,49 @@ TRIGGER_SLACK_S = 2.0  # how late the release may be noticed without shortening 
 
 class ProcedureError(RuntimeError):
     """A procedure could not run to its end; the message says why and what was kept."""
+
+
+class ProcedureCancelledError(ProcedureError):
+    """Raised at a procedure's next wait once its ``Cancel`` was requested; the session ends
+    the procedure there, closes the file with the request's reason and returns normally."""
+
+
+class Cancel:
+    """A request from another thread that a running procedure stop (the GUI's cancel and STOP
+    buttons; a signal handler could ask the same).
+
+    The procedure stops at its next wait, within a twentieth of a second: the drive ramps
+    to zero, an unfinished sweep step is marked incomplete, the file is closed with
+    ``reason`` as its stop reason, and the procedure returns its result as usual.
+    """
+
+    def __init__(self) -> None:
+        self._requested = threading.Event()
+        self.reason = ""
+
+    def request(self, reason: str = "cancelled") -> None:
+        """Ask the procedure to stop (the first reason given is the one the file keeps)."""
+        if not self._requested.is_set():
+            self.reason = reason
+            self._requested.set()
+
+    @property
+    def requested(self) -> bool:
+        """True once a stop was asked for."""
+        return self._requested.is_set()
+
+
+def check_drives(limits: ShakerLimits, source: str, drives: Iterable[tuple[float, float]]) -> None:
+    """LimitError, naming where ``limits`` come from, for the first (frequency_hz, amplitude_m)
+    the shaker would refuse: a whole plan is checked, by the shaker's own rule, before
+    anything moves."""
+    try:
+        for frequency_hz, amplitude_m in drives:
+            ShakerAmplifier.check_settings(
+                limits, frequency_hz=frequency_hz, amplitude_m=amplitude_m
+            )
+    except LimitError as error:
+        raise LimitError(f"{error} (limits from {source})") from None
 
 
 @dataclass(frozen=True)
@@ -133,7 +180,14 @@ class AngleWatch:
 
 
 class ProcedureSession:
-    """Engine, recorder and devices of one procedure: drive left at zero, file left valid."""
+    """Engine, recorder and devices of one procedure: drive left at zero, file left valid.
+
+    Without ``engine`` the session runs its own on the devices' streams.  With one (already
+    running on those streams, e.g. the GUI's), the file starts when the session is made,
+    and at the end the session only stops listening: the engine keeps running for its
+    owner.  A failure of the drive monitor or the recorder ends the procedure, not the
+    engine; ``cancel`` ends it on request.
+    """
 
     def __init__(
         self,
@@ -146,9 +200,12 @@ class ProcedureSession:
         pretrigger_s: float | None = None,
         flush_interval_s: float = 0.5,
         progress: Progress | None = None,
+        engine: AcquisitionEngine | None = None,
+        cancel: Cancel | None = None,
     ) -> None:
         self.devices = devices
         self.progress = progress or (lambda text: None)
+        self.cancel = cancel or Cancel()
         self.fs = devices.sample_rate_hz
         self.recorder = Recorder(
             path,
@@ -158,24 +215,29 @@ class ProcedureSession:
             flush_interval_s=flush_interval_s,
             compression=compression,
         )
-        self.engine = AcquisitionEngine(devices.streams)
+        self._owns_engine = engine is None
+        self.engine = AcquisitionEngine(devices.streams) if engine is None else engine
         self.monitor = DriveMonitor(
             devices.shaker,
-            self.engine,
+            self,
             devices.config.drive_tolerance,
             where=devices.shaker.backend.description,
         )
-        self._failed = threading.Event()
-        self.engine.on_failure(lambda error: self._failed.set())
-        subscription = self.engine.subscribe("recorder", privileged=True)
+        self._error: BaseException | None = None
+        failed = self._failed = threading.Event()
+        self.engine.on_failure(lambda error: failed.set())  # not self: a shared engine outlives us
+        self._stats_at_start = self.engine.stats()
+        self._subscription = self.engine.subscribe("recorder", privileged=True)
         self.gate = None
-        source = subscription
+        source = self._subscription
         if pretrigger_s is not None:
             self.gate = PretriggerGate(
-                subscription, round(pretrigger_s * self.fs), round(TRIGGER_SLACK_S * self.fs)
+                self._subscription,
+                round(pretrigger_s * self.fs),
+                round(TRIGGER_SLACK_S * self.fs),
             )
             source = self.gate
-        self.writer = RecorderThread(self.recorder, source, on_error=self.engine.fail)
+        self.writer = RecorderThread(self.recorder, source, on_error=self.fail)
         self.watch = AngleWatch(self.engine.subscribe("procedure", max_items=4000), self.fs)
         self.started = 0.0
         self.stop_reason = "completed"
@@ -185,7 +247,8 @@ class ProcedureSession:
         self.started = time.monotonic()
         try:
             self.monitor.check_idle()  # before anything moves: nobody else drives the table
-            self.engine.start()  # a stream that cannot start still leaves a closed, valid file
+            if self._owns_engine:  # a stream that cannot start still leaves a closed, valid file
+                self.engine.start()
             self.monitor.start()
             if not self.wait(FIRST_DATA_TIMEOUT_S, until=lambda: self.engine.latest_index):
                 raise ProcedureError(
@@ -198,8 +261,26 @@ class ProcedureSession:
         return self
 
     def check(self) -> None:
-        """Raise the failure that stopped acquisition or recording, if any."""
+        """Raise why the procedure must stop now, if it must: a cancel request (first, so a
+        STOP that also changed the drive reads as the operator's), or the failure of the
+        drive monitor, the recording or acquisition."""
+        if self.cancel.requested:
+            raise ProcedureCancelledError(self.cancel.reason)
+        if self._error is not None:
+            raise self._error
         self.engine.raise_if_failed()
+
+    def fail(self, error: BaseException) -> None:
+        """End the procedure with ``error`` at its next wait (the first failure wins)."""
+        if self._error is None:
+            self._error = error
+        self._failed.set()
+
+    def note_drive(
+        self, frequency_hz: float, amplitude_m: float, enabled: bool, source: int = COMMANDED
+    ) -> DriveSetting:
+        """Put a drive setting (commanded or read back) in the file and every view."""
+        return self.engine.note_drive(frequency_hz, amplitude_m, enabled, source)
 
     def wait(self, seconds: float, until: Callable[[], bool] | None = None) -> bool:
         """Wait ``seconds`` (or until ``until()`` is true: returns True), watching for failures."""
@@ -215,7 +296,9 @@ class ProcedureSession:
             self._failed.wait(min(0.05, remaining))
 
     def set_drive(self, frequency_hz: float, amplitude_m: float) -> None:
-        """Command the drive (validated by the shaker's limits) and log it in the file."""
+        """Command the drive (validated by the shaker's limits) and log it in the file; nothing
+        is commanded once the procedure must stop."""
+        self.check()
         shaker = self.devices.shaker
         with self.monitor.commanding(frequency_hz, amplitude_m, True):
             shaker.frequency_hz = frequency_hz
@@ -224,35 +307,52 @@ class ProcedureSession:
                 shaker.enabled = True
         self.engine.note_drive(frequency_hz, amplitude_m, True)
 
-    def __exit__(self, kind, error, traceback) -> None:
+    def __exit__(self, kind, error, traceback) -> bool:
+        """Drive to zero, file closed; a cancelled procedure goes on after its ``with``."""
         if kind is not None:
-            self.stop_reason = (
-                "interrupted (Ctrl-C)" if issubclass(kind, KeyboardInterrupt) else f"error: {error}"
-            )
+            self.stop_reason = _why_stopped(kind, error)
         self.monitor.stop()
         with contextlib.suppress(DeviceError):
             self.devices.shaker.stop()
         self.engine.note_drive(0.0, 0.0, False)
         if self.gate is not None:
             self.gate.open(self.engine.latest_index or 0)  # keep what was seen on a failure
-        self.engine.stop()
+        if self._owns_engine:
+            self.engine.stop()
+        else:  # the owner's engine runs on; this file ends here
+            self.engine.unsubscribe(self._subscription)
+            self.engine.unsubscribe(self.watch.subscription)
         self.writer.finish(self.progress)  # never close the file under a writing thread
         if self.recorder.error is not None and kind is None:
             self.stop_reason = f"error: {self.recorder.error}"
         self.recorder.close(self.stop_reason)
+        return kind is not None and issubclass(kind, ProcedureCancelledError)
 
     def result(self, experiment: str, steps: int = 0) -> ProcedureResult:
-        """Summary after the session closed."""
+        """Summary after the session closed (losses counted since the session began)."""
+        now, before = self.engine.stats(), self._stats_at_start
         return ProcedureResult(
             path=self.recorder.path,
             experiment=experiment,
             stop_reason=self.stop_reason,
             samples_written=self.recorder.samples_written,
-            samples_lost=self.engine.stats().samples_lost,
-            lost_per_stream=self.engine.stats().lost_per_stream,
+            samples_lost=now.samples_lost - before.samples_lost,
+            lost_per_stream={
+                name: lost - before.lost_per_stream.get(name, 0)
+                for name, lost in now.lost_per_stream.items()
+            },
             duration_s=time.monotonic() - self.started,
             steps=steps,
         )
+
+
+def _why_stopped(kind: type[BaseException], error: BaseException) -> str:
+    """The stop reason a file keeps for the exception that ended its procedure."""
+    if issubclass(kind, KeyboardInterrupt):
+        return "interrupted (Ctrl-C)"
+    if issubclass(kind, ProcedureCancelledError):
+        return str(error)  # the reason given with the request
+    return f"error: {error}"
 
 
 def base_metadata(
@@ -469,21 +569,28 @@ def run_sweep(
     overwrite: bool = False,
     progress: Progress | None = None,
     compression: str | None = "auto",
+    engine: AcquisitionEngine | None = None,
+    cancel: Cancel | None = None,
 ) -> ProcedureResult:
-    """A forced-response sweep; each step is marked in the file (``/sweep_steps``)."""
+    """A forced-response sweep; each step is marked in the file (``/sweep_steps``).
+
+    ``engine``: one already running on the devices (the GUI's), else the sweep runs its
+    own; ``cancel``: stops the sweep from another thread (see ``Cancel``).
+    """
     progress = progress or (lambda text: None)
-    # every step is checked against the shaker's limits before anything moves
-    limits = devices.shaker.limits
-    for _, frequency_hz, amplitude_m in plan.steps():
-        limits.check(
-            "frequency_hz", frequency_hz, limits.min_frequency_hz, limits.max_frequency_hz, "Hz"
-        )
-        limits.check("amplitude_m", amplitude_m, 0.0, limits.max_amplitude_m, "m")
+    check_drives(devices.shaker.limits, devices.config.source, [(f, a) for _, f, a in plan.steps()])
     first = plan.steps()[0]
     drive = {"frequency_hz": first[1], "amplitude_m": first[2]}
     meta = base_metadata(devices, FORCED.name, notes, drive, asdict(plan))
     session = ProcedureSession(
-        devices, path, meta, overwrite=overwrite, progress=progress, compression=compression
+        devices,
+        path,
+        meta,
+        overwrite=overwrite,
+        progress=progress,
+        compression=compression,
+        engine=engine,
+        cancel=cancel,
     )
     steps = plan.steps()
     done = 0

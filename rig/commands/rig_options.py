@@ -119,18 +119,15 @@ def open_devices(config: RigConfig, fs: float | None) -> RigDevices:
 
 
 def check_drive_limits(config: RigConfig, settings: Iterable[tuple[float, float]]) -> None:
-    """CommandError naming the rig file for any (frequency_hz, amplitude_m) its limits forbid."""
+    """CommandError naming the rig file for any (frequency_hz, amplitude_m) its limits forbid,
+    before any device is opened (the procedure checks the same way again once they are)."""
     from drivers.interfaces import LimitError
+    from rig.procedures import check_drives
 
-    limits = config.limits
     try:
-        for frequency_hz, amplitude_m in settings:
-            limits.check(
-                "frequency_hz", frequency_hz, limits.min_frequency_hz, limits.max_frequency_hz, "Hz"
-            )
-            limits.check("amplitude_m", amplitude_m, 0.0, limits.max_amplitude_m, "m")
+        check_drives(config.limits, config.source, settings)
     except LimitError as error:
-        raise CommandError(f"{error} (limits from {config.source})") from None
+        raise CommandError(str(error)) from None
 
 
 def run_procedure(

@@ -1,8 +1,12 @@
 """The main window on the virtual rig (DAQ on a pty, amplifier on Modbus TCP): live data,
-the drive's limits and STOP, recording, sweeps, and faults shown in plain words."""
+the drive's limits and STOP, recording, sweeps (the command line's procedure: the same
+file, refusal and cancel), and faults shown in plain words."""
 
 from __future__ import annotations
 
+import time
+
+import h5py
 import numpy as np
 import pytest
 
@@ -12,6 +16,8 @@ from gui.app import MainWindow
 from gui.settings import AppSettings
 from gui.worker import LiveSession
 from hardware_sim.daq_faults import CORRUPT_CRC
+from rig.cli import main
+from rig.events import COMMANDED, MEASURED
 from tests.gui.conftest import run_events, wait_until
 
 FS_HZ = 2000.0
@@ -168,31 +174,141 @@ def test_record_start_stop_and_the_file(qapp, window, tmp_path):
         )
 
 
-def test_sweep_runner_records_every_step(qapp, window, tmp_path):
-    path = tmp_path / "sweep.h5"
-    panel = window.recording_panel
+def enter_sweep(
+    panel, path, parameter: str, start: float, stop: float, steps: int, fixed: float, **times
+) -> None:
+    """Type a sweep into the recording panel as an operator would (times: settle_s, dwell_s)."""
     panel.path.setText(str(path))
-    panel.sweep_parameter.setCurrentText("frequency")
-    panel.sweep_from.setValue(8.0)
-    panel.sweep_to.setValue(9.0)
-    panel.sweep_steps.setValue(2)
-    panel.sweep_fixed.setValue(0.5)
-    panel.sweep_settle.setValue(0.3)
-    panel.sweep_dwell.setValue(0.4)
+    panel.notes.setPlainText("sweep notes")
+    panel.sweep_parameter.setCurrentText(parameter)
+    panel.sweep_from.setValue(start)
+    panel.sweep_to.setValue(stop)
+    panel.sweep_steps.setValue(steps)
+    panel.sweep_fixed.setValue(fixed)
+    panel.sweep_settle.setValue(times.get("settle_s", 0.3))
+    panel.sweep_dwell.setValue(times.get("dwell_s", 0.4))
     panel.sweep_down.setChecked(True)
+
+
+def sweep_on_the_command_line(path, *plan: str) -> int:
+    """``impact-rig sweep --sim`` at the GUI's sample rate, with the notes enter_sweep types."""
+    rig = ["--sim", "--fs", f"{FS_HZ:g}", "--notes", "sweep notes", "--quiet"]
+    return main(["sweep", *rig, *plan, "--out", str(path)])
+
+
+def file_shape(path) -> dict:
+    """What two recordings of one sweep plan share whatever the timing: every group and
+    dataset (dtype) with its attribute names; the metadata that says what was done; the
+    step marks and commanded drive; whether the drive read back was logged; how it ended."""
+    shape: dict = {}
+    with h5py.File(path, "r") as f:
+        shape["/"] = sorted(f.attrs)
+
+        def visit(name: str, item) -> None:
+            kind = str(item.dtype) if isinstance(item, h5py.Dataset) else "group"
+            shape[name] = (kind, sorted(item.attrs))
+
+        f.visititems(visit)
+    with open_recording(path) as rec:
+        info, steps, drive = rec.info, rec.sweep_steps(), rec.drive_log()
+        shape["metadata"] = (
+            info.experiment,
+            info.notes,
+            info.drive,
+            info.extra,
+            info.roles,
+            info.rig,
+            info.calibrations,
+            info.config_toml,
+        )
+        shape["steps"] = steps[
+            ["step", "direction", "frequency_hz", "amplitude_m", "complete"]
+        ].tolist()
+        shape["step spans in order"] = bool(
+            np.all(steps["settle_start_index"] <= steps["dwell_start_index"])
+            and np.all(steps["dwell_start_index"] < steps["dwell_end_index"])
+            and np.all(steps["settle_start_index"][1:] >= steps["dwell_end_index"][:-1])
+        )
+        commanded = drive[drive["source"] == COMMANDED]
+        shape["commanded"] = commanded[["frequency_hz", "amplitude_m", "enabled"]].tolist()
+        shape["drive read back"] = bool(np.any(drive["source"] == MEASURED))
+        shape["status"] = (rec.status().closed, rec.status().stop_reason)
+    return shape
+
+
+def test_a_gui_sweep_writes_the_file_impact_rig_sweep_writes(qapp, window, tmp_path):
+    gui_path, cli_path = tmp_path / "gui_sweep.h5", tmp_path / "cli_sweep.h5"
+    panel = window.recording_panel
+    enter_sweep(panel, gui_path, "frequency", 8.0, 9.0, 2, 0.5)
     panel.sweep_run.click()
     wait_until(qapp, lambda: panel.sweeping, 5, "the sweep to start")
     wait_until(qapp, lambda: not panel.sweeping, 30, "the sweep to finish")
-    assert "completed" in panel.sweep_text.text()
+    assert panel.sweep_text.text() == "sweep completed"
     assert panel.sweep_progress.value() == 3
+    assert window.analysis_panel.current_recording == str(gui_path)
     wait_until(qapp, lambda: shaker(window).measured().at_zero, 10, "the drive to stop after it")
+    assert window.shaker_panel.isEnabled()  # the drive is the operator's again
+    plan = ["--sweep", "frequency", "--start", "8", "--stop", "9", "--steps", "2"]
+    plan += ["--amplitude-mm", "0.5", "--settle", "0.3", "--dwell", "0.4"]
+    assert sweep_on_the_command_line(cli_path, *plan) == 0
+    gui, cli = file_shape(gui_path), file_shape(cli_path)
+    assert gui == cli
+    assert gui["steps"] == [(0, 1, 8.0, 0.5e-3, 1), (1, 1, 9.0, 0.5e-3, 1), (2, -1, 8.0, 0.5e-3, 1)]
+    assert gui["step spans in order"] and gui["drive read back"]
+    assert gui["status"] == (True, "completed")
+
+
+@pytest.mark.parametrize("button", ["sweep_run", "stop_button"])
+def test_cancelling_a_gui_sweep_stops_the_procedure_and_keeps_what_it_recorded(
+    qapp, window, tmp_path, button
+):
+    path = tmp_path / "cancelled.h5"
+    panel = window.recording_panel
+    enter_sweep(panel, path, "frequency", 8.0, 9.0, 2, 0.5, settle_s=0.2, dwell_s=60.0)
+    panel.sweep_run.click()
+    wait_until(qapp, lambda: "dwell" in panel.sweep_text.text(), 10, "the first step's dwell")
+    run_events(qapp, 0.3)
+    asked = time.monotonic()
+    # the sweep button reads "Cancel sweep" while a sweep runs; STOP cancels it as well
+    (panel.sweep_run if button == "sweep_run" else window.stop_button).click()
+    wait_until(qapp, lambda: not panel.sweeping, 10, "the sweep to end")
+    assert time.monotonic() - asked < 5.0  # stopped on request, not after its 60 s dwell
+    assert panel.sweep_text.text() == "sweep stopped by the operator"
+    assert panel.sweep_progress.value() == 0
+    wait_until(qapp, lambda: shaker(window).measured().at_zero, 10, "the drive to reach zero")
     with open_recording(path) as rec:
-        steps = rec.sweep_steps()
-        assert list(steps["frequency_hz"]) == [8.0, 9.0, 8.0]
-        assert list(steps["direction"]) == [1, 1, -1]
-        assert all(steps["complete"])
-        assert np.all(np.isclose(steps["amplitude_m"], 0.5e-3))
-        assert rec.status().stop_reason == "completed"
+        status, steps, drive = rec.status(), rec.sweep_steps(), rec.drive_log()
+        angle = rec.channel("angle")
+    assert status.closed and status.stop_reason == "stopped by the operator"
+    # the step under way is kept, marked incomplete, with the part of its dwell recorded
+    assert steps[["step", "frequency_hz", "complete"]].tolist() == [(0, 8.0, 0)]
+    assert steps["dwell_end_index"][0] - steps["dwell_start_index"][0] >= 0.2 * FS_HZ
+    assert angle.indices[-1] + 1 >= steps["dwell_end_index"][0]
+    assert np.all(np.diff(angle.indices) == 1)
+    commanded = drive[drive["source"] == COMMANDED][["frequency_hz", "amplitude_m", "enabled"]]
+    assert commanded[0].tolist() == (8.0, 0.5e-3, 1)
+    assert set(commanded[1:].tolist()) == {(0.0, 0.0, 0)}  # the procedure's zero (and STOP's)
+    assert np.any(drive["source"] == MEASURED)  # the procedure's drive monitor ran, and ended
+
+
+def test_a_gui_sweep_beyond_the_limits_is_refused_before_anything_moves_as_on_the_command_line(
+    qapp, window, tmp_path, capsys
+):
+    path = tmp_path / "too_fast.h5"
+    panel = window.recording_panel
+    window.session.devices.sim.amplifier.clear_log()
+    enter_sweep(panel, path, "frequency", 30.0, 60.0, 4, 1.0)
+    panel.sweep_run.click()
+    wait_until(qapp, lambda: panel.sweep_text.text().startswith("Refused"), 10, "the refusal")
+    assert not panel.sweeping
+    for register in (Holding.FREQUENCY_MHZ_HI, Holding.AMPLITUDE_UM, Holding.ENABLE):
+        assert amplifier_writes(window, register) == []
+    assert not path.exists()
+    plan = ["--sweep", "frequency", "--start", "30", "--stop", "60", "--steps", "4"]
+    assert sweep_on_the_command_line(tmp_path / "cli.h5", *plan, "--amplitude-mm", "1") == 2
+    cli_message = capsys.readouterr().err.strip().removeprefix("impact-rig sweep: error: ")
+    assert panel.sweep_text.text() == f"Refused: {cli_message}"
+    assert "frequency_hz = 50.0" in cli_message and "default_rig.toml" in cli_message
 
 
 def test_amplifier_fault_appears_in_plain_words(qapp, window):
