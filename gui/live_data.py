@@ -17,6 +17,11 @@ from rig.events import DriveSetting, Gap, StepMark
 
 DEFAULT_KEEP_S = 30.0
 MAX_TACH_EDGES = 100_000
+TACH_PERIODS = 16  # the drive frequency is measured over at most this many newest periods
+# Pulse spacings alike: within two samples (each mark is a whole sample late by up to one)
+# and 1 % of the newest (a sweep's step moves it by more)
+SPACING_SAMPLES = 2.0
+SPACING_RELATIVE = 0.01
 
 
 class ChannelRing:
@@ -121,12 +126,22 @@ class LiveData:
                 self.gaps += 1
 
     def drive_frequency_hz(self) -> float | None:
-        """The drive frequency: from the tach when it ticks, else the last drive setting."""
-        edges = self.tach_edges
-        if len(edges) >= 3:
-            period = (edges[-1] - edges[-3]) / 2.0
-            newest = self.angle.end_index or 0
-            if period > 0 and newest - edges[-1] < 3 * period:
+        """The drive frequency: from the tach when it ticks, else the last drive setting.
+
+        From the newest run of pulses spaced alike (up to TACH_PERIODS periods; a missed
+        or doubled pulse, or a new drive setting, ends the run): over n periods the
+        whole-sample marks err by a sample in n periods, not in one or two."""
+        edges = np.fromiter(
+            (self.tach_edges[i] for i in range(max(0, len(self.tach_edges) - TACH_PERIODS - 1),
+                                               len(self.tach_edges))), dtype=np.int64)
+        if edges.size >= 3:
+            spacing = np.diff(edges).astype(float)
+            newest = spacing[-1]
+            alike = np.abs(spacing - newest) <= SPACING_SAMPLES + SPACING_RELATIVE * newest
+            run = spacing.size if alike.all() else int(np.argmin(alike[::-1]))
+            period = (edges[-1] - edges[-1 - run]) / run
+            end = self.angle.end_index or 0
+            if run >= 2 and period > 0 and end - edges[-1] < 3 * period:
                 return self.sample_rate_hz / period
         if self.drive is not None and self.drive.enabled and self.drive.frequency_hz > 0:
             return self.drive.frequency_hz

@@ -101,3 +101,31 @@ def test_settings_go_to_the_given_file(tmp_path):
     assert again.number("shaker/frequency_hz", 0.0) == 12.5
     assert again.flag("views/spectrum_log", True) is False
     assert again.location == str(path)
+
+
+def test_the_tach_frequency_is_measured_over_the_newest_run_of_like_pulses():
+    """Whole-sample marks of a 9.987 Hz drive at 2 kHz (an edge is up to a sample late,
+    so two periods alone err by ~0.25 %), one pulse missed, then a step to 10.4 Hz: the
+    frequency comes from the pulses after the step, within a sample over their span."""
+    fs = 2000.0
+    data = LiveData(fs, keep_s=20.0)
+    rng = np.random.default_rng(4)
+    first = np.arange(0.0, 6.0, 1 / 9.987) + rng.uniform(0, 1 / 9.987)
+    first = np.delete(first, 40)
+    second = first[-1] + np.arange(1, 12) / 10.4
+    edges = np.ceil(np.concatenate([first, second]) * fs).astype(np.int64)
+    n = int(edges[-1]) + 50
+    data.ingest([
+        SampleBlock("angle", 0, 0.0, fs, np.zeros(n, np.int16), np.zeros(n)),
+        PulseBlock("tach", 0, n, edges, edges / fs),
+    ])
+    span_periods = 11
+    assert data.drive_frequency_hz() == pytest.approx(10.4, rel=1.0 / (span_periods * fs / 10.4))
+    # before the step, the missed pulse is outside the newest run
+    early = LiveData(fs, keep_s=20.0)
+    stop = int(edges[len(first) - 1]) + 50
+    early.ingest([
+        SampleBlock("angle", 0, 0.0, fs, np.zeros(stop, np.int16), np.zeros(stop)),
+        PulseBlock("tach", 0, stop, edges[: len(first)], edges[: len(first)] / fs),
+    ])
+    assert early.drive_frequency_hz() == pytest.approx(9.987, rel=1.0 / (16 * fs / 9.987))
