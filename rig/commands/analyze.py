@@ -4,7 +4,6 @@ and how much the extended model gains (docs/MODEL.md section 6)."""
 from __future__ import annotations
 
 import argparse
-import json
 from pathlib import Path
 
 from rig.cli import CommandError
@@ -79,6 +78,7 @@ def run(args: argparse.Namespace) -> int:
     from analysis.discrepancy import AnalysisError, analyze_record
     from analysis.discrepancy.analyze import priors_from_decays
     from analysis.identify import IdentificationError
+    from analysis.json_output import to_json_text
     from analysis.output_paths import check_outputs, record_inputs
     from analysis.provenance import provenance
     from analysis.record_loaders import load_record
@@ -118,13 +118,17 @@ def run(args: argparse.Namespace) -> int:
     js = report_json(analysis)
     js["provenance"] = provenance()
     if args.json_out:
-        _write_json(js, args.json_out)
+        _write_json(js, args.json_out, overwrite=args.overwrite)
         progress(f"wrote {args.json_out}")
     if args.report:
-        md = write_report(analysis, args.report, name=args.file.stem)
+        try:
+            md = write_report(analysis, args.report, name=args.file.stem,
+                              overwrite=args.overwrite)
+        except OSError as error:
+            raise CommandError(f"--report {args.report}: cannot write ({error})") from None
         progress(f"wrote {md}")
     if not args.json_out:
-        print(json.dumps(js, indent=2))
+        print(to_json_text(js))
     else:
         if len(js["causes"]) > 1:
             print("causes: " + ", ".join(c["cause"] for c in js["causes"]))
@@ -146,8 +150,10 @@ def report_files(folder: Path, name: str) -> list[Path]:
                                                        "_restitution.png")]
 
 
-def _write_json(report: dict, path: Path) -> None:
+def _write_json(report: dict, path: Path, *, overwrite: bool) -> None:
+    from analysis.json_output import write_json
+
     try:
-        path.write_text(json.dumps(report, indent=2) + "\n", encoding="utf-8")
+        write_json(path, report, overwrite=overwrite)
     except OSError as error:
         raise CommandError(f"{path}: cannot write ({error.strerror or error})") from None

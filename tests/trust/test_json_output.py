@@ -1,14 +1,18 @@
 """The one JSON writer (analysis.json_output): strict JSON whatever the numbers, numpy values
-made plain, UTF-8 text ending in a newline, and no file written over unless asked."""
+made plain, UTF-8 text ending in a newline, and no file written over unless asked; and a
+command's file that holds a number that is not finite, read back as strict JSON."""
 
 from __future__ import annotations
 
 import math
 
+import h5py
 import numpy as np
 import pytest
 
 from analysis.json_output import to_json_text, write_json
+from analysis.recording_file import open_recording, read_attributes
+from rig.cli import main
 from tests.strict_json import strict_loads
 
 
@@ -60,3 +64,17 @@ def test_a_value_json_cannot_hold_is_refused_before_any_file_is_made(tmp_path):
         write_json(path, {"odd": object()})
     assert not path.exists()
 
+
+def test_a_recording_without_a_time_limit_keeps_its_plan_as_strict_json(tmp_path):
+    """``record --duration inf`` runs until the swing dies away: the plan's unbounded duration
+    is null in the file's extra_json, not the token Infinity that strict readers refuse."""
+    path = tmp_path / "decay.h5"
+    assert main([
+        "record", "--sim", "--experiment", "free_decay", "--duration", "inf",
+        "--stop-below-rad", "10", "--pretrigger", "0", "--out", str(path), "--quiet",
+    ]) == 0  # fmt: skip
+    with h5py.File(path, "r") as handle:
+        plan = strict_loads(read_attributes(handle)["extra_json"])["plan"]
+    assert plan["max_duration_s"] is None and plan["stop_below_rad"] == 10.0
+    with open_recording(path) as recording:
+        assert recording.info.extra["plan"] == plan
