@@ -82,7 +82,6 @@ def run(args: argparse.Namespace) -> int:
     from analysis.output_paths import check_outputs, record_inputs
     from analysis.provenance import provenance
     from analysis.record_loaders import load_record
-    from analysis.report import write_report
     from analysis.report.discrepancy import report_json
 
     if not args.file.exists():
@@ -121,12 +120,7 @@ def run(args: argparse.Namespace) -> int:
         _write_json(js, args.json_out, overwrite=args.overwrite)
         progress(f"wrote {args.json_out}")
     if args.report:
-        try:
-            md = write_report(analysis, args.report, name=args.file.stem,
-                              overwrite=args.overwrite)
-        except OSError as error:
-            raise CommandError(f"--report {args.report}: cannot write ({error})") from None
-        progress(f"wrote {md}")
+        progress(f"wrote {_write_report(analysis, args)}")
     if not args.json_out:
         print(to_json_text(js))
     else:
@@ -157,3 +151,13 @@ def _write_json(report: dict, path: Path, *, overwrite: bool) -> None:
         write_json(path, report, overwrite=overwrite)
     except OSError as error:
         raise CommandError(f"{path}: cannot write ({error.strerror or error})") from None
+
+
+def _write_report(analysis, args: argparse.Namespace) -> Path:
+    """The Markdown page, its JSON and figures in --report; returns the page's path."""
+    from analysis.report import write_report
+
+    try:
+        return write_report(analysis, args.report, name=args.file.stem, overwrite=args.overwrite)
+    except OSError as error:  # e.g. --json named the page's own JSON, written just before
+        raise CommandError(f"--report {args.report}: cannot write ({error})") from None
