@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 
 from analysis.experiments import NAMES, experiment_kind
+from analysis.json_output import write_json
 
 REQUIRED_COLUMNS = ("time_s", "angle_rad")
 OPTIONAL_COLUMNS = ("table_m", "tach")
@@ -227,8 +228,11 @@ def _first_bad_line(path: Path, usecols: list[int]) -> str | None:
     return None
 
 
-def write_exchange(csv_path: str | Path, record: ExchangeRecord) -> tuple[Path, Path]:
-    """Write NAME.csv and NAME.json; returns both paths."""
+def write_exchange(
+    csv_path: str | Path, record: ExchangeRecord, *, overwrite: bool = False
+) -> tuple[Path, Path]:
+    """Write NAME.csv and NAME.json; returns both paths.  An existing file is refused
+    (FileExistsError) unless ``overwrite``."""
     csv_path = Path(csv_path)
     names = ["time_s", "angle_rad"]
     columns = [record.time_s, record.angle_rad]
@@ -241,14 +245,14 @@ def write_exchange(csv_path: str | Path, record: ExchangeRecord) -> tuple[Path, 
         names.append("tach")
         columns.append(record.tach)
         formats.append("%d")
-    np.savetxt(
-        csv_path,
-        np.column_stack(columns),
-        delimiter=",",
-        header=",".join(names),
-        comments="",
-        fmt=formats,
-    )
-    json_path = sidecar_path(csv_path)
-    json_path.write_text(json.dumps(record.meta.as_json(), indent=1) + "\n", encoding="utf-8")
+    with csv_path.open("w" if overwrite else "x", encoding="utf-8") as handle:
+        np.savetxt(
+            handle,
+            np.column_stack(columns),
+            delimiter=",",
+            header=",".join(names),
+            comments="",
+            fmt=formats,
+        )
+    json_path = write_json(sidecar_path(csv_path), record.meta.as_json(), overwrite=overwrite)
     return csv_path, json_path

@@ -8,7 +8,6 @@ The command line and the operator are set once per process by the command dispat
 from __future__ import annotations
 
 import functools
-import json
 import platform
 import socket
 import subprocess
@@ -17,6 +16,8 @@ from datetime import UTC, datetime
 from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
 from typing import Any
+
+from analysis.json_output import to_json_text
 
 PACKAGE = "impact-rig"
 DEPENDENCIES = ("numpy", "scipy", "h5py", "numba", "pymodbus")
@@ -87,7 +88,7 @@ def png_metadata() -> dict[str, str]:
     return {
         "Software": f"{PACKAGE} {block['software'][PACKAGE]}",
         "Source": " ".join(block["command_line"]),
-        "Provenance": json.dumps(block),
+        "Provenance": to_json_text(block, one_line=True),
     }
 
 

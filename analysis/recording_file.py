@@ -26,6 +26,7 @@ import h5py
 import numpy as np
 
 from analysis.hdf5_library import set_metadata_read_attempts
+from analysis.json_output import to_json_text
 from analysis.records import RecordFormatError
 
 FORMAT_NAME = "impact-rig recording"
@@ -363,14 +364,14 @@ def metadata_attributes(meta: RecordingMetadata, software_version: str) -> dict[
         "start_time_utc": meta.start_time_utc,
         "experiment": meta.experiment,
         "notes": meta.notes,
-        "rig_json": json.dumps(meta.rig),
-        "calibrations_json": json.dumps(meta.calibrations),
-        "devices_json": json.dumps(meta.devices),
+        "rig_json": to_json_text(meta.rig, one_line=True),
+        "calibrations_json": to_json_text(meta.calibrations, one_line=True),
+        "devices_json": to_json_text(meta.devices, one_line=True),
         "config_toml": meta.config_toml,
-        "drive_json": json.dumps(meta.drive),
-        "roles_json": json.dumps(meta.roles),
-        "extra_json": json.dumps(meta.extra),
-        "provenance_json": json.dumps(meta.provenance),
+        "drive_json": to_json_text(meta.drive, one_line=True),
+        "roles_json": to_json_text(meta.roles, one_line=True),
+        "extra_json": to_json_text(meta.extra, one_line=True),
+        "provenance_json": to_json_text(meta.provenance, one_line=True),
     }
 
 
@@ -442,7 +443,7 @@ class RecordingWriter:
                     "unit": spec.unit,
                     "sample_rate_hz": float(spec.sample_rate_hz),
                     "device": spec.device,
-                    "calibration_json": json.dumps(spec.calibration),
+                    "calibration_json": to_json_text(spec.calibration, one_line=True),
                 },
             )
             chunk = (chunk_length(spec.sample_rate_hz),)

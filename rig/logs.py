@@ -32,11 +32,10 @@ def progress(text: str) -> None:
 def log_provenance() -> None:
     """The provenance block (analysis.provenance) as the log's first record, so that a log
     file too says which software, versions and command made it."""
-    import json
-
+    from analysis.json_output import to_json_text
     from analysis.provenance import provenance
 
-    log.info("provenance: %s", json.dumps(provenance()))
+    log.info("provenance: %s", to_json_text(provenance(), one_line=True))
 
 
 def _default_console(record: logging.LogRecord) -> bool:

@@ -166,6 +166,12 @@ class Analysis:
             for name, verdict in steps
         ]
 
+    def extended_parameters(self) -> dict[str, Any]:
+        """The final model's parameters under docs/MODEL.md section 7 keys (the baseline's
+        when no cause is adopted)."""
+        best = self.final_outcome
+        return report_parameters(best.full if best is not None else self.baseline, self.data.rig)
+
     def as_json(self) -> dict[str, Any]:
         """The report of docs/MODEL.md section 6, parameters keyed as section 7."""
         rig = self.data.rig
@@ -204,7 +210,7 @@ class Analysis:
             },
             "extended": {
                 "cause": best.cause if best is not None else NONE,
-                "parameters": report_parameters(extended, rig),
+                "parameters": self.extended_parameters(),
                 "rms_residual": extended.rms,
             },
             "gain": {

@@ -24,7 +24,6 @@ File layout (all float64 unless said):
 from __future__ import annotations
 
 import itertools
-import json
 import math
 from collections.abc import Sequence
 from pathlib import Path
@@ -35,6 +34,7 @@ import numpy as np
 
 from analysis.dynamics.bifurcation import BifurcationDiagram, diagram_style
 from analysis.dynamics.continuation import BifurcationEvent, ContinuationResult
+from analysis.json_output import to_json_text
 from analysis.model import Model
 
 if TYPE_CHECKING:  # matplotlib is imported by the plot function only (slow import)
@@ -67,9 +67,9 @@ def write_continuation(path: str | Path, result: ContinuationResult, model: Mode
         handle.attrs["seconds"] = result.seconds
         handle.attrs["seconds_per_point"] = result.seconds_per_point
         handle.attrs["map_rtol"] = result.map_rtol
-        handle.attrs["model_json"] = json.dumps(model_summary(model))
-        handle.attrs["provenance_json"] = json.dumps(provenance)
-        handle.attrs["overlays_json"] = json.dumps(list(overlays))
+        handle.attrs["model_json"] = to_json_text(model_summary(model), one_line=True)
+        handle.attrs["provenance_json"] = to_json_text(provenance, one_line=True)
+        handle.attrs["overlays_json"] = to_json_text(list(overlays), one_line=True)
         branches = handle.create_group("branches")
         for i, branch in enumerate(result.branches):
             group = branches.create_group(str(i))

@@ -24,6 +24,7 @@ from typing import Any
 import h5py
 import numpy as np
 
+from analysis.json_output import to_json_text
 from analysis.maps.plan import ROLE_NAMES, MapPlan
 from analysis.maps.tasks import NOT_RUN, STATUSES, Task, TaskOutput
 from analysis.recording_file import clear_writer_flags
@@ -54,9 +55,9 @@ class MapStore:
             format=FORMAT,
             format_version=FORMAT_VERSION,
             kind=plan.kind,
-            settings=json.dumps(_settings(plan)),
-            provenance=json.dumps(provenance),
-            runs=json.dumps([provenance]),
+            settings=to_json_text(_settings(plan), one_line=True),
+            provenance=to_json_text(provenance, one_line=True),
+            runs=to_json_text([provenance], one_line=True),
             complete=False,
         )
         points = handle.create_group("points")
@@ -85,8 +86,8 @@ class MapStore:
                 name, shape, dtype=dtype, fillvalue=fill, chunks=(rows, *shape[1:]),
                 compression="gzip", compression_opts=1, shuffle=True,
             )
-        group["status"].attrs["names"] = json.dumps(STATUSES)
-        group["role"].attrs["names"] = json.dumps(ROLE_NAMES)
+        group["status"].attrs["names"] = to_json_text(STATUSES, one_line=True)
+        group["role"].attrs["names"] = to_json_text(ROLE_NAMES, one_line=True)
         group["initial"][...] = plan.initial
         tasks = handle.create_group("tasks")
         tasks["start"] = [task.start for task in plan.tasks]
@@ -121,7 +122,7 @@ class MapStore:
                 )
             if not handle["tasks/done"][...].all():  # a finished file is left as it is
                 runs = json.loads(handle.attrs["runs"])
-                handle.attrs["runs"] = json.dumps([*runs, provenance])
+                handle.attrs["runs"] = to_json_text([*runs, provenance], one_line=True)
                 handle.swmr_mode = True
         except BaseException:
             handle.close()
@@ -157,7 +158,7 @@ def write_summary(path: str | Path, arrays: dict[str, np.ndarray], info: dict[st
         group = handle.create_group("summary")
         for name, values in arrays.items():
             group[name] = values
-        handle.attrs["summary"] = json.dumps(info)
+        handle.attrs["summary"] = to_json_text(info, one_line=True)
         handle.attrs["complete"] = True
 
 

@@ -1,6 +1,6 @@
 """Reports of the discrepancy analysis: the JSON of docs/MODEL.md section 6 and a Markdown page
 with figures (matplotlib, Agg backend)."""
 
-from analysis.report.discrepancy import write_json, write_report
+from analysis.report.discrepancy import write_analysis_json, write_report
 
-__all__ = ["write_json", "write_report"]
+__all__ = ["write_analysis_json", "write_report"]

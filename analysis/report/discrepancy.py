@@ -6,8 +6,6 @@ both, and for impact decays the constant-restitution model against Hunt-Crossley
 
 from __future__ import annotations
 
-import json
-import math
 from pathlib import Path
 from typing import Any
 
@@ -20,38 +18,23 @@ import numpy as np
 from analysis.discrepancy.fitting import predict
 from analysis.discrepancy.outcome import Analysis
 from analysis.extensions import NONE, causes_in
+from analysis.json_output import json_ready, write_json
 from analysis.provenance import markdown_provenance, png_metadata, provenance
 
 
-def _plain(value: Any) -> Any:
-    """JSON-safe copy (numpy scalars to floats, non-finite to None)."""
-    if isinstance(value, dict):
-        return {str(k): _plain(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [_plain(v) for v in value]
-    if isinstance(value, np.ndarray):
-        return [_plain(v) for v in value.tolist()]
-    if isinstance(value, np.bool_ | bool):
-        return bool(value)
-    if isinstance(value, np.integer):
-        return int(value)
-    if isinstance(value, float | np.floating):
-        return float(value) if math.isfinite(value) else None
-    return value
-
-
 def report_json(analysis: Analysis) -> dict[str, Any]:
-    """The analysis as a JSON-safe dict."""
-    return _plain(analysis.as_json())
+    """The analysis as its JSON report holds it: plain values, a number that is not finite as
+    None (the rule of analysis.json_output)."""
+    return json_ready(analysis.as_json())
 
 
-def write_json(analysis: Analysis, path: str | Path) -> Path:
-    """Write the JSON report, with its provenance; returns its path."""
+def write_analysis_json(analysis: Analysis, path: str | Path, *, overwrite: bool = False) -> Path:
+    """Write the JSON report, with its provenance; returns its path (an existing file is
+    refused unless ``overwrite``)."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    report = {**report_json(analysis), "provenance": provenance()}
-    path.write_text(json.dumps(report, indent=2) + "\n")
-    return path
+    return write_json(path, {**report_json(analysis), "provenance": provenance()},
+                      overwrite=overwrite)
 
 
 def _curves(analysis: Analysis) -> tuple[np.ndarray, np.ndarray | None]:
@@ -136,12 +119,15 @@ def _fmt(est: dict[str, Any]) -> str:
     return f"{value:.4g}"
 
 
-def write_report(analysis: Analysis, directory: str | Path, name: str = "report") -> Path:
-    """Write NAME.md, NAME.json and the PNG figures into ``directory``; returns the .md path."""
+def write_report(
+    analysis: Analysis, directory: str | Path, name: str = "report", *, overwrite: bool = False
+) -> Path:
+    """Write NAME.md, NAME.json and the PNG figures into ``directory``; returns the .md path.
+    An existing NAME.json is refused unless ``overwrite`` (checked first, before the rest)."""
     directory = Path(directory)
     directory.mkdir(parents=True, exist_ok=True)
     js = report_json(analysis)
-    write_json(analysis, directory / f"{name}.json")
+    write_analysis_json(analysis, directory / f"{name}.json", overwrite=overwrite)
     fit_png = figure_fit(analysis, directory / f"{name}_fit.png")
     lines = [
         f"# Discrepancy analysis: {Path(analysis.record.source).name or 'record'}",

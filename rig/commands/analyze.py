@@ -4,7 +4,6 @@ and how much the extended model gains (docs/MODEL.md section 6)."""
 from __future__ import annotations
 
 import argparse
-import json
 from pathlib import Path
 
 from rig.cli import CommandError
@@ -79,10 +78,10 @@ def run(args: argparse.Namespace) -> int:
     from analysis.discrepancy import AnalysisError, analyze_record
     from analysis.discrepancy.analyze import priors_from_decays
     from analysis.identify import IdentificationError
+    from analysis.json_output import to_json_text
     from analysis.output_paths import check_outputs, record_inputs
     from analysis.provenance import provenance
     from analysis.record_loaders import load_record
-    from analysis.report import write_report
     from analysis.report.discrepancy import report_json
 
     if not args.file.exists():
@@ -118,13 +117,12 @@ def run(args: argparse.Namespace) -> int:
     js = report_json(analysis)
     js["provenance"] = provenance()
     if args.json_out:
-        _write_json(js, args.json_out)
+        _write_json(js, args.json_out, overwrite=args.overwrite)
         progress(f"wrote {args.json_out}")
     if args.report:
-        md = write_report(analysis, args.report, name=args.file.stem)
-        progress(f"wrote {md}")
+        progress(f"wrote {_write_report(analysis, args)}")
     if not args.json_out:
-        print(json.dumps(js, indent=2))
+        print(to_json_text(js))
     else:
         if len(js["causes"]) > 1:
             print("causes: " + ", ".join(c["cause"] for c in js["causes"]))
@@ -146,8 +144,20 @@ def report_files(folder: Path, name: str) -> list[Path]:
                                                        "_restitution.png")]
 
 
-def _write_json(report: dict, path: Path) -> None:
+def _write_json(report: dict, path: Path, *, overwrite: bool) -> None:
+    from analysis.json_output import write_json
+
     try:
-        path.write_text(json.dumps(report, indent=2) + "\n", encoding="utf-8")
+        write_json(path, report, overwrite=overwrite)
     except OSError as error:
         raise CommandError(f"{path}: cannot write ({error.strerror or error})") from None
+
+
+def _write_report(analysis, args: argparse.Namespace) -> Path:
+    """The Markdown page, its JSON and figures in --report; returns the page's path."""
+    from analysis.report import write_report
+
+    try:
+        return write_report(analysis, args.report, name=args.file.stem, overwrite=args.overwrite)
+    except OSError as error:  # e.g. --json named the page's own JSON, written just before
+        raise CommandError(f"--report {args.report}: cannot write ({error})") from None

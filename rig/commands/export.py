@@ -124,7 +124,9 @@ def run(args: argparse.Namespace) -> int:
         if len(records) > 1:
             progress(f"writing {k + 1}/{len(records)} ...")
         try:
-            csv_path, json_path = write_exchange(name, to_exchange(record))
+            csv_path, json_path = write_exchange(
+                name, to_exchange(record), overwrite=args.overwrite
+            )
         except OSError as error:  # unwritable folder, full disk: say which file, no traceback
             raise CommandError(f"{name}: cannot write ({error.strerror or error})") from None
         print(

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import json
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -91,6 +90,7 @@ def run(args: argparse.Namespace) -> int:
     """Load the record, run the fit its experiment calls for, print and save the report."""
     from analysis.experiments import FREE_DECAY
     from analysis.identify import IdentificationError, fit_free_decay, pool_free_decays
+    from analysis.json_output import write_json
     from analysis.output_paths import check_outputs, record_inputs
     from analysis.provenance import provenance
     from analysis.record_loaders import load_record
@@ -129,7 +129,7 @@ def run(args: argparse.Namespace) -> int:
         report["source"] = [str(path) for path in args.files]
         report["provenance"] = provenance()
         try:
-            args.json_out.write_text(json.dumps(report, indent=1) + "\n", encoding="utf-8")
+            write_json(args.json_out, report, overwrite=args.overwrite)
         except OSError as error:
             raise CommandError(f"--json {args.json_out}: cannot write ({error.strerror})") from None
         print(f"report written to {args.json_out}")

@@ -14,7 +14,6 @@ reads it back, so ``impact-rig identify FILE.h5`` works on it.
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import sys
 import time
@@ -285,6 +284,7 @@ def _write_hdf5(path: Path, columns: dict[str, Any], metadata: dict) -> None:
     import h5py
     import numpy as np
 
+    from analysis.json_output import to_json_text
     from analysis.recording_file import write_attributes
 
     with h5py.File(path, "w") as handle:  # an existing file was refused or --overwrite given
@@ -295,7 +295,7 @@ def _write_hdf5(path: Path, columns: dict[str, Any], metadata: dict) -> None:
             handle.create_dataset(
                 name, data=np.asarray(values, dtype=dtype), chunks=True, fletcher32=True
             )
-        write_attributes(handle, {"metadata": json.dumps(metadata)})
+        write_attributes(handle, {"metadata": to_json_text(metadata, one_line=True)})
 
 
 def _check_record_arguments(args: argparse.Namespace) -> None:
@@ -401,7 +401,7 @@ def run(args: argparse.Namespace) -> int:
     meta = _metadata(model, experiment, args, extra)
     if suffix == ".csv":
         record = ExchangeRecord(time_s, angle, meta, table_m=table, tach=tach)
-        csv_path, json_path = write_exchange(args.out, record)
+        csv_path, json_path = write_exchange(args.out, record, overwrite=args.overwrite)
         written = f"{csv_path} + {json_path.name}"
     else:
         columns = {"time_s": time_s, "angle_rad": angle, "table_m": table, "tach": tach}

@@ -3,21 +3,24 @@ discrepancy analysis, the model it arrives at, and the bifurcation diagrams.
 
 Each step calls the project's analysis (``analysis.identify``, ``analysis.dynamics``,
 ``analysis.discrepancy``); what lives here is only the demo's choice of what to run on
-which record and how the results are combined.
+which record and how the results are combined.  The steps return the analysis's own results
+and write no file: the report (rig.demo.report) writes them.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from analysis.experiments import FREE_DECAY, IMPACT_DECAY
-from rig.demo.report import write_json
-from rig.demo.settings import ANALYSIS, NONE, DemoError, DemoSettings, Progress, indented
+from rig.demo.settings import NONE, DemoError, DemoSettings, Progress, indented
+
+if TYPE_CHECKING:  # the analysis's result types, for the hints only (imported when run)
+    from analysis.discrepancy import Analysis
+    from analysis.identify import IdentificationResult
 
 
 def load_records(results: Mapping[str, Any], notes: list[str]) -> dict[str, Any]:
@@ -42,9 +45,9 @@ def load_records(results: Mapping[str, Any], notes: list[str]) -> dict[str, Any]
     return records
 
 
-def identify(records: Mapping[str, Any], folder: Path, say: Progress) -> dict[str, Any]:
+def identify(records: Mapping[str, Any], say: Progress) -> dict[str, IdentificationResult]:
     """The baseline model's identification: L, zeta from the free decay, then K, mu0 (and
-    theta_b) from the impact decay with L and zeta held; each report written as JSON."""
+    theta_b) from the impact decay with L and zeta held."""
     from analysis.identify import IdentificationError, fit_free_decay, fit_impact_decay
 
     try:
@@ -54,10 +57,6 @@ def identify(records: Mapping[str, Any], folder: Path, say: Progress) -> dict[st
         impact = fit_impact_decay(records["impact_decay"], hold=hold)
     except IdentificationError as error:
         raise DemoError(f"identification failed: {error}") from None
-    for name, result in (("free_decay", free), ("impact_decay", impact)):
-        report = result.as_json()
-        report["source"] = str(records[name].source)
-        write_json(folder / f"identify_{name}.json", report)
     say(
         f"  impact decay: K = {impact['K_N_per_m1.5'].value:.4g} N/m^1.5, "
         f"mu0 = {impact['mu0_s_per_m'].value:.3g} s/m"
@@ -131,24 +130,23 @@ def analyse_discrepancies(
     records: Mapping[str, Any],
     regimes: list[dict[str, Any]],
     baseline: Mapping[str, Mapping[str, Any]],
-    folder: Path,
     settings: DemoSettings,
     say: Progress,
     notes: list[str],
-) -> dict[str, dict[str, Any]]:
+) -> dict[str, Analysis]:
     """The discrepancy analysis (analysis.discrepancy) on each decay, then on one sweep step
     started from the model the decays arrived at (``baseline`` when they found nothing)."""
     from analysis.discrepancy import AnalysisError, analyze_record
-    from analysis.report import write_report as write_analysis_report
 
     chosen = {kind.name: records[kind.name] for kind in (FREE_DECAY, IMPACT_DECAY)}
     steps = records["sweep_steps"]
     if steps and settings.analyze_forced_step:
         chosen["forced_step"] = _forced_step_to_analyse(steps, regimes)
-    findings: dict[str, dict[str, Any]] = {}
+    findings: dict[str, Analysis] = {}
     for name, record in chosen.items():
         causes = None
-        found = findings.get(FREE_DECAY.name, {}).get("cause", NONE)
+        free_decay = findings.get(FREE_DECAY.name)
+        found = free_decay.chosen if free_decay is not None else NONE
         if name == IMPACT_DECAY.name and settings.carry_free_decay_finding and found != NONE:
             causes = [found]
             notes.append(
@@ -168,8 +166,7 @@ def analyse_discrepancies(
             notes.append(f"discrepancy analysis of {name} failed: {error}")
             say(f"    failed: {error}")
             continue
-        page = write_analysis_report(analysis, folder / ANALYSIS, name=name)
-        findings[name] = {**analysis.as_json(), "page": str(page.relative_to(folder))}
+        findings[name] = analysis
     return findings
 
 
@@ -192,7 +189,6 @@ def bifurcation_diagrams(
     settings: DemoSettings,
     regimes: list[dict[str, Any]],
     sections: list[np.ndarray],
-    folder: Path,
     say: Progress,
 ):
     """Simulated (the identified model, continuation up and down) and measured diagrams."""
@@ -216,25 +212,6 @@ def bifurcation_diagrams(
     if regimes:
         measured = bifurcation_from_recording([r["beta"] for r in regimes], sections)
         diagrams = (*simulated, measured)
-    write_json(
-        folder / "bifurcation.json",
-        {
-            "frequency_hz": settings.sweep_frequency_hz,
-            "model": {
-                "rig": model.rig.as_dict(),
-                "extensions": {k: dict(v) for k, v in model.extensions.items()},
-            },
-            "diagrams": [
-                {
-                    "direction": d.direction,
-                    "parameter": d.parameter_name,
-                    "values": d.parameter.tolist(),
-                    "theta_rad": [[v for v in row if math.isfinite(v)] for row in d.theta.tolist()],
-                }
-                for d in diagrams
-            ],
-        },
-    )
     return diagrams
 
 
@@ -261,7 +238,7 @@ def identified_model(
 
 
 def explained_parameters(
-    baseline: Mapping[str, Mapping[str, Any]], findings: Mapping[str, Mapping[str, Any]]
+    baseline: Mapping[str, Mapping[str, Any]], findings: Mapping[str, Analysis]
 ) -> tuple[dict[str, dict[str, Any]], dict[str, dict[str, float]]]:
     """Parameters of the model the discrepancy analysis arrived at, and the causes it added.
 
@@ -282,14 +259,14 @@ def explained_parameters(
     }
     causes: dict[str, dict[str, float]] = {}
     for name in (IMPACT_DECAY.name, FREE_DECAY.name):
-        report = findings.get(name)
-        if not report:
+        analysis = findings.get(name)
+        if analysis is None:
             continue
-        extended = report.get("extended", {}).get("parameters", {})
+        extended = analysis.extended_parameters()
         for key in sources.get(name, ()):
-            if key in extended and "value" in extended[key]:
+            if key in extended:
                 out[key] = {**extended[key], "from": f"{name}, extended model"}
-        found = report.get("cause", NO_CAUSE)
+        found = analysis.chosen
         if found != NO_CAUSE and found not in causes:
             names = [spec.name for spec in cause(found).parameters]
             causes[found] = {k: extended[k]["value"] for k in names if k in extended}

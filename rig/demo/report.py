@@ -1,20 +1,27 @@
 """What the demo tells: its result and the terminal summary, the report folder's figures
 (matplotlib, Agg), the Markdown report that ties the recordings, the identified parameters,
-the discrepancy findings and the regimes together, and the JSON files."""
+the discrepancy findings and the regimes together, and the JSON files.
+
+The report is the demo's edge: the stages hand it the analysis's own results, and only
+here are they written out (every JSON file through analysis.json_output)."""
 
 from __future__ import annotations
 
-import json
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-import numpy as np
-
+from analysis.json_output import write_json
 from analysis.provenance import markdown_provenance, png_metadata, provenance
-from rig.demo.settings import FIGURES, RECORDINGS, DemoSettings, HiddenCause
+from rig.demo.settings import ANALYSIS, FIGURES, RECORDINGS, DemoSettings, HiddenCause
+
+if TYPE_CHECKING:  # the analysis's result types, for the hints only (imported when run)
+    from analysis.discrepancy import Analysis
+    from analysis.dynamics import BifurcationDiagram
+    from analysis.identify import IdentificationResult
+    from analysis.model import Model
 
 
 @dataclass
@@ -93,8 +100,11 @@ def write_figures(folder: Path, diagrams, settings) -> dict[str, str]:
 # -- the Markdown report ----------------------------------------------------------------------
 
 
-def write_report(result, settings, recordings, findings, figures, config) -> Path:
-    """report.md in the folder: what was done, found, and how it compares with the truth."""
+def write_report(result, settings, recordings, analyses, pages, figures, config) -> Path:
+    """report.md in the folder: what was done, found, and how it compares with the truth
+    (``analyses`` the discrepancy analyses, ``pages`` their pages, by record)."""
+    from analysis.report.discrepancy import report_json
+
     lines: list[str] = []
     add = lines.append
     add("# impact-rig demo report")
@@ -150,9 +160,10 @@ def write_report(result, settings, recordings, findings, figures, config) -> Pat
     add("")
     add("## Discrepancy analysis")
     add("")
-    if not findings:
+    if not analyses:
         add("The discrepancy analysis did not run (see the notes below).")
-    for name, report in findings.items():
+    for name, analysis in analyses.items():
+        report = report_json(analysis)
         add(f"### {name.replace('_', ' ')}")
         add("")
         add(f"- most probable cause: **{report.get('cause')}**")
@@ -171,7 +182,7 @@ def write_report(result, settings, recordings, findings, figures, config) -> Pat
             add("- ranking: " + "; ".join(
                 f"{entry['cause']} (score {_num(entry.get('score'))})" for entry in ranking
             ))
-        page = Path(report["page"])
+        page = pages[name]
         add(f"- full analysis: [{page}]({page}) (and `{page.with_suffix('.json')}`)")
         add("")
         add(f"![{name}: baseline and extended model]({page.with_name(page.stem + '_fit.png')})")
@@ -252,26 +263,60 @@ def _num(value: Any) -> str:
         return str(value)
 
 
-def write_json(path: Path, data: Any) -> None:
-    """Write ``data`` (a mapping) as indented JSON, numpy values made plain, with its
-    provenance."""
-    report = {**_plain(data), "provenance": provenance()}
-    path.write_text(json.dumps(report, indent=1, allow_nan=True) + "\n", encoding="utf-8")
+def write_demo_json(path: Path, data: Mapping[str, Any], *, overwrite: bool) -> Path:
+    """One of the demo's JSON files: ``data`` and the provenance (an existing file is refused
+    unless ``overwrite``)."""
+    return write_json(path, {**data, "provenance": provenance()}, overwrite=overwrite)
 
 
-def _plain(value: Any) -> Any:
-    """JSON-ready copy: numpy scalars and arrays, tuples and mappings made plain."""
-    if isinstance(value, Mapping):
-        return {str(k): _plain(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [_plain(v) for v in value]
-    if isinstance(value, np.ndarray):
-        return _plain(value.tolist())
-    if isinstance(value, np.generic):
-        return value.item()
-    if isinstance(value, Path):
-        return str(value)
-    return value
+def write_identifications(
+    folder: Path,
+    identified: Mapping[str, IdentificationResult],
+    records: Mapping[str, Any],
+    *,
+    overwrite: bool,
+) -> None:
+    """identify_NAME.json: each identification's report, naming the record it came from."""
+    for name, result in identified.items():
+        report = {**result.as_json(), "source": str(records[name].source)}
+        write_demo_json(folder / f"identify_{name}.json", report, overwrite=overwrite)
+
+
+def write_analyses(
+    folder: Path, analyses: Mapping[str, Analysis], *, overwrite: bool
+) -> dict[str, Path]:
+    """Each discrepancy analysis's page (Markdown, JSON and figures) in the folder's
+    analysis/; the pages' paths relative to the folder, by record."""
+    from analysis.report import write_report as write_analysis_report
+
+    return {
+        name: write_analysis_report(analysis, folder / ANALYSIS, name=name, overwrite=overwrite)
+        .relative_to(folder)
+        for name, analysis in analyses.items()
+    }
+
+
+def bifurcation_json(
+    model: Model, frequency_hz: float, diagrams: Sequence[BifurcationDiagram]
+) -> dict[str, Any]:
+    """bifurcation.json: the identified model and each diagram's points (the angles a
+    parameter value reached, without the padding of those that reached fewer)."""
+    return {
+        "frequency_hz": frequency_hz,
+        "model": {
+            "rig": model.rig.as_dict(),
+            "extensions": {k: dict(v) for k, v in model.extensions.items()},
+        },
+        "diagrams": [
+            {
+                "direction": d.direction,
+                "parameter": d.parameter_name,
+                "values": d.parameter.tolist(),
+                "theta_rad": [[v for v in row if math.isfinite(v)] for row in d.theta.tolist()],
+            }
+            for d in diagrams
+        ],
+    }
 
 
 def demo_json(

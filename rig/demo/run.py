@@ -24,7 +24,16 @@ from rig.demo.record import (
     true_values,
     warm_up_physics,
 )
-from rig.demo.report import DemoResult, demo_json, write_figures, write_json, write_report
+from rig.demo.report import (
+    DemoResult,
+    bifurcation_json,
+    demo_json,
+    write_analyses,
+    write_demo_json,
+    write_figures,
+    write_identifications,
+    write_report,
+)
 from rig.demo.settings import (
     DEFAULT_CAUSE,
     DEFAULT_CAUSE_VALUES,
@@ -74,19 +83,21 @@ def run_demo(
 
     say("[3/6] identifying L, zeta (free decay), K, mu0 (impact decay)")
     records = load_records(results, notes)
-    identified = identify(records, folder, say)
+    identified = identify(records, say)
+    write_identifications(folder, identified, records, overwrite=overwrite)
     baseline = combined_parameters(identified)
     lap("identification")
 
     say("[4/6] judging the regime of every sweep step")
     regimes, sections = classify_steps(records["sweep_steps"], say)
-    write_json(folder / "sweep_regimes.json", {"steps": regimes})
+    write_demo_json(folder / "sweep_regimes.json", {"steps": regimes}, overwrite=overwrite)
     lap("regimes")
 
     say("[5/6] discrepancy analysis (it is not told what the virtual rig hides)")
-    findings = analyse_discrepancies(records, regimes, baseline, folder, settings, say, notes)
-    parameters, causes = explained_parameters(baseline, findings)
-    write_json(
+    analyses = analyse_discrepancies(records, regimes, baseline, settings, say, notes)
+    pages = write_analyses(folder, analyses, overwrite=overwrite)
+    parameters, causes = explained_parameters(baseline, analyses)
+    write_demo_json(
         folder / "parameters.json",
         {
             "parameters": parameters,
@@ -97,13 +108,19 @@ def run_demo(
                 "hidden_cause": {"cause": hidden.name, "parameters": dict(hidden.values)},
             },
         },
+        overwrite=overwrite,
     )
     lap("discrepancy")
 
     say("[6/6] bifurcation diagram: measured sweep against the model; figures and report")
     rig = records["impact_decay"].rig_parameters()
     model = identified_model(parameters, rig, settings.sweep_frequency_hz, causes)
-    diagrams = bifurcation_diagrams(model, settings, regimes, sections, folder, say)
+    diagrams = bifurcation_diagrams(model, settings, regimes, sections, say)
+    write_demo_json(
+        folder / "bifurcation.json",
+        bifurcation_json(model, settings.sweep_frequency_hz, diagrams),
+        overwrite=overwrite,
+    )
     figures = write_figures(folder, diagrams, settings)
     lap("report")
     timings["total"] = round(time.monotonic() - clock, 2)
@@ -115,11 +132,11 @@ def run_demo(
         baseline=baseline,
         causes=causes,
         truth=truth,
-        findings={name: value["cause"] for name, value in findings.items() if "cause" in value},
+        findings={name: analysis.chosen for name, analysis in analyses.items()},
         regimes=regimes,
         timings_s=timings,
         notes=notes,
     )
-    write_report(result, settings, results, findings, figures, config)
-    write_json(folder / "demo.json", demo_json(result, settings, results))
+    write_report(result, settings, results, analyses, pages, figures, config)
+    write_demo_json(folder / "demo.json", demo_json(result, settings, results), overwrite=overwrite)
     return result

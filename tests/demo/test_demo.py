@@ -16,6 +16,7 @@ from analysis.hdf5_records import load_hdf5_steps
 from analysis.recording_file import open_recording
 from rig.cli import main
 from rig.config import load_config
+from tests.strict_json import strict_loads
 
 pytestmark = pytest.mark.slow
 
@@ -50,7 +51,8 @@ def demo(tmp_path_factory):
 
 
 def _json(folder, name):
-    return json.loads((folder / name).read_text(encoding="utf-8"))
+    """A file of the report folder, read as strict JSON (no NaN or Infinity token)."""
+    return strict_loads((folder / name).read_text(encoding="utf-8"))
 
 
 def _assert_estimate(estimate, *, interval=True):

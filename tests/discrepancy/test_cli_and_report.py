@@ -8,6 +8,7 @@ import subprocess
 import sys
 
 from tests.discrepancy.hidden_cause import draw_case, write_case
+from tests.strict_json import strict_loads
 
 SECTION_6_KEYS = {"experiment", "cause", "ranking", "baseline", "extended", "gain", "localization"}
 GAIN_KEYS = {"rms_reduction", "heldout_rms_baseline", "heldout_rms_extended",
@@ -28,7 +29,7 @@ def test_analyze_writes_section_6_json_and_report(tmp_path):
     result = run_cli(str(csv), "--json", str(out), "--report", str(tmp_path / "rep"),
                      "--workers", "1")
     assert result.returncode == 0, result.stderr
-    report = json.loads(out.read_text())
+    report = strict_loads(out.read_text(encoding="utf-8"))
     assert set(report) >= SECTION_6_KEYS
     assert set(report["gain"]) >= GAIN_KEYS
     assert report["cause"] == case.cause

@@ -589,5 +589,5 @@ def write_forced_case(
     )
     exchange = ExchangeRecord(time_s=record.time_s, angle_rad=record.angle_rad, meta=meta,
                               table_m=record.table_m, tach=record.tach)
-    write_exchange(csv_path, exchange)
+    write_exchange(csv_path, exchange, overwrite=overwrite)
     return csv_path
