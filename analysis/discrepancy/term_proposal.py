@@ -2,19 +2,23 @@
 a sparse regression of the residual acceleration on a library of candidate terms, in
 free flight and in contact separately.
 
-The residual acceleration is the equation error of the model at the data's own states:
-the measured angle's second derivative minus the model's acceleration (docs/MODEL.md
-section 2, with the model's named causes) at the measured angle and rate.  Both sides are
-seen through the same smoother: the Savitzky-Golay second derivative of the angle is
-``g * D2`` (``D2`` the second difference), so the model's acceleration and every library
-column are filtered by ``g`` too; inside a contact, shorter than the smoother, the data's
-acceleration is then compared with the model's smoothed alike, not with its peak.  The
-model's contact condition (penetration > 0 at the smoothed angle) splits the samples:
-flight is where the smoother's window holds no contact, contact the rest.
+The residual acceleration is the model's equation error at the data's states: the
+measured angle's Savitzky-Golay second derivative minus the model's acceleration
+(docs/MODEL.md section 2, with the model's named causes) at the smoothed angle and rate.
+Both sides pass the same smoother: its second derivative is ``g * D2`` (``D2`` the second
+difference), so the model's acceleration and every library column are filtered by ``g``.
+The model's contact condition (penetration > 0) splits the samples: flight where no
+contact lies within reach of the smoothers, contact the rest.  A contact (about 10 ms)
+is shorter than the smoother, whose angle cuts its peak: there the fitted model's own
+states stand in for the data's (with smoothed states a clean record's contact residual
+was 80 % a delta^1.5 term).  In flight, residual and columns are low-passed alike once
+more, at the highest library harmonic and one (a linear filter on both sides of a
+linear regression changes no coefficient, and the second derivative's noise grows as
+the frequency to the fourth), then decimated.
 
 Libraries, each column scaled to unit rms before the regression:
-  flight: theta, theta', sign(theta'), theta'|theta'|, theta^3, and sin, cos of the drive
-  harmonics 1..3 of the model's (measured) drive;
+  flight: a constant (see :func:`flight_library`), theta, theta', sign(theta'),
+  theta'|theta'|, theta^3, and sin, cos of the drive harmonics 1..3 of the model's drive;
   contact: delta^n and delta^n delta' for n = 0.5, 1, 1.5, 2 (delta the penetration).
 
 Selection: sequentially thresholded least squares (pysindy's STLSQ, a published, tested
@@ -23,9 +27,11 @@ candidate term sets.  They are scored on held-out data: the record is cut into
 HELDOUT_BLOCKS contiguous blocks in time, each set is fitted on the even blocks and
 judged on the odd ones and the other way round, and the set with the least held-out
 residual variance wins.  Then every term in it must earn its place: dropping it must
-raise the held-out residual variance block by block, a paired t-test over the blocks
-at FALSE_ALARM (one-sided) across the library's terms, and by at least MIN_GAIN of the
-region's held-out residual variance; the weakest failing term is dropped until all pass.
+raise each block's held-out squares, as a share of that block's squares without any
+term, significantly (a paired t-test over the blocks at FALSE_ALARM, one-sided, divided
+among the library's terms) and by at least MIN_GAIN of the region's held-out squares;
+the failing term of least t is dropped until all pass.  Coefficients are the least
+squares over every block, with 95 % intervals from a delete-one-block jackknife.
 
 Why not the held-out forecast judge of the named causes
 (:mod:`analysis.discrepancy.forced_judges`): it simulates each model with the compiled
@@ -33,7 +39,9 @@ integrator, whose equation has a fixed set of terms (the packed vector of
 :mod:`analysis.packed`); an arbitrary library term cannot enter it without changing the
 compiled equations.  The judge here is held-out equation error instead: the same
 held-out principle, on the residual acceleration rather than on forecasts.  A kept term
-is reported as a proposed term, never as a named cause.
+is reported as a proposed term, never as a named cause.  A model that compromised on its
+own parameters for a missing term leaves corrections of its own terms (theta, theta',
+the constant, the drive's first harmonic) among the proposals.
 """
 
 from __future__ import annotations
@@ -64,8 +72,8 @@ RIDGE = 1e-6  # STLSQ's ridge on the scaled columns: only keeps the normal equat
 # a significance test alone, over tens of thousands of samples, keeps terms too small to
 # matter (a smoother's bias at a sharp turn, say)
 MIN_GAIN = 0.02
-MIN_SAMPLES = 200
-DECIMATION = 16  # a region with fewer usable samples is not regressed
+MIN_SAMPLES = 200  # a region with fewer usable samples is not regressed
+DECIMATION = 16  # low-passed flight samples kept: this many per low-pass window
 
 
 @dataclass(frozen=True)
@@ -137,8 +145,8 @@ def propose_terms(t: np.ndarray, theta: np.ndarray, valid: np.ndarray, packed: n
     columns = smoothed_like_acceleration(flight.columns, error.window)
     columns = savgol_filter(columns, error.lowpass, POLYORDER, axis=0)
     residual = savgol_filter(error.residual, error.lowpass, POLYORDER)
-    # the low-passed flight samples are oversampled: every DECIMATION-th of the low-pass's
-    # length carries what they hold (its response's sidelobes alias beyond that)
+    # the low-passed flight samples are oversampled: DECIMATION per low-pass window carry
+    # what they hold (coarser, the low-pass's sidelobes alias noise back)
     use = error.flight & (np.arange(t.size) % max(1, error.lowpass // DECIMATION) == 0)
     proposed = select_terms(replace(flight, columns=columns[use]), residual[use], blocks[use])
     contact = contact_library(error.theta, error.rate, packed)
