@@ -41,7 +41,8 @@ compiled equations.  The judge here is held-out equation error instead: the same
 held-out principle, on the residual acceleration rather than on forecasts.  A kept term
 is reported as a proposed term, never as a named cause.  A model that compromised on its
 own parameters for a missing term leaves corrections of its own terms (theta, theta',
-the constant, the drive's first harmonic) among the proposals.
+the constant, the drive's first harmonic; in contact the Hunt-Crossley law's): those are
+fitted beside every candidate set and never proposed (FLIGHT_OWN, CONTACT_OWN).
 """
 
 from __future__ import annotations
@@ -63,6 +64,19 @@ SMOOTHING_S = 0.012  # the flight regression's smoother: resolves drive harmonic
 POLYORDER = 3
 DRIVE_HARMONICS = 3
 CONTACT_EXPONENTS = (0.5, 1.0, 1.5, 2.0)
+# The model's own terms, whose coefficients its fitted parameters set (docs/MODEL.md
+# section 2): in flight the sensor zero (a constant), the pendulum's frequency (theta),
+# its damping (theta') and the table's amplitude and phase (the first drive harmonic);
+# in contact K and mu0 of the Hunt-Crossley law.  A baseline that compromised on them for
+# a missing term leaves corrections of them in its residual: these are fitted beside the
+# candidates, never proposed.
+# Over a contact the penetration's powers and their damping forms correlate by 0.98-0.99
+# with each other and with the model's own law: two or more of them fit the shape of a
+# trajectory's misfit, not a law (a hairspring record's baseline drew delta^1, delta^2 and
+# delta^2 delta' at once), so a contact asks for one term at most.
+CONTACT_MOST = 1
+FLIGHT_OWN = ("1", "theta", "theta'", "sin(1 Omega t)", "cos(1 Omega t)")
+CONTACT_OWN = ("delta^1.5", "delta^1.5 delta'")
 HELDOUT_BLOCKS = 20  # contiguous blocks in time, alternately fitted and held out
 # STLSQ thresholds on the scaled columns (coefficients as fractions of the residual's rms
 # per rms of the column), largest first: each gives a candidate term set
@@ -85,6 +99,11 @@ class Library:
     names: tuple[str, ...]
     units: tuple[str, ...]
     columns: np.ndarray  # (samples, terms)
+    # the model's own terms (what its fitted parameters already scale): always in the
+    # regression, so that a compromise of those parameters is corrected there, and never
+    # proposed
+    own: tuple[int, ...] = ()
+    most: int | None = None  # at most this many terms proposed (None: any number)
 
 
 @dataclass(frozen=True)
@@ -238,7 +257,8 @@ def flight_library(t: np.ndarray, theta: np.ndarray, rate: np.ndarray,
         names += [f"sin({k} Omega t)", f"cos({k} Omega t)"]
         units += ["1", "1"]
         columns += [np.sin(k * phase), np.cos(k * phase)]
-    return Library("flight", tuple(names), tuple(units), np.column_stack(columns))
+    own = tuple(names.index(name) for name in FLIGHT_OWN)
+    return Library("flight", tuple(names), tuple(units), np.column_stack(columns), own)
 
 
 def contact_library(theta: np.ndarray, rate: np.ndarray, packed: np.ndarray) -> Library:
@@ -251,7 +271,9 @@ def contact_library(theta: np.ndarray, rate: np.ndarray, packed: np.ndarray) -> 
         names += [f"delta^{n:g}", f"delta^{n:g} delta'"]
         units += [f"m^{n:g}", f"m^{n + 1:g}/s"]
         columns += [power, power * delta_dot]
-    return Library("contact", tuple(names), tuple(units), np.column_stack(columns))
+    own = tuple(names.index(name) for name in CONTACT_OWN)
+    return Library("contact", tuple(names), tuple(units), np.column_stack(columns), own,
+                   most=CONTACT_MOST)
 
 
 def select_terms(library: Library, residual: np.ndarray,
@@ -270,27 +292,35 @@ def select_terms(library: Library, residual: np.ndarray,
         return []
     y = residual / y_scale
     sums = BlockSums.of(x, y, np.searchsorted(ids, blocks), ids.size)
+    own = frozenset(j for j in library.own if live[j])
+    candidates = live.copy()
+    candidates[list(own)] = False
     odd = np.arange(ids.size) % 2 == 1
-    sets = {frozenset()} | {s for fold in (~odd, odd) for s in _stlsq_path(sums, fold, live)}
-    best = min(sets, key=lambda s: (float(sums.heldout(s).sum()), len(s)))
-    nothing = sums.heldout(frozenset())
-    t_needed = float(stats.t.isf(FALSE_ALARM / x.shape[1], ids.size - 1))
+    sets = {frozenset()} | {s for fold in (~odd, odd)
+                            for s in _stlsq_path(sums, fold, candidates, own)}
+    best = min(sets, key=lambda s: (float(sums.heldout(own | s).sum()), len(s)))
+    nothing = sums.heldout(own)
+    tested = int(np.count_nonzero(candidates))
+    t_needed = float(stats.t.isf(FALSE_ALARM / max(tested, 1), ids.size - 1))
     kept = set(best)
     while kept:
-        with_all = sums.heldout(frozenset(kept))
-        worth = {j: _worth(sums.heldout(frozenset(kept - {j})) - with_all, nothing)
+        with_all = sums.heldout(own | kept)
+        worth = {j: _worth(sums.heldout(own | (kept - {j})) - with_all, nothing)
                  for j in kept}
         failing = [j for j in kept if worth[j][0] < t_needed or worth[j][1] < MIN_GAIN]
-        if not failing:
+        if not failing and (library.most is None or len(kept) <= library.most):
             break
+        failing = failing or list(kept)
         kept.discard(min(failing, key=lambda j: worth[j][0]))
     if not kept:
         return []
-    order = sorted(kept)
+    order = sorted(kept | own)
     coefficients, spread = sums.jackknife(order)
     half = float(stats.t.isf(0.025, ids.size - 1)) * spread
     out = []
     for i, j in enumerate(order):
+        if j in own:
+            continue
         unit_scale = y_scale / scale[j]
         value = coefficients[i] * unit_scale
         t_value, gain = worth[j]
@@ -351,18 +381,31 @@ class BlockSums:
         return self.fit(every, terms), spread
 
 
-def _stlsq_path(sums: BlockSums, use: np.ndarray, live: np.ndarray) -> list[frozenset[int]]:
-    """The term sets STLSQ keeps at each of THRESHOLDS on the blocks ``use``.
+def _stlsq_path(sums: BlockSums, use: np.ndarray, candidates: np.ndarray,
+                own: frozenset[int]) -> list[frozenset[int]]:
+    """The candidate term sets STLSQ keeps at each of THRESHOLDS on the blocks ``use``,
+    the model's ``own`` terms fitted beside them unthresholded.
 
-    It runs on the blocks' least-squares problem compressed to a square one with the same
+    The own terms are projected out of the normal equations (their Schur complement), and
+    STLSQ runs on that least-squares problem compressed to a square one with the same
     normal equations (x'x = R'R, R w = z for x'y = R'z), so its cost does not grow with
     the samples."""
     # pysindy imports scikit-learn (about 2 s): only an analysis that ends unexplained pays it
     from pysindy.optimizers import STLSQ
 
-    terms = np.flatnonzero(live)
-    xx = sums.xx[use].sum(axis=0)[np.ix_(terms, terms)]
-    xy = sums.xy[use].sum(axis=0)[terms]
+    terms = np.flatnonzero(candidates)
+    if terms.size == 0:
+        return []
+    fixed = sorted(own)
+    total_xx = sums.xx[use].sum(axis=0)
+    total_xy = sums.xy[use].sum(axis=0)
+    xx = total_xx[np.ix_(terms, terms)]
+    xy = total_xy[terms]
+    if fixed:
+        cross = total_xx[np.ix_(terms, fixed)]
+        inverse = np.linalg.pinv(total_xx[np.ix_(fixed, fixed)])
+        xx = xx - cross @ inverse @ cross.T
+        xy = xy - cross @ inverse @ total_xy[fixed]
     eigenvalues, vectors = np.linalg.eigh(xx)
     root = np.sqrt(np.clip(eigenvalues, 0.0, None))
     kept = root > root.max() * 1e-8
