@@ -58,12 +58,14 @@ from analysis.discrepancy.selection import (
     choose,
     information_criterion_delta,
 )
+from analysis.discrepancy.term_proposal import ProposedTerm, propose_terms
 from analysis.dynamics.regime import Regime
 from analysis.experiments import FORCED
 from analysis.extensions import NONE, cause, causes_in, implausibility, model_name
 from analysis.identify.forced import (
     ForcedData,
     ForcedIdentification,
+    ForcedModel,
     forced_data,
     identify_forced,
     record_regime,
@@ -454,8 +456,24 @@ def analyze_forced(
             "from the state fitted at that stretch's start"
         ),
         drive_findings=_drive_findings(record, data),
-    )
-    return analysis.read()
+    ).read()
+    if analysis.unexplained:
+        clock = time.perf_counter()
+        analysis.proposed_terms = proposed_terms(data, out.final or base)
+        timings["term_proposal"] = time.perf_counter() - clock
+        say("proposed terms (not named causes): " + (
+            ", ".join(f"{t.term} in {t.region}" for t in analysis.proposed_terms) or "none"))
+    return analysis
+
+
+def proposed_terms(data: ForcedData, fits: ModelFits) -> list[ProposedTerm]:
+    """The terms the residual acceleration of a model fitted over the record asks for
+    (:mod:`analysis.discrepancy.term_proposal`), at the data's true angle: the measured one
+    with the model's sensor (its measured minus its true angle there) taken off."""
+    fit = fits.full
+    packed = ForcedModel(data, causes_in(fits.cause)).packed(fit.values)
+    theta = data.y - (fit.prediction - fit.true_angle)
+    return propose_terms(data.t, theta, data.valid, packed, fit.true_angle, fit.rate)
 
 
 def _drive_findings(record: Record, data: ForcedData) -> list[Finding]:

@@ -13,6 +13,7 @@ from analysis.discrepancy.fitting import FitData, FitResult
 from analysis.discrepancy.localize import Localization
 from analysis.discrepancy.residual_reading import Finding, ResidualReading, read_residual
 from analysis.discrepancy.selection import BIC_MARGIN, Verdict, heldout_rms
+from analysis.discrepancy.term_proposal import ProposedTerm
 from analysis.extensions import NONE, cause, causes_in
 from analysis.identify.result import Estimate
 from analysis.records import Record
@@ -72,6 +73,9 @@ class Analysis:
     # the final model's residual read for structure, and what the drive channels say
     reading: ResidualReading | None = None
     drive_findings: list[Finding] = field(default_factory=list)
+    # forced records left unexplained: terms outside the named causes that the residual
+    # acceleration asks for (never a cause)
+    proposed_terms: list[ProposedTerm] = field(default_factory=list)
 
     @property
     def chosen_outcome(self) -> CandidateOutcome | None:
@@ -203,6 +207,7 @@ class Analysis:
             "unexplained": self.unexplained,
             "residual_findings": [f.as_json() for f in self.residual_findings],
             "residual_reading": self.reading.as_json() if self.reading is not None else None,
+            "proposed_terms": [term.as_json() for term in self.proposed_terms],
             "ranking": ranking,
             "baseline": {
                 "parameters": report_parameters(self.baseline, rig),

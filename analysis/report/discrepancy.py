@@ -159,6 +159,7 @@ def write_report(
     lines += [f"- **cannot tell apart:** {pair['why']}" for pair in js.get("indistinct", [])]
     lines += [f"- residual finding ({f['kind']}): {f['text']}"
               for f in js.get("residual_findings", [])]
+    lines += [f"- {term['text']}" for term in js.get("proposed_terms", [])]
     gain = js["gain"]
     if gain["heldout_rms_baseline"] is not None:
         lines.append(

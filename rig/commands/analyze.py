@@ -132,6 +132,8 @@ def run(args: argparse.Namespace) -> int:
             print(f"cannot tell apart: {pair['why']}")
         for finding in js.get("residual_findings", []):
             print(f"residual finding ({finding['kind']}): {finding['text']}")
+        for term in js.get("proposed_terms", []):
+            print(term["text"])
         print(f"where the baseline fails: {js['localization']}")
         for warning in js["warnings"]:
             print(f"caution: {warning}")

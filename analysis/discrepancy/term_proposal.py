@@ -1,0 +1,442 @@
+"""A term to propose when no named cause explains a forced record (issue 15, item 6):
+a sparse regression of the residual acceleration on a library of candidate terms, in
+free flight and in contact separately.
+
+The residual acceleration is the model's equation error at the data's states: the
+measured angle's Savitzky-Golay second derivative minus the model's acceleration
+(docs/MODEL.md section 2, with the model's named causes) at the smoothed angle and rate.
+Both sides pass the same smoother: its second derivative is ``g * D2`` (``D2`` the second
+difference), so the model's acceleration and every library column are filtered by ``g``.
+The model's contact condition (penetration > 0) splits the samples: flight where no
+contact lies within reach of the smoothers, contact the rest.  A contact (about 10 ms)
+is shorter than the smoother, whose angle cuts its peak: there the fitted model's own
+states stand in for the data's (with smoothed states a clean record's contact residual
+was 80 % a delta^1.5 term).  In flight, residual and columns are low-passed alike once
+more, at the highest library harmonic and one (a linear filter on both sides of a
+linear regression changes no coefficient, and the second derivative's noise grows as
+the frequency to the fourth), then decimated.
+
+Libraries, each column scaled to unit rms before the regression:
+  flight: a constant (see :func:`flight_library`), theta, theta', sign(theta'),
+  theta'|theta'|, theta^3, and sin, cos of the drive harmonics 1..3 of the model's drive;
+  contact: delta^n and delta^n delta' for n = 0.5, 1, 1.5, 2 (delta the penetration).
+
+Selection: sequentially thresholded least squares (pysindy's STLSQ, a published, tested
+implementation; nothing here needs a variant of it) over a path of thresholds gives the
+candidate term sets.  They are scored on held-out data: the record is cut into
+HELDOUT_BLOCKS contiguous blocks in time, each set is fitted on the even blocks and
+judged on the odd ones and the other way round, and the set with the least held-out
+residual variance wins.  Then every term in it must earn its place: dropping it must
+raise each block's held-out squares, as a share of that block's squares without any
+term, significantly (a paired t-test over the blocks at FALSE_ALARM, one-sided, divided
+among the library's terms) and by at least MIN_GAIN of the region's held-out squares;
+the failing term of least t is dropped until all pass.  Coefficients are the least
+squares over every block, with 95 % intervals from a delete-one-block jackknife.
+
+Why not the held-out forecast judge of the named causes
+(:mod:`analysis.discrepancy.forced_judges`): it simulates each model with the compiled
+integrator, whose equation has a fixed set of terms (the packed vector of
+:mod:`analysis.packed`); an arbitrary library term cannot enter it without changing the
+compiled equations.  The judge here is held-out equation error instead: the same
+held-out principle, on the residual acceleration rather than on forecasts.  A kept term
+is reported as a proposed term, never as a named cause.  A model that compromised on its
+own parameters for a missing term leaves corrections of its own terms (theta, theta',
+the constant, the drive's first harmonic; in contact the Hunt-Crossley law's): those are
+fitted beside every candidate set and never proposed (FLIGHT_OWN, CONTACT_OWN).
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from dataclasses import dataclass, replace
+from typing import Any
+
+import numpy as np
+from scipy import stats
+from scipy.signal import savgol_coeffs, savgol_filter
+
+from analysis.dynamics.lines import FALSE_ALARM
+from analysis.model import acceleration
+from analysis.packed import P
+
+SMOOTHING_S = 0.012  # the flight regression's smoother: resolves drive harmonics past 10 Hz
+POLYORDER = 3
+DRIVE_HARMONICS = 3
+CONTACT_EXPONENTS = (0.5, 1.0, 1.5, 2.0)
+# The model's own terms, whose coefficients its fitted parameters set (docs/MODEL.md
+# section 2): in flight the sensor zero (a constant), the pendulum's frequency (theta),
+# its damping (theta') and the table's amplitude and phase (the first drive harmonic);
+# in contact K and mu0 of the Hunt-Crossley law.  A baseline that compromised on them for
+# a missing term leaves corrections of them in its residual: these are fitted beside the
+# candidates, never proposed.
+# Over a contact the penetration's powers and their damping forms correlate by 0.98-0.99
+# with each other and with the model's own law: two or more of them fit the shape of a
+# trajectory's misfit, not a law (a hairspring record's baseline drew delta^1, delta^2 and
+# delta^2 delta' at once), so a contact asks for one term at most.
+CONTACT_MOST = 1
+FLIGHT_OWN = ("1", "theta", "theta'", "sin(1 Omega t)", "cos(1 Omega t)")
+CONTACT_OWN = ("delta^1.5", "delta^1.5 delta'")
+HELDOUT_BLOCKS = 20  # contiguous blocks in time, alternately fitted and held out
+# STLSQ thresholds on the scaled columns (coefficients as fractions of the residual's rms
+# per rms of the column), largest first: each gives a candidate term set
+THRESHOLDS = tuple(float(x) for x in np.geomspace(0.5, 0.002, 14))
+RIDGE = 1e-6  # STLSQ's ridge on the scaled columns: only keeps the normal equations regular
+# A kept term must remove at least this share of its region's held-out residual variance:
+# a significance test alone, over tens of thousands of samples, keeps terms too small to
+# matter (a smoother's bias at a sharp turn, say)
+MIN_GAIN = 0.02
+MIN_SAMPLES = 200  # a region with fewer usable samples is not regressed
+DECIMATION = 16  # low-passed flight samples kept: this many per low-pass window
+
+
+@dataclass(frozen=True)
+class Library:
+    """Candidate terms of one region: names, the unit of each term, and its columns (one per
+    term, over the region's samples)."""
+
+    region: str
+    names: tuple[str, ...]
+    units: tuple[str, ...]
+    columns: np.ndarray  # (samples, terms)
+    # the model's own terms (what its fitted parameters already scale): always in the
+    # regression, so that a compromise of those parameters is corrected there, and never
+    # proposed
+    own: tuple[int, ...] = ()
+    most: int | None = None  # at most this many terms proposed (None: any number)
+
+
+@dataclass(frozen=True)
+class ProposedTerm:
+    """A term the record asks for: theta'' gains ``coefficient`` times ``term`` (its 95 %
+    interval from a jackknife over the held-out blocks), in ``region``, removing
+    ``heldout_gain`` of that region's held-out residual variance (``t`` its paired
+    t-statistic over the blocks)."""
+
+    term: str
+    region: str
+    coefficient: float
+    ci95: tuple[float, float]
+    unit: str
+    heldout_gain: float
+    t: float
+
+    def sentence(self) -> str:
+        """One line for the text report."""
+        low, high = self.ci95
+        return (f"proposed term (not a named cause): theta'' += {self.coefficient:.4g} "
+                f"[{low:.4g}, {high:.4g}] {self.unit} x {self.term} in {self.region}, "
+                f"removing {100 * self.heldout_gain:.3g} % of its held-out residual "
+                f"acceleration variance (t = {self.t:.3g})")
+
+    def as_json(self) -> dict[str, Any]:
+        """An entry of the report's ``proposed_terms``."""
+        return {"term": self.term, "region": self.region, "coefficient": self.coefficient,
+                "ci95": list(self.ci95), "unit": self.unit, "heldout_gain": self.heldout_gain,
+                "t": self.t, "text": self.sentence()}
+
+
+@dataclass(frozen=True)
+class EquationError:
+    """The residual acceleration, the states it was taken at, which samples can be used,
+    and which are in flight (no contact within reach of the smoothers) or in contact."""
+
+    residual: np.ndarray  # [rad/s^2]
+    theta: np.ndarray
+    rate: np.ndarray
+    flight: np.ndarray
+    contact: np.ndarray
+    window: int  # the smoother's, in samples
+    lowpass: int  # the flight regression's extra low-pass, in samples
+
+
+def propose_terms(t: np.ndarray, theta: np.ndarray, valid: np.ndarray, packed: np.ndarray,
+                  model_theta: np.ndarray, model_rate: np.ndarray) -> list[ProposedTerm]:
+    """Terms that the residual acceleration of the model ``packed`` (the compiled equations'
+    parameter vector) asks for, flight first; [] when none earns its place.  ``theta`` is
+    the data's true angle (the measured one with the model's sensor taken off), NaN or
+    not ``valid`` where unusable; ``model_theta`` and ``model_rate`` the fitted model's
+    states, which stand in for the data's inside contacts (see the module's docstring)."""
+    error = equation_error(t, theta, valid, packed, model_theta, model_rate)
+    blocks = np.minimum((HELDOUT_BLOCKS * (t - t[0]) / (t[-1] - t[0] + 1e-300)).astype(int),
+                        HELDOUT_BLOCKS - 1)
+    flight = flight_library(t, error.theta, error.rate, packed)
+    columns = smoothed_like_acceleration(flight.columns, error.window)
+    columns = savgol_filter(columns, error.lowpass, POLYORDER, axis=0)
+    residual = savgol_filter(error.residual, error.lowpass, POLYORDER)
+    # the low-passed flight samples are oversampled: DECIMATION per low-pass window carry
+    # what they hold (coarser, the low-pass's sidelobes alias noise back)
+    use = error.flight & (np.arange(t.size) % max(1, error.lowpass // DECIMATION) == 0)
+    proposed = select_terms(replace(flight, columns=columns[use]), residual[use], blocks[use])
+    contact = contact_library(error.theta, error.rate, packed)
+    columns = smoothed_like_acceleration(contact.columns, error.window)
+    use = error.contact
+    return proposed + select_terms(replace(contact, columns=columns[use]),
+                                   error.residual[use], blocks[use])
+
+
+def equation_error(t: np.ndarray, theta: np.ndarray, valid: np.ndarray, packed: np.ndarray,
+                   model_theta: np.ndarray, model_rate: np.ndarray) -> EquationError:
+    """The data's acceleration (Savitzky-Golay) minus the model's at the data's states (the
+    smoothed angle and rate in flight, the fitted model's in and near contacts), the latter
+    filtered as the data's is (see the module's docstring)."""
+    dt = float(t[1] - t[0])
+    window = max(POLYORDER + 2, round(SMOOTHING_S / dt) | 1)
+    lowpass = lowpass_window(packed[P.OMEGA_DRIVE] / (2.0 * math.pi), 1.0 / dt)
+    good = valid & np.isfinite(theta) & np.isfinite(model_theta) & np.isfinite(model_rate)
+    idx = np.arange(theta.size)
+    filled = np.interp(idx, idx[good], theta[good])
+    smooth = savgol_filter(filled, window, POLYORDER)
+    rate = savgol_filter(filled, window, POLYORDER, deriv=1, delta=dt)
+    data_acc = savgol_filter(filled, window, POLYORDER, deriv=2, delta=dt)
+    half = window // 2
+    touching = in_contact(smooth, packed) | in_contact(np.where(good, model_theta, 0.0), packed)
+    modelled = _widened(touching, 2 * half)  # every state the contact samples' filter reads
+    theta_at = np.where(modelled & good, model_theta, smooth)
+    rate_at = np.where(modelled & good, model_rate, rate)
+    model_acc = np.array([acceleration(ti, a, b, packed)
+                          for ti, a, b in zip(t, theta_at, rate_at, strict=True)])
+    residual = data_acc - smoothed_like_acceleration(model_acc, window)
+    usable = ~_widened(~good, half)
+    usable[:half] = usable[-half:] = False
+    reach = half + lowpass // 2
+    flight = ~_widened(~usable | touching, reach)
+    contact = usable & _widened(touching, half)
+    return EquationError(residual, theta_at, rate_at, flight, contact, window, lowpass)
+
+
+def lowpass_window(drive_hz: float, sample_rate_hz: float) -> int:
+    """Samples of the cubic Savitzky-Golay smoother whose -3 dB frequency is the highest
+    drive harmonic of the flight library's and one more: it takes out the smoothed second
+    derivative's noise, which grows as the frequency to the fourth, and no term's signal
+    (R. W. Schafer, "What is a Savitzky-Golay filter?", IEEE Signal Processing Magazine
+    28 (2011): f_c = (N + 1) / (3.2 M - 4.6) fs / 2 for order N and M samples)."""
+    cutoff = (DRIVE_HARMONICS + 1) * drive_hz
+    samples = ((POLYORDER + 1) * sample_rate_hz / (2.0 * cutoff) + 4.6) / 3.2
+    return max(POLYORDER + 2, round(samples) | 1)
+
+
+def smoothed_like_acceleration(values: np.ndarray, window: int) -> np.ndarray:
+    """``values`` (accelerations, or columns of them) filtered by the kernel g with
+    Savitzky-Golay's second derivative = g * (second difference / dt^2): what that
+    smoother makes of an acceleration."""
+    second = savgol_coeffs(window, POLYORDER, deriv=2, delta=1.0, use="conv")
+    # exact: the kernel annihilates constants and lines, so the second difference divides it
+    g, _ = np.polydiv(second, np.array([1.0, -2.0, 1.0]))
+    if values.ndim == 1:
+        return np.convolve(values, g, mode="same")
+    return np.column_stack([np.convolve(c, g, mode="same") for c in values.T])
+
+
+def in_contact(theta: np.ndarray, packed: np.ndarray) -> np.ndarray:
+    """The model's contact condition (docs/MODEL.md section 2): penetration > 0 below the
+    horizontal, with the barrier in place."""
+    return (penetration(theta, packed) > 0.0) & (np.cos(theta) > 0.0) & \
+        (packed[P.BARRIER] != 0.0)
+
+
+def penetration(theta: np.ndarray, packed: np.ndarray) -> np.ndarray:
+    """delta = l (sin theta - sin theta_b) [m]."""
+    return packed[P.SHAFT_L] * (np.sin(theta) - packed[P.SIN_THETA_B])
+
+
+def flight_library(t: np.ndarray, theta: np.ndarray, rate: np.ndarray,
+                   packed: np.ndarray) -> Library:
+    """The flight terms: a constant, theta, theta', sign(theta'), theta'|theta'|, theta^3
+    and the drive harmonics' sines and cosines (phase of the model's drive).
+
+    The constant is not in issue 15's list: a model that compromised on its sensor zero
+    measures theta from a shifted zero, and a term about a shifted zero has a constant
+    part that would otherwise leak into the odd terms (a hairspring record, fitted zero
+    0.019 rad off: theta^3 -49 without it, -445 with it, truth -403 rad/s^2 per rad^3)."""
+    phase = packed[P.OMEGA_DRIVE] * t + packed[P.PHASE0]
+    names = ["1", "theta", "theta'", "sign(theta')", "theta'|theta'|", "theta^3"]
+    units = ["1", "rad", "rad/s", "1", "rad^2/s^2", "rad^3"]
+    columns = [np.ones_like(theta), theta, rate, np.sign(rate), rate * np.abs(rate), theta**3]
+    for k in range(1, DRIVE_HARMONICS + 1):
+        names += [f"sin({k} Omega t)", f"cos({k} Omega t)"]
+        units += ["1", "1"]
+        columns += [np.sin(k * phase), np.cos(k * phase)]
+    own = tuple(names.index(name) for name in FLIGHT_OWN)
+    return Library("flight", tuple(names), tuple(units), np.column_stack(columns), own)
+
+
+def contact_library(theta: np.ndarray, rate: np.ndarray, packed: np.ndarray) -> Library:
+    """The contact terms delta^n and delta^n delta' (zero out of contact)."""
+    delta = np.where(in_contact(theta, packed), penetration(theta, packed), 0.0)
+    delta_dot = np.where(delta > 0.0, packed[P.SHAFT_L] * np.cos(theta) * rate, 0.0)
+    names, units, columns = [], [], []
+    for n in CONTACT_EXPONENTS:
+        power = delta**n
+        names += [f"delta^{n:g}", f"delta^{n:g} delta'"]
+        units += [f"m^{n:g}", f"m^{n + 1:g}/s"]
+        columns += [power, power * delta_dot]
+    own = tuple(names.index(name) for name in CONTACT_OWN)
+    return Library("contact", tuple(names), tuple(units), np.column_stack(columns), own,
+                   most=CONTACT_MOST)
+
+
+def select_terms(library: Library, residual: np.ndarray,
+                 blocks: np.ndarray) -> list[ProposedTerm]:
+    """The terms of ``library`` that the residual acceleration asks for and that earn their
+    place on held-out blocks (see the module's docstring), with their coefficients in
+    theta'' per unit of the term."""
+    ids = np.unique(blocks)
+    if residual.size < MIN_SAMPLES or ids.size < 4:
+        return []
+    scale = np.sqrt(np.mean(library.columns**2, axis=0))
+    live = scale > 0
+    x = np.where(live, library.columns / np.where(live, scale, 1.0), 0.0)
+    y_scale = float(np.sqrt(np.mean(residual**2)))
+    if not y_scale > 0:
+        return []
+    y = residual / y_scale
+    sums = BlockSums.of(x, y, np.searchsorted(ids, blocks), ids.size)
+    own = frozenset(j for j in library.own if live[j])
+    candidates = live.copy()
+    candidates[list(own)] = False
+    odd = np.arange(ids.size) % 2 == 1
+    sets = {frozenset()} | {s for fold in (~odd, odd)
+                            for s in _stlsq_path(sums, fold, candidates, own)}
+    best = min(sets, key=lambda s: (float(sums.heldout(own | s).sum()), len(s)))
+    nothing = sums.heldout(own)
+    tested = int(np.count_nonzero(candidates))
+    t_needed = float(stats.t.isf(FALSE_ALARM / max(tested, 1), ids.size - 1))
+    kept = set(best)
+    while kept:
+        with_all = sums.heldout(own | kept)
+        worth = {j: _worth(sums.heldout(own | (kept - {j})) - with_all, nothing)
+                 for j in kept}
+        failing = [j for j in kept if worth[j][0] < t_needed or worth[j][1] < MIN_GAIN]
+        if not failing and (library.most is None or len(kept) <= library.most):
+            break
+        failing = failing or list(kept)
+        kept.discard(min(failing, key=lambda j: worth[j][0]))
+    if not kept:
+        return []
+    order = sorted(kept | own)
+    coefficients, spread = sums.jackknife(order)
+    half = float(stats.t.isf(0.025, ids.size - 1)) * spread
+    out = []
+    for i, j in enumerate(order):
+        if j in own:
+            continue
+        unit_scale = y_scale / scale[j]
+        value = coefficients[i] * unit_scale
+        t_value, gain = worth[j]
+        out.append(ProposedTerm(
+            term=library.names[j], region=library.region, coefficient=float(value),
+            ci95=(float(value - half[i] * unit_scale), float(value + half[i] * unit_scale)),
+            unit=f"rad/s^2 per {library.units[j]}", heldout_gain=gain, t=t_value))
+    return sorted(out, key=lambda term: -term.heldout_gain)
+
+
+@dataclass(frozen=True)
+class BlockSums:
+    """Each block's x'x, x'y and y'y: every least-squares fit over any blocks and any terms,
+    and its squares on any block, without going back to the samples."""
+
+    xx: np.ndarray  # (blocks, terms, terms)
+    xy: np.ndarray  # (blocks, terms)
+    yy: np.ndarray  # (blocks,)
+
+    @classmethod
+    def of(cls, x: np.ndarray, y: np.ndarray, block: np.ndarray, count: int) -> BlockSums:
+        """The sums of samples ``x``, ``y`` in blocks numbered 0..count-1."""
+        xx = np.zeros((count, x.shape[1], x.shape[1]))
+        np.add.at(xx, block, x[:, :, None] * x[:, None, :])
+        xy = np.zeros((count, x.shape[1]))
+        np.add.at(xy, block, x * y[:, None])
+        return cls(xx, xy, np.bincount(block, y * y, minlength=count))
+
+    def fit(self, use: np.ndarray, terms: list[int]) -> np.ndarray:
+        """Least-squares coefficients of ``terms`` over the blocks ``use`` (a mask)."""
+        xx = self.xx[use].sum(axis=0)[np.ix_(terms, terms)]
+        coefficients, *_ = np.linalg.lstsq(xx, self.xy[use].sum(axis=0)[terms], rcond=None)
+        return coefficients
+
+    def heldout(self, terms: frozenset[int]) -> np.ndarray:
+        """Each block's sum of squares left by ``terms`` fitted on the other fold (blocks
+        alternate between the two folds)."""
+        odd = np.arange(self.yy.size) % 2 == 1
+        out = self.yy.copy()
+        if not terms:
+            return out
+        order = sorted(terms)
+        for fold in (odd, ~odd):
+            w = self.fit(~fold, order)
+            xx = self.xx[fold][:, order][:, :, order]
+            out[fold] += np.einsum("bij,i,j->b", xx, w, w) - 2.0 * self.xy[fold][:, order] @ w
+        return out
+
+    def jackknife(self, terms: list[int]) -> tuple[np.ndarray, np.ndarray]:
+        """Coefficients over every block, and their standard errors by a delete-one-block
+        jackknife (the residual acceleration is correlated over the smoother's window and
+        the swings: whole blocks keep that honest)."""
+        every = np.ones(self.yy.size, dtype=bool)
+        leave = np.array([self.fit(every & (np.arange(self.yy.size) != b), terms)
+                          for b in range(self.yy.size)])
+        n = self.yy.size
+        spread = np.sqrt((n - 1) / n * np.sum((leave - leave.mean(axis=0))**2, axis=0))
+        return self.fit(every, terms), spread
+
+
+def _stlsq_path(sums: BlockSums, use: np.ndarray, candidates: np.ndarray,
+                own: frozenset[int]) -> list[frozenset[int]]:
+    """The candidate term sets STLSQ keeps at each of THRESHOLDS on the blocks ``use``,
+    the model's ``own`` terms fitted beside them unthresholded.
+
+    The own terms are projected out of the normal equations (their Schur complement), and
+    STLSQ runs on that least-squares problem compressed to a square one with the same
+    normal equations (x'x = R'R, R w = z for x'y = R'z), so its cost does not grow with
+    the samples."""
+    # pysindy imports scikit-learn (about 2 s): only an analysis that ends unexplained pays it
+    from pysindy.optimizers import STLSQ
+
+    terms = np.flatnonzero(candidates)
+    if terms.size == 0:
+        return []
+    fixed = sorted(own)
+    total_xx = sums.xx[use].sum(axis=0)
+    total_xy = sums.xy[use].sum(axis=0)
+    xx = total_xx[np.ix_(terms, terms)]
+    xy = total_xy[terms]
+    if fixed:
+        cross = total_xx[np.ix_(terms, fixed)]
+        inverse = np.linalg.pinv(total_xx[np.ix_(fixed, fixed)])
+        xx = xx - cross @ inverse @ cross.T
+        xy = xy - cross @ inverse @ total_xy[fixed]
+    eigenvalues, vectors = np.linalg.eigh(xx)
+    root = np.sqrt(np.clip(eigenvalues, 0.0, None))
+    kept = root > root.max() * 1e-8
+    square = root[kept, None] * vectors[:, kept].T
+    target = (vectors[:, kept].T @ xy) / root[kept]
+    sets = []
+    for threshold in THRESHOLDS:
+        optimizer = STLSQ(threshold=threshold, alpha=RIDGE, max_iter=50, unbias=True)
+        with warnings.catch_warnings():  # a threshold above every coefficient: the empty set
+            warnings.simplefilter("ignore", UserWarning)
+            optimizer.fit(square, target)
+        sets.append(frozenset(int(j) for j in terms[np.flatnonzero(optimizer.ind_.ravel())]))
+    return sets
+
+
+def _worth(loss: np.ndarray, nothing: np.ndarray) -> tuple[float, float]:
+    """What dropping a term costs on held-out blocks: the paired t-statistic of the rise of
+    each block's squares as a share of its squares with no term (shares, because blocks
+    hold different numbers of a region's samples), and the rise as a share of all the
+    held-out squares with no term."""
+    share = loss / np.maximum(nothing, 1e-300)
+    spread = float(np.std(share, ddof=1)) / math.sqrt(share.size)
+    t_value = float(share.mean() / spread) if spread > 0 else math.copysign(math.inf,
+                                                                            share.mean())
+    return t_value, float(loss.sum() / nothing.sum())
+
+
+def _widened(mask: np.ndarray, guard: int) -> np.ndarray:
+    """``mask`` grown by ``guard`` samples either side."""
+    out = mask.copy()
+    for shift in range(1, guard + 1):
+        out[shift:] |= mask[:-shift]
+        out[:-shift] |= mask[shift:]
+    return out
