@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 
 from analysis.dynamics.lines import (
+    HARMONIC_GUARD_BINS,
     MERGE_BINS,
     find_lines,
     line_threshold,
@@ -63,6 +64,9 @@ STEADY_Z = 4.0
 STEADY_RELATIVE = 0.25
 SIDEBAND_BINS = 2  # bins either side of an expected sideband searched for it
 MIN_LINE_SAMPLES = 1024  # fewer valid samples: no added line is looked for
+# A line below this rms, in noise units, changes no agreement of strobe points (the
+# residual reading's least structure that counts, analysis.discrepancy MIN_STRUCTURE)
+MIN_LINE_RMS = 0.2
 
 
 def judge_regime(
@@ -158,24 +162,40 @@ def judge_record_regime(
 
     Lines the pendulum cannot have made (:func:`additive_lines`: a hum in the sensor) are
     taken out first: strobed, such a line aliases into a pattern that repeats after
-    some k periods and would pass for a period-k orbit.  They are in the evidence as
-    'additive_lines'.  Returns the regime and the strobe points of the record judged
-    (the settled section is ``strobe.section[regime.evidence['transient_periods']:]``
-    for a periodic record).
+    some k periods and would pass for a period-k orbit (or hides the period the record
+    has).  When the record without them is periodic they are in the evidence as
+    'additive_lines'; when it is not, the record is judged as it came.  Returns the
+    regime and the strobe points of the record judged (the settled section is
+    ``strobe.section[regime.evidence['transient_periods']:]`` for a periodic record).
     """
-    strobe = strobe_record(
-        theta, fs_hz, tach_indices=tach_indices, frequency_hz=frequency_hz, phase_rad=phase_rad
-    )
-    lines = additive_lines(theta, fs_hz, strobe.clock.frequency_hz)
-    if not lines:
-        return judge_regime(strobe, noise_rad, theta=theta, max_period=max_period), strobe
-    t = np.arange(np.asarray(theta).size) / fs_hz
-    cleaned = np.asarray(theta, dtype=float) - sum(line.at(t) for line in lines)
-    strobe = strobe_record(
-        cleaned, fs_hz, tach_indices=tach_indices, frequency_hz=frequency_hz,
-        phase_rad=phase_rad,
-    )
-    regime = judge_regime(strobe, noise_rad, theta=cleaned, max_period=max_period)
+    def judged(record: np.ndarray) -> tuple[Regime, StrobeSamples]:
+        strobe = strobe_record(record, fs_hz, tach_indices=tach_indices,
+                               frequency_hz=frequency_hz, phase_rad=phase_rad)
+        return judge_regime(strobe, noise_rad, theta=record, max_period=max_period), strobe
+
+    theta = np.asarray(theta, dtype=float)
+    as_recorded = judged(theta)
+    drive_hz = as_recorded[1].clock.frequency_hz
+    lines = [line for line in additive_lines(theta, fs_hz, drive_hz)
+             if line.amplitude_rad / math.sqrt(2.0) >= MIN_LINE_RMS * noise_rad]
+    t = np.arange(theta.size) / fs_hz
+    guard_hz = HARMONIC_GUARD_BINS * fs_hz / theta.size
+    while lines:
+        regime, strobe = judged(theta - sum(line.at(t) for line in lines))
+        if regime.kind != "periodic":
+            # a line matters to the judgement when it fakes or hides a period; in a motion
+            # that has none even without it, it may be the motion's own (chaos mixes its
+            # sidebands into a floor they do not stand out of)
+            return as_recorded
+        # a line at a multiple of f / k belongs to the period-k orbit found
+        base_hz = drive_hz / regime.period
+        kept = [line for line in lines
+                if abs(math.remainder(line.frequency_hz, base_hz)) > guard_hz]
+        if len(kept) == len(lines):
+            break
+        lines = kept
+    else:
+        return as_recorded
     evidence = dict(regime.evidence)
     evidence["additive_lines"] = [line.as_json() for line in lines]
     taken = ", ".join(f"{line.frequency_hz:.4g} Hz" for line in lines)
