@@ -27,13 +27,18 @@ from typing import Any
 
 import numpy as np
 from scipy import fft as sp_fft
-from scipy import ndimage, stats
+from scipy import stats
 
 from analysis.dynamics.lines import FALSE_ALARM, find_lines, periodogram
 from analysis.dynamics.strobe import StrobeClock
 from analysis.identify.drive import fit_table
 from analysis.identify.intervals import Z95, sandwich_covariance
-from analysis.identify.preprocess import noise_and_quantum
+from analysis.identify.preprocess import (
+    GAUSSIAN_BEYOND,
+    OUTLIER_SIGMA,
+    noise_and_quantum,
+    tail_spikes,
+)
 
 KINDS = ("line", "drive_frequency", "trend", "timing", "outliers", "backbone")
 
@@ -54,11 +59,6 @@ MIN_STRUCTURE = 0.2
 SCATTER_LIMIT = 1.75
 LJUNG_BOX_LAGS = 20
 MAX_LINES = 5
-# Heavy tails: beyond 5 sigma a Gaussian puts 5.7e-7 of its samples; the finding needs
-# significantly more, carrying at least this share of the squared detail (least squares
-# then spends that much of its attention on a few samples).
-OUTLIER_SIGMA = 5.0
-OUTLIER_SHARE = 0.01
 PHASE_HARMONICS = 8  # spikes locked to any of these harmonics of the drive are a misfit
 # Backbone: a mismatch of the frequency's change across the swing's amplitudes this large
 # (a pendulum's own backbone, A^2 / 16, moves it 0.1 % at 0.13 rad) is worth naming.
@@ -470,10 +470,10 @@ def _outliers(t, r, ok, base_hz) -> Finding | None:
     """Heavy-tailed noise, from the residual's detail d_i = r_i - (r_{i-1} + r_{i+1}) / 2
     (smooth structure gone; exactly Gaussian for Gaussian noise).
 
-    A finding when significantly more spikes of it (largest beside their neighbours) lie
-    beyond OUTLIER_SIGMA robust standard deviations than a Gaussian puts there (Poisson,
-    p < FALSE_ALARM; the count of all such samples is its upper bound), carrying at least
-    OUTLIER_SHARE of its sum of squares, and, on a driven record, not locked to the
+    A finding when its spikes are heavy-tailed by the test every heavy-tail judgement
+    uses (:func:`analysis.identify.preprocess.tail_spikes`: significantly more beyond
+    OUTLIER_SIGMA robust standard deviations than a Gaussian puts there, carrying at
+    least OUTLIER_SHARE of its sum of squares), and, on a driven record, not locked to the
     drive's phase (spikes at the impacts are a misfit of the contact, not noise): a
     Rayleigh test of the spikes' phases at each of the first PHASE_HARMONICS harmonics
     of ``base_hz`` (two impacts a period lock the second, not the first).
@@ -482,39 +482,27 @@ def _outliers(t, r, ok, base_hz) -> Finding | None:
     detail = (r[1:-1] - 0.5 * (r[:-2] + r[2:]))[inner]
     if detail.size < 8 * LJUNG_BOX_LAGS:
         return None
-    centre = float(np.median(detail))
-    scale = 1.4826 * float(np.median(np.abs(detail - centre)))
-    if scale <= 0:
+    spikes = tail_spikes(detail)
+    if spikes is None or not spikes.heavy:
         return None
-    size = np.abs(detail - centre)
-    beyond = size > OUTLIER_SIGMA * scale
-    # a spike of height h makes details h and -h/2 beside it: count each spike once
-    largest = beyond & (size >= ndimage.maximum_filter1d(size, 3, mode="nearest"))
-    count = int(np.count_nonzero(largest))
-    gaussian = float(2.0 * stats.norm.sf(OUTLIER_SIGMA))
-    expected = gaussian * detail.size
-    squares = (detail - centre) ** 2
-    share = float(squares[beyond].sum() / squares.sum())
-    if count == 0 or stats.poisson.sf(count - 1, expected) >= FALSE_ALARM \
-            or share < OUTLIER_SHARE:
-        return None
+    count = spikes.count
     if base_hz is not None:
-        times = t[1:-1][inner][largest]
+        times = t[1:-1][inner][spikes.where]
         harmonics = np.arange(1, PHASE_HARMONICS + 1)[:, None]
         phases = np.exp(2j * math.pi * base_hz * harmonics * times[None, :])
         # exp(-rayleigh) is each harmonic's p for phases spread evenly over the period
         rayleigh = count * np.abs(phases.mean(axis=1)) ** 2
         if rayleigh.max() > math.log(PHASE_HARMONICS / FALSE_ALARM):
             return None
-    fraction = count / detail.size
+    fraction = spikes.fraction
     kurtosis = float(stats.kurtosis(detail))
     return Finding(
         "outliers",
         f"heavy-tailed noise: {100 * fraction:.3g} % of samples beyond {OUTLIER_SIGMA:g} sigma "
-        f"(a Gaussian puts {100 * gaussian:.2g} % there), carrying {100 * share:.2g} % of the "
-        f"squared misfit; excess kurtosis {kurtosis:.3g}",
-        {"fraction_beyond_5_sigma": fraction, "gaussian_fraction": gaussian,
-         "count": float(count), "share_of_squares": share, "excess_kurtosis": kurtosis},
+        f"(a Gaussian puts {100 * GAUSSIAN_BEYOND:.2g} % there), carrying "
+        f"{100 * spikes.share:.2g} % of the squared misfit; excess kurtosis {kurtosis:.3g}",
+        {"fraction_beyond_5_sigma": fraction, "gaussian_fraction": GAUSSIAN_BEYOND,
+         "count": float(count), "share_of_squares": spikes.share, "excess_kurtosis": kurtosis},
     )
 
 
