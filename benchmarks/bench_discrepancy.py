@@ -141,10 +141,12 @@ def run_unknown(args: argparse.Namespace) -> None:
     flagged_unexplained = sum(r["unexplained"] for r in effects_rows)
     applies = [r for r in effects_rows if r["kind_applies"]]
     print(f"\neffects outside the registry: {len(effects_rows)} records")
-    print(f"confident false explanations (a cause named, nothing flagged): {confident} "
-          f"(goal 0); a cause named at all: {any_named}")
-    print(f"flagged: {flagged}/{len(effects_rows)} = {100 * flagged / len(effects_rows):.0f} % "
-          f"(goal >= 80 %); of them by unexplained: {flagged_unexplained}")
+    if effects_rows:
+        print(f"confident false explanations (a cause named, nothing flagged): {confident} "
+              f"(goal 0); a cause named at all: {any_named}")
+        print(f"flagged: {flagged}/{len(effects_rows)} = "
+              f"{100 * flagged / len(effects_rows):.0f} % (goal >= 80 %); of them by "
+              f"unexplained: {flagged_unexplained}")
     if applies:
         print(f"the right finding kind where one applies: "
               f"{sum(r['right_kind'] for r in applies)}/{len(applies)}")
