@@ -220,7 +220,11 @@ class Replay:
                 ReplayStream(self.recording, name, self.clock, max_block_samples=max_block_samples)
                 for name in names
             ]
-        except ValueError:
+            # read now, before any stream's thread reads the file: the GUI's replay crashed
+            # in HDF5 once (CI, a fresh clone) reading these on its own thread while the
+            # engine's threads read blocks
+            self._events = self.annotations()
+        except (ValueError, RecordingFormatError):
             self.recording.close()
             raise
 
@@ -261,9 +265,10 @@ class Replay:
     def publish_annotations(self, engine: AnnotationSink) -> None:
         """Publish the drive settings and step marks into ``engine`` when their sample is due.
 
-        Runs in its own thread; call after ``engine.start()``.
+        Runs in its own thread, from the events read when the replay was opened; call
+        after ``engine.start()``.
         """
-        events = self.annotations()
+        events = self._events
 
         def play() -> None:
             for event in events:
