@@ -30,6 +30,7 @@ import os
 from collections.abc import Callable, Mapping
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
+from itertools import pairwise
 from typing import NamedTuple
 
 import numpy as np
@@ -267,6 +268,7 @@ class ShootingProblem:
         self.sample_of = np.concatenate([np.arange(a, b) for a, b in zip(s.start, s.stop,
                                                                           strict=True)])
         self.segment_of = np.repeat(np.arange(s.count), s.stop - s.start)
+        self.groups = _groups(np.diff(self.bounds), self.threads)
         self.is_end = np.zeros(self.out_t.size, dtype=bool)
         self.is_end[self.bounds[1:] - 1] = True
         fit = np.zeros(self.sample_of.size, dtype=bool)
@@ -294,12 +296,34 @@ class ShootingProblem:
             out[p.name] = math.exp(x) if p.log else x
         return out
 
-    def run(self, values: Mapping[str, float], states: np.ndarray) -> tuple[np.ndarray, ...]:
-        """Measured angle at every segment sample, and every segment's end state."""
+    def _integrate(self, values: Mapping[str, float], states: np.ndarray,
+                   split: bool) -> tuple[np.ndarray, np.ndarray]:
+        """Angle and rate at every segment time (ends included).  ``split`` runs groups of
+        segments in threads (they are independent, so the result is the same to the bit):
+        a trial step's run is otherwise one core's work while the others wait."""
         p = self.packed_of(values)
-        th, om, _ = integrate_segments(p, self.t[self.segments.start], states, self.out_t,
-                                       self.bounds, rtol=RTOL, atol=ATOL,
-                                       max_steps=MAX_STEPS_PER_SEGMENT)
+        starts = self.t[self.segments.start]
+        groups = self.groups if split else [(0, self.segments.count)]
+
+        def group(bounds: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
+            a, b = bounds
+            lo, hi = self.bounds[a], self.bounds[b]
+            th, om, _ = integrate_segments(p, starts[a:b], states[a:b], self.out_t[lo:hi],
+                                           self.bounds[a:b + 1] - lo, rtol=RTOL, atol=ATOL,
+                                           max_steps=MAX_STEPS_PER_SEGMENT)
+            return th, om
+
+        if len(groups) == 1:
+            return group(groups[0])
+        parts = list(_pool(self.threads, "shooting-run").map(group, groups))
+        return (np.concatenate([th for th, _ in parts]),
+                np.concatenate([om for _, om in parts]))
+
+    def run(self, values: Mapping[str, float], states: np.ndarray, *,
+            split: bool = True) -> tuple[np.ndarray, ...]:
+        """Measured angle at every segment sample, and every segment's end state (``split``:
+        see ``_integrate``; a Jacobian's columns, already in threads, run whole)."""
+        th, om = self._integrate(values, states, split)
         ends = np.column_stack([th[self.is_end], om[self.is_end]])
         theta = th[~self.is_end]
         if self.measure is not None:
@@ -313,10 +337,7 @@ class ShootingProblem:
     def motion(self, values: Mapping[str, float], states: np.ndarray
                ) -> tuple[np.ndarray, np.ndarray]:
         """The model's true angle and rate at every segment sample (no sensor applied)."""
-        p = self.packed_of(values)
-        th, om, _ = integrate_segments(p, self.t[self.segments.start], states, self.out_t,
-                                       self.bounds, rtol=RTOL, atol=ATOL,
-                                       max_steps=MAX_STEPS_PER_SEGMENT)
+        th, om = self._integrate(values, states, split=True)
         return th[~self.is_end], om[~self.is_end]
 
     def residuals(self, theta: np.ndarray, ends: np.ndarray, states: np.ndarray) -> np.ndarray:
@@ -607,15 +628,15 @@ class ShootingProblem:
             du = u.copy()
             du[i] += h
             values = self.values_of(du)
-            th, en = self.run(values, s)
+            th, en = self.run(values, s, split=False)
             return (self.residuals(th, en, s) - r) / h
 
         def state_run(k: int) -> tuple[np.ndarray, np.ndarray]:
             ds = s.copy()
             ds[:, k] += hs[k]
-            return self.run(self.values_of(u), ds)
+            return self.run(self.values_of(u), ds, split=False)
 
-        pool = _pool(self.threads)
+        pool = _pool(self.threads, "shooting-jacobian")
         shared = list(pool.map(shared_column, range(g)))
         perturbed = list(pool.map(state_run, range(2)))
         blocks = [sparse.csr_matrix(np.column_stack(shared)) if g else
@@ -737,16 +758,26 @@ class ShootingProblem:
         return out, correlation
 
 
-_POOLS: dict[int, ThreadPoolExecutor] = {}
+_POOLS: dict[tuple[int, str], ThreadPoolExecutor] = {}
 
 
-def _pool(threads: int) -> ThreadPoolExecutor:
+def _pool(threads: int, role: str) -> ThreadPoolExecutor:
     """A thread pool kept for the process: a fit asks for hundreds of Jacobians, and starting
-    threads for each costs more than the columns they share out."""
-    if threads not in _POOLS:
-        _POOLS[threads] = ThreadPoolExecutor(max_workers=threads,
-                                             thread_name_prefix="shooting-jacobian")
-    return _POOLS[threads]
+    threads for each costs more than the columns they share out.  Each role has its own, so
+    that work one pool's thread hands out never waits behind that very thread."""
+    if (threads, role) not in _POOLS:
+        _POOLS[threads, role] = ThreadPoolExecutor(max_workers=threads,
+                                                   thread_name_prefix=role)
+    return _POOLS[threads, role]
+
+
+def _groups(sizes: np.ndarray, count: int) -> list[tuple[int, int]]:
+    """At most ``count`` runs of consecutive segments with about equal samples each."""
+    if count <= 1 or sizes.size < 2 * count:
+        return [(0, int(sizes.size))]
+    cuts = np.searchsorted(np.cumsum(sizes), np.arange(1, count) * sizes.sum() / count)
+    edges = np.unique(np.concatenate([[0], np.clip(cuts, 1, sizes.size - 1), [sizes.size]]))
+    return [(int(a), int(b)) for a, b in pairwise(edges)]
 
 
 def _to_u(p: FreeParameter, x: float) -> float:

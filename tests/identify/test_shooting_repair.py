@@ -57,3 +57,19 @@ def test_a_thrown_off_segment_takes_its_predecessors_motion(thrown_off, monkeypa
     stuck = problem.fit(states, max_iterations=2)
     assert abs(stuck.states[THROWN, 1] - true_states[THROWN, 1]) > 0.5
     assert stuck.rms > 1.2 * noise
+
+
+def test_runs_split_over_threads_equal_one_whole_run_to_the_bit(thrown_off):
+    """A trial step's run shares its segments out to the threads; segments are independent,
+    so the angles and end states must be exactly those of one run over all of them."""
+    problem, true_states, _states, _noise = thrown_off
+    assert len(problem.groups) == 2  # two threads: two runs of segments
+    values = problem.values_of(np.zeros(len(problem.free)))
+    split = problem.run(values, true_states, split=True)
+    whole = problem.run(values, true_states, split=False)
+    for a, b in zip(split, whole, strict=True):
+        np.testing.assert_array_equal(a, b)
+    # and the groups cover every segment once, in order
+    edges = [g for pair in problem.groups for g in pair]
+    assert edges[0] == 0 and edges[-1] == problem.segments.count
+    assert all(edges[i] == edges[i + 1] for i in range(1, len(edges) - 1, 2))
