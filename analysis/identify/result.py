@@ -8,6 +8,8 @@ from typing import Any
 
 import numpy as np
 
+from analysis.estimate_text import estimate_text
+
 
 class Residuals:
     """rss, n and rms of a fit's ``residual`` array (model - data, NaN where not fitted)."""
@@ -124,13 +126,7 @@ class IdentificationResult:
         lines = [f"experiment: {self.experiment}   method: {self.method}"]
         width = max((len(k) for k in self.parameters), default=0)
         for key, est in self.parameters.items():
-            if est.ci95 is None:
-                lines.append(f"  {key:<{width}}  {est.value:.6g}")
-            else:
-                lines.append(
-                    f"  {key:<{width}}  {est.value:.6g}   95% CI [{est.ci95[0]:.6g}, "
-                    f"{est.ci95[1]:.6g}]"
-                )
+            lines.append(f"  {key:<{width}}  {estimate_text(est.value, est.ci95)}")
         q = self.quality
         lines.append(
             f"fit: rms residual {q.rms_residual_rad:.3g} {q.unit} vs noise {q.noise_rad:.3g} "

@@ -17,6 +17,7 @@ import numpy as np
 
 from analysis.discrepancy.fitting import predict
 from analysis.discrepancy.outcome import Analysis
+from analysis.estimate_text import interval_text
 from analysis.extensions import NONE, causes_in
 from analysis.json_output import json_ready, write_json
 from analysis.provenance import markdown_provenance, png_metadata, provenance
@@ -114,9 +115,7 @@ def _fmt(est: dict[str, Any]) -> str:
     ci = est.get("ci95")
     if value is None:
         return "-"
-    if ci and all(c is not None for c in ci):
-        return f"{value:.4g} [{ci[0]:.4g}, {ci[1]:.4g}]"
-    return f"{value:.4g}"
+    return f"{value:.4g} {interval_text(value, ci, '.4g')}"
 
 
 def write_report(

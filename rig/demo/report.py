@@ -13,6 +13,7 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from analysis.estimate_text import estimate_text, interval_determined, interval_text
 from analysis.json_output import write_json
 from analysis.provenance import markdown_provenance, png_metadata, provenance
 from rig.demo.settings import ANALYSIS, FIGURES, RECORDINGS, DemoSettings, HiddenCause
@@ -70,10 +71,7 @@ class DemoResult:
 
 
 def _estimate_text(key: str, estimate: Mapping[str, Any], truth: float | None) -> str:
-    ci = estimate.get("ci95")
-    text = f"{key} = {estimate['value']:.6g}"
-    if ci:
-        text += f"  95% CI [{ci[0]:.6g}, {ci[1]:.6g}]"
+    text = f"{key} = {estimate_text(estimate['value'], estimate.get('ci95'))}"
     if truth is not None:
         text += f"  (virtual rig: {truth:.6g})"
     return text
@@ -245,10 +243,12 @@ def _value(estimate: Mapping[str, Any] | None) -> str:
 
 
 def _interval(estimate: Mapping[str, Any] | None, truth: float | None) -> str:
-    ci = (estimate or {}).get("ci95")
-    if not ci:
+    if not estimate:
         return "-"
-    text = f"[{ci[0]:.6g}, {ci[1]:.6g}]"
+    ci = estimate.get("ci95")
+    text = interval_text(estimate["value"], ci)
+    if not interval_determined(estimate["value"], ci):
+        return text
     if truth is not None and not ci[0] <= truth <= ci[1]:
         text += " *misses*"
     return text

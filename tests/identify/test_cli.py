@@ -98,7 +98,8 @@ def test_several_free_decays_are_pooled(tmp_path):
     assert len(report["details"]["records"]) == 2
 
 
-def test_impact_decay_with_length_and_damping_held_from_a_free_decay(decay_csv, tmp_path):
+def test_impact_decay_with_length_and_damping_held_from_a_free_decay(decay_csv, tmp_path,
+                                                                    capsys):
     from analysis.model import Model, RigParameters
     from analysis.simulate import SimulationSettings, simulate
 
@@ -115,6 +116,11 @@ def test_impact_decay_with_length_and_damping_held_from_a_free_decay(decay_csv, 
     assert main(["identify", str(path), "--free-decay", str(decay_csv), "--json", str(out)]) == 0
     report = json.loads(out.read_text())["parameters"]
     assert "ci95" not in report["L_m"]  # held from the free decay, not fitted
+    # and the printed summary says so in words, while a fitted one prints its interval
+    printed = {line.split()[0]: line for line in capsys.readouterr().out.splitlines()
+               if line.startswith("  ")}
+    assert printed["L_m"].endswith("(not determined by this record)")
+    assert "95% CI [" in printed["K_N_per_m1.5"]
     assert report["L_m"]["value"] == pytest.approx(0.25, rel=2e-3)
     low, high = report["K_N_per_m1.5"]["ci95"]
     assert low < 3e5 * 1.01 and high > 3e5 * 0.99  # held L is itself uncertain (~1e-3)
