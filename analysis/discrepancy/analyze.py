@@ -62,7 +62,7 @@ def prepare_data(record: Record) -> tuple[FitData, list[str]]:
     limit = MAX_FIT_SAMPLES_WITH_CONTACT if kind.barrier else MAX_FIT_SAMPLES
     stride = max(1, math.ceil(t.size / limit))
     if stride > 1:
-        notes.append(f"fitted on every {stride}th sample ({t.size} -> {-(-t.size // stride)})")
+        notes.append(f"fitted on one sample in {stride} ({t.size} -> {-(-t.size // stride)})")
     t, y, valid = t[::stride], y[::stride], valid[::stride].copy()
     data = FitData(
         experiment=experiment, t=t - t[0], y=y, valid=valid, noise_rad=float(noise),

@@ -149,3 +149,22 @@ def test_on_a_chaotic_record_the_invariants_veto_forecasts_but_do_not_replace_th
     runner = replace(_verdict("b", 30.0, 0.6, invariant=0.8), forecast_z=7.0)
     vetoed = replace(forecast, invariant_distance_extended=2.5)
     assert choose([vetoed, runner]).cause == "b"
+
+
+def test_a_long_decay_is_thinned_and_the_note_says_how_in_plain_words(tmp_path):
+    """A decay longer than the fit takes is fitted on one sample in k; the note says so
+    (it once read 'every 2th sample')."""
+    from analysis.discrepancy.analyze import MAX_FIT_SAMPLES, prepare_data
+    from analysis.exchange import ExchangeMeta, ExchangeRecord, write_exchange
+    from analysis.record_loaders import load_record
+
+    t = np.arange(int(2.5 * MAX_FIT_SAMPLES)) / 500.0
+    angle = 0.3 * np.exp(-0.05 * t) * np.cos(6.0 * t) + \
+        np.random.default_rng(1).normal(0.0, 2e-4, t.size)
+    meta = ExchangeMeta("free_decay", rig={"m_kg": 0.0326, "l_m": 0.05, "R_m": 0.0095,
+                                           "g": 9.81})
+    path, _ = write_exchange(tmp_path / "decay.csv", ExchangeRecord(t, angle, meta))
+    data, notes = prepare_data(load_record(path))
+    stride = math.ceil(t.size / MAX_FIT_SAMPLES)
+    assert stride == 3 and data.t.size == math.ceil(t.size / stride)
+    assert f"fitted on one sample in {stride} ({t.size} -> {data.t.size})" in notes
