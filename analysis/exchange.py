@@ -22,6 +22,9 @@ from analysis.json_output import write_json
 REQUIRED_COLUMNS = ("time_s", "angle_rad")
 OPTIONAL_COLUMNS = ("table_m", "tach")
 RIG_KEYS = ("m_kg", "l_m", "R_m", "g")
+OPTIONAL_RIG_KEYS = ("L_m",)  # the rig's equivalent length when the lab measured it
+# the sidecar's layout; 1 is also what a sidecar without the key is read as
+FORMAT_VERSION = 1
 UNIFORM_TOLERANCE = 1e-3  # allowed deviation of a time step, as a fraction of the mean step
 
 
@@ -41,7 +44,8 @@ class ExchangeMeta:
 
     def as_json(self) -> dict[str, Any]:
         """The sidecar as a JSON-ready dict (extra keys kept)."""
-        out: dict[str, Any] = {"experiment": self.experiment, "rig": dict(self.rig)}
+        out: dict[str, Any] = {"format_version": FORMAT_VERSION,
+                               "experiment": self.experiment, "rig": dict(self.rig)}
         if self.drive is not None:
             out["drive"] = dict(self.drive)
         out["notes"] = self.notes
@@ -100,6 +104,12 @@ def meta_from_json(raw: Any, path: str | Path) -> ExchangeMeta:
     path = Path(path)
     if not isinstance(raw, dict):
         raise ExchangeFormatError(f"{path}: expected a JSON object at the top level")
+    version = raw.get("format_version", 1)
+    if isinstance(version, bool) or version not in range(1, FORMAT_VERSION + 1):
+        raise ExchangeFormatError(
+            f"{path}: 'format_version' is {version!r}; this impact-rig reads versions 1 to "
+            f"{FORMAT_VERSION} (a newer one was written by a newer impact-rig: update it)"
+        )
     experiment = raw.get("experiment")
     if experiment not in NAMES:
         raise ExchangeFormatError(
@@ -109,6 +119,8 @@ def meta_from_json(raw: Any, path: str | Path) -> ExchangeMeta:
     if not isinstance(rig_raw, dict):
         raise ExchangeFormatError(f"{path}: 'rig' must be an object with keys {RIG_KEYS}")
     rig = {key: _optional_positive(path, f"rig.{key}", rig_raw.get(key)) for key in RIG_KEYS}
+    rig |= {key: _optional_positive(path, f"rig.{key}", rig_raw[key])
+            for key in OPTIONAL_RIG_KEYS if key in rig_raw}
     drive = raw.get("drive")
     if drive is not None:
         if not isinstance(drive, dict):
@@ -120,13 +132,18 @@ def meta_from_json(raw: Any, path: str | Path) -> ExchangeMeta:
     if experiment_kind(experiment).driven:
         for key in ("frequency_hz",):
             if not drive or drive.get(key) is None:
+                whole_sweep = " (this is a whole sweep whose drive changes step by step: " \
+                    "export it with --per-step to analyse one step)" \
+                    if raw.get("sweep_steps") else ""
                 raise ExchangeFormatError(
                     f"{path}: a forced record needs 'drive.{key}' (the drive frequency)"
+                    + whole_sweep
                 )
     notes = raw.get("notes") or ""
     if not isinstance(notes, str):
         raise ExchangeFormatError(f"{path}: 'notes' must be a string")
-    extra = {k: v for k, v in raw.items() if k not in ("experiment", "rig", "drive", "notes")}
+    extra = {k: v for k, v in raw.items()
+             if k not in ("format_version", "experiment", "rig", "drive", "notes")}
     return ExchangeMeta(experiment, rig, drive, notes, extra)
 
 
@@ -228,6 +245,17 @@ def _first_bad_line(path: Path, usecols: list[int]) -> str | None:
     return None
 
 
+def _column_text(values: np.ndarray, fmt: str) -> np.ndarray:
+    """A column as text: float32 samples (as a recording holds them) in the shortest text
+    that reads back the same float32, anything else in ``fmt``."""
+    values = np.asarray(values)
+    if values.dtype == np.float32:
+        return np.array([np.format_float_positional(v, unique=True, trim="-") if
+                         1e-4 <= abs(v) < 1e7 or v == 0 else
+                         np.format_float_scientific(v, unique=True, trim="-") for v in values])
+    return np.char.mod(fmt, np.asarray(values, dtype=float))
+
+
 def write_exchange(
     csv_path: str | Path, record: ExchangeRecord, *, overwrite: bool = False
 ) -> tuple[Path, Path]:
@@ -235,24 +263,15 @@ def write_exchange(
     (FileExistsError) unless ``overwrite``."""
     csv_path = Path(csv_path)
     names = ["time_s", "angle_rad"]
-    columns = [record.time_s, record.angle_rad]
-    formats = ["%.12g", "%.12g"]
+    columns = [_column_text(record.time_s, "%.12g"), _column_text(record.angle_rad, "%.12g")]
     if record.table_m is not None:
         names.append("table_m")
-        columns.append(record.table_m)
-        formats.append("%.9g")
+        columns.append(_column_text(record.table_m, "%.9g"))
     if record.tach is not None:
         names.append("tach")
-        columns.append(record.tach)
-        formats.append("%d")
+        columns.append(np.char.mod("%d", np.asarray(record.tach, dtype=np.int64)))
     with csv_path.open("w" if overwrite else "x", encoding="utf-8") as handle:
-        np.savetxt(
-            handle,
-            np.column_stack(columns),
-            delimiter=",",
-            header=",".join(names),
-            comments="",
-            fmt=formats,
-        )
+        handle.write(",".join(names) + "\n")
+        handle.writelines(",".join(row) + "\n" for row in zip(*columns, strict=True))
     json_path = write_json(sidecar_path(csv_path), record.meta.as_json(), overwrite=overwrite)
     return csv_path, json_path

@@ -13,15 +13,14 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import h5py
 import numpy as np
 
-from analysis.exchange import meta_from_json
+from analysis.exchange import OPTIONAL_RIG_KEYS, RIG_KEYS, meta_from_json
 from analysis.recording_file import RecordingFormatError, open_recording
 from analysis.records import Record, RecordFormatError
-
-RIG_KEYS = ("m_kg", "l_m", "R_m", "g")
 
 
 @dataclass(frozen=True)
@@ -38,6 +37,9 @@ class RecordingArrays:
     drive: dict[str, float] | None
     notes: str
     steps: np.ndarray  # the /sweep_steps table
+    calibrations: dict[str, Any]
+    format_version: int
+    stored_as: str  # the samples' dtype in the file (float32: their text needs 9 digits at most)
 
 
 def read_recording_arrays(path: str | Path) -> RecordingArrays:
@@ -74,10 +76,14 @@ def read_recording_arrays(path: str | Path) -> RecordingArrays:
             table_m=table,
             tach_edges=edges,
             experiment=info.experiment,
-            rig={key: info.rig.get(key) for key in RIG_KEYS},
+            rig={key: info.rig.get(key) for key in RIG_KEYS}
+            | {key: info.rig[key] for key in OPTIONAL_RIG_KEYS if info.rig.get(key)},
             drive=info.drive,
             notes=info.notes,
             steps=recording.sweep_steps(),
+            calibrations=dict(info.calibrations),
+            format_version=int(info.format_version),
+            stored_as=angle_data.values.dtype.name,
         )
 
 
@@ -90,17 +96,60 @@ def _record(
 ) -> Record:
     indices = arrays.indices[select]
     tach = np.flatnonzero(np.isin(indices, arrays.tach_edges))
+    context: dict[str, Any] = {"calibrations": arrays.calibrations,
+                               "recording_format_version": arrays.format_version,
+                               "samples_stored_as": arrays.stored_as}
+    if drive is None:
+        drive, steps = _whole_drive(arrays, indices)
+        if steps:
+            context["sweep_steps"] = steps
     return Record(
         time_s=arrays.time_s[select],
         angle_rad=arrays.angle_rad[select],
         experiment=arrays.experiment,
         rig=arrays.rig,
-        drive=drive if drive is not None else arrays.drive,
+        drive=drive,
         table_m=None if arrays.table_m is None else arrays.table_m[select],
         tach_indices=tach,
         source=f"{path}{label}",
         notes=arrays.notes,
+        context=context,
     )
+
+
+def _whole_drive(
+    arrays: RecordingArrays, indices: np.ndarray
+) -> tuple[dict[str, float] | None, list[dict[str, Any]]]:
+    """The drive of a stretch that may span sweep steps, and those steps.  Only what every
+    step in it shares is its drive: a frequency sweep's stretch has no one frequency (the
+    recording's own drive is where the sweep began), and a reader must not take one."""
+    steps = arrays.steps
+    if steps.size and indices.size:
+        steps = steps[(steps["dwell_end_index"] > indices[0])
+                      & (steps["settle_start_index"] <= indices[-1])]
+    if not steps.size:
+        return arrays.drive, []
+    listed = [{"step": int(s["step"]), "frequency_hz": float(s["frequency_hz"]),
+               "amplitude_m": float(s["amplitude_m"]),
+               "start_s": _time_at(arrays, int(s["settle_start_index"])),
+               "dwell_start_s": _time_at(arrays, int(s["dwell_start_index"])),
+               "dwell_end_s": _time_at(arrays, int(s["dwell_end_index"])),
+               "complete": bool(s["complete"])} for s in steps]
+    shared = {key: listed[0][key] for key in ("frequency_hz", "amplitude_m")
+              if len({step[key] for step in listed}) == 1}
+    return shared or None, listed
+
+
+def _time_at(arrays: RecordingArrays, index: int) -> float:
+    """The time of device sample ``index`` (the nearest recorded one)."""
+    at = min(int(np.searchsorted(arrays.indices, index)), arrays.indices.size - 1)
+    return float(arrays.time_s[at] + (index - arrays.indices[at]) * _sample_step(arrays))
+
+
+def _sample_step(arrays: RecordingArrays) -> float:
+    if arrays.indices.size < 2:
+        return 0.0
+    return float((arrays.time_s[-1] - arrays.time_s[0]) / (arrays.indices[-1] - arrays.indices[0]))
 
 
 def gap_free_segments(indices: np.ndarray) -> list[tuple[int, int]]:

@@ -12,6 +12,23 @@ class OutputPathError(ValueError):
     """An output path that must not be written; the message names it and says why."""
 
 
+HDF5_SUFFIXES = (".h5", ".hdf5")
+
+
+def check_suffix(path: str | Path, suffixes: Iterable[str], what: str) -> Path:
+    """``path``, after refusing a name whose extension is not one of ``suffixes`` (a
+    ``what`` saved as run.csv would be opened by the wrong program, or by us as the wrong
+    format)."""
+    path = Path(path)
+    allowed = tuple(suffixes)
+    if path.suffix.lower() not in allowed:
+        raise OutputPathError(
+            f"{path}: {what} is written as {' or '.join(allowed)}; name it "
+            f"{path.with_suffix(allowed[0]).name}"
+        )
+    return path
+
+
 def _same_file(a: Path, b: Path) -> bool:
     if a.exists() and b.exists():
         return os.path.samefile(a, b)

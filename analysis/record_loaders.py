@@ -29,6 +29,8 @@ def load_exchange_record(path: Path, meta_path: Path | None = None) -> Record:
         tach_indices=exchange.tach_indices,
         source=str(path),
         notes=meta.notes,
+        # what the sidecar says beyond the model's needs; who wrote it describes that file
+        context={k: v for k, v in meta.extra.items() if k not in ("source", "provenance")},
     )
 
 

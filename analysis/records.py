@@ -10,6 +10,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from types import MappingProxyType
+from typing import Any
 
 import numpy as np
 
@@ -27,7 +28,9 @@ class Record:
 
     ``rig`` holds the known rig constants under the exchange keys ``m_kg``, ``l_m``,
     ``R_m``, ``g`` (None where unknown); ``drive`` the stated ``frequency_hz`` and
-    ``amplitude_m`` of a forced run (None when undriven).
+    ``amplitude_m`` of a forced run (None when undriven).  ``context`` is what the source
+    says beyond what the model needs (the calibrations, the recording's format version, a
+    whole sweep's steps), carried into what is written from the record.
     """
 
     time_s: np.ndarray
@@ -39,6 +42,7 @@ class Record:
     tach_indices: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
     source: str = ""
     notes: str = ""
+    context: Mapping[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         time_s = np.asarray(self.time_s, dtype=float)
@@ -56,6 +60,7 @@ class Record:
         object.__setattr__(self, "time_s", time_s)
         object.__setattr__(self, "angle_rad", angle)
         object.__setattr__(self, "rig", MappingProxyType(dict(self.rig)))
+        object.__setattr__(self, "context", MappingProxyType(dict(self.context)))
         if self.drive is not None:
             object.__setattr__(self, "drive", MappingProxyType(dict(self.drive)))
         if self.table_m is not None:

@@ -23,6 +23,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from analysis.output_paths import HDF5_SUFFIXES, OutputPathError, check_suffix
 from analysis.recording_file import (
     FORMAT_NAME,
     FORMAT_VERSION,
@@ -84,6 +85,10 @@ def check_destination(
     path = Path(path)
     if path.is_dir():
         raise RecordingError(f"{path}: is a folder; give a file name such as {path / 'run.h5'}")
+    try:
+        check_suffix(path, HDF5_SUFFIXES, "a recording (HDF5)")
+    except OutputPathError as error:
+        raise RecordingError(str(error)) from None
     if path.exists() and not overwrite:
         raise RecordingExistsError(
             f"{path}: already exists; choose another name or pass --overwrite to replace it"

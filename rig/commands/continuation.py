@@ -187,8 +187,9 @@ def run(args: argparse.Namespace) -> int:
 
 def _check_arguments(args: argparse.Namespace) -> None:
     """Refuse an output name, period, brute-force setting or overlay that cannot work."""
-    if args.out.suffix.lower() not in (".h5", ".hdf5"):
-        raise CommandError(f"--out {args.out}: expected an .h5 file name")
+    from analysis.output_paths import HDF5_SUFFIXES, check_suffix
+
+    check_suffix(args.out, HDF5_SUFFIXES, "a continuation (HDF5)")
     if args.period < 1:
         raise CommandError(f"--period {args.period}: must be at least 1")
     if args.brute_force < 0 or args.brute_force == 1 or args.brute_force_periods < 5:

@@ -61,34 +61,37 @@ def to_exchange(record):
     """An analysis ``Record`` as an ``ExchangeRecord`` (tach as a 0/1 column)."""
     import numpy as np
 
-    from analysis.exchange import RIG_KEYS, ExchangeMeta, ExchangeRecord
+    from analysis.exchange import OPTIONAL_RIG_KEYS, RIG_KEYS, ExchangeMeta, ExchangeRecord
+    from analysis.provenance import provenance
 
     tach = None
     if record.tach_indices.size or record.kind.driven:
         tach = np.zeros(record.time_s.size, dtype=np.int64)
         tach[record.tach_indices] = 1
-    from analysis.provenance import provenance
-
     meta = ExchangeMeta(
         experiment=record.experiment,
-        rig={key: record.rig.get(key) for key in RIG_KEYS},
+        rig={key: record.rig.get(key) for key in RIG_KEYS}
+        | {key: record.rig[key] for key in OPTIONAL_RIG_KEYS if record.rig.get(key)},
         drive=None if record.drive is None else dict(record.drive),
         notes=record.notes,
-        extra={"source": record.source, "provenance": provenance()},
+        # the calibrations, the recording's format version, a whole sweep's steps
+        extra={**record.context, "source": record.source, "provenance": provenance()},
     )
-    return ExchangeRecord(record.time_s, record.angle_rad, meta, record.table_m, tach)
+    # samples recorded as float32 are written as such: their shortest text, not the
+    # float64 digits of their conversion (0.1 recorded reads 0.1, not 0.100000001490116)
+    stored = np.float32 if record.context.get("samples_stored_as") == "float32" else float
+    table = None if record.table_m is None else record.table_m.astype(stored)
+    return ExchangeRecord(record.time_s, record.angle_rad.astype(stored), meta, table, tach)
 
 
 def run(args: argparse.Namespace) -> int:
     """Load, cut (steps or segments), write; one line per file written."""
     from analysis.exchange import sidecar_path, write_exchange
     from analysis.hdf5_records import load_hdf5_segments, load_hdf5_steps
-    from analysis.output_paths import check_outputs
+    from analysis.output_paths import check_outputs, check_suffix
     from analysis.records import RecordFormatError
 
-    out = Path(args.out)
-    if out.suffix.lower() != ".csv":
-        raise CommandError(f"--out {out}: expected a file name ending in .csv")
+    out = check_suffix(args.out, (".csv",), "the exchange table (CSV)")
     folder = out.parent if str(out.parent) else Path(".")
     if not folder.is_dir():
         raise CommandError(f"--out {out}: folder {folder} does not exist")
@@ -132,7 +135,15 @@ def run(args: argparse.Namespace) -> int:
         print(
             f"{csv_path} + {json_path.name}: {record.time_s.size} samples at "
             f"{record.sample_rate_hz:g} Hz ({record.experiment}"
-            + (f", {record.drive['frequency_hz']:g} Hz drive" if record.drive else "")
-            + ")"
+            + _drive_words(record) + ")"
         )
     return 0
+
+
+def _drive_words(record) -> str:
+    """The drive as the line after a written file states it."""
+    steps = record.context.get("sweep_steps")
+    if steps:
+        return f", a sweep of {len(steps)} steps: drive per step in the JSON"
+    frequency = (record.drive or {}).get("frequency_hz")
+    return f", {frequency:g} Hz drive" if frequency else ""

@@ -74,6 +74,8 @@ def test_extra_columns_are_ignored(tmp_path):
     "meta, field",
     [({"experiment": "spin"}, "experiment"),
      ({"experiment": "forced"}, "drive.frequency_hz"),
+     ({"format_version": 2, "experiment": "free_decay"}, "format_version.*newer"),
+     ({"format_version": "1", "experiment": "free_decay"}, "format_version"),
      ({"experiment": "free_decay", "rig": {"l_m": -1}}, "rig.l_m")],
 )
 def test_bad_sidecar_names_the_field(tmp_path, meta, field):

@@ -109,6 +109,18 @@ def test_export_round_trip_gives_back_the_recorded_samples(forced_recording, tmp
     assert meta["drive"]["frequency_hz"] == 6.0
     assert meta["rig"]["m_kg"] == 0.0326
     assert exchanged.meta.notes == "cli test"
+    # the sidecar carries what a reader needs beyond the samples
+    assert meta["format_version"] == 1
+    assert meta["rig"]["L_m"] == L_M
+    assert meta["calibrations"]["angle"]["law"] == "potentiometer"
+    assert meta["samples_stored_as"] == "float32"
+    assert meta["provenance"]["command_line"][:2] == ["impact-rig", "export"]
+    # and the numbers are the recorded float32 samples' own digits, no conversion noise
+    rows = out.read_text().splitlines()[1:]
+    angle_text = [row.split(",")[1] for row in rows]
+    assert max(len(text.lstrip("-").replace(".", "").lstrip("0")) for text in angle_text) <= 9
+    assert [float(text) for text in angle_text[:50]] == \
+        [float(str(v)) for v in angle.values[:50]]
     # an existing export is not overwritten silently
     assert main(["export", str(forced_recording), "--out", str(out)]) == 2
     assert "already exists" in capsys.readouterr().err
@@ -233,6 +245,17 @@ def test_sweep_marks_every_step_and_per_step_export_has_the_step_drive(tmp_path)
         assert record.meta.drive["frequency_hz"] == frequency
         spacing = np.diff(record.tach_indices)
         np.testing.assert_allclose(spacing, 2000 / frequency, atol=1.0)
+    # the whole sweep in one file claims no one frequency: its sidecar lists the steps,
+    # and reading it as one forced record is refused with the way out
+    whole = tmp_path / "whole.csv"
+    assert main(["export", str(path), "--out", str(whole)]) == 0
+    meta = json.loads(whole.with_suffix(".json").read_text())
+    assert "frequency_hz" not in (meta.get("drive") or {})
+    assert [s["frequency_hz"] for s in meta["sweep_steps"]] == [4.0, 5.0, 4.0]
+    starts = [s["dwell_start_s"] for s in meta["sweep_steps"]]
+    assert starts == sorted(starts) and all(s["complete"] for s in meta["sweep_steps"])
+    with pytest.raises(ValueError, match="--per-step"):
+        read_exchange(whole)
 
 
 def test_laser_readings_beyond_its_range_are_recorded_flagged_and_replayed(tmp_path):

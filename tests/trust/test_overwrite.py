@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import shutil
+from pathlib import Path
 import subprocess
 
 from rig.cli import main
@@ -82,3 +83,18 @@ def test_record_refuses_an_existing_log_beside_the_recording(tmp_path):
     done = run_cli("record", "--sim", "--duration", "1", "--out", str(tmp_path / "run.h5"))
     _refused(done, log, "already exists")
     assert not (tmp_path / "run.h5").exists()
+
+
+def test_a_file_is_never_written_under_another_formats_extension(recording, tmp_path, capsys):
+    """A recording (HDF5) saved as run.csv would be read by the next program as a table:
+    every command that writes one refuses the name, before anything runs."""
+    csv = tmp_path / "run.csv"
+    refusals = [
+        ("record", "--sim", "--duration", "1", "--out", str(csv)),
+        ("replay", str(recording), "--fast", "--record", str(csv)),
+        ("repair", str(recording), "--out", str(csv)),
+        ("export", str(recording), "--out", str(tmp_path / "run.h5")),
+    ]
+    for args in refusals:
+        _refused(_in_process(capsys, *args), Path(args[-1]), "is written as")
+    assert not csv.exists() and not (tmp_path / "run.h5").exists()
