@@ -28,9 +28,15 @@ from drivers.limits import ShakerLimits
 from drivers.shaker import ShakerAmplifier
 from rig.devices import ANGLE, TABLE, TACH, RigDevices
 from rig.drive_monitor import DriveMonitor
-from rig.engine import AcquisitionEngine, Delivery, Subscription
+from rig.engine import (
+    AcquisitionEngine,
+    AcquisitionError,
+    Delivery,
+    SubscriberOverrunError,
+    Subscription,
+)
 from rig.events import COMMANDED, DriveSetting, StepMark
-from rig.recorder import Recorder, RecorderThread, RecordingMetadata
+from rig.recorder import Recorder, RecorderThread, RecordingError, RecordingMetadata
 
 Progress = Callable[[str], None]
 FIRST_DATA_TIMEOUT_S = 15.0  # generous: a loaded lab PC can be slow to start streaming
@@ -44,6 +50,19 @@ class ProcedureError(RuntimeError):
 class ProcedureCancelledError(ProcedureError):
     """Raised at a procedure's next wait once its ``Cancel`` was requested; the session ends
     the procedure there, closes the file with the request's reason and returns normally."""
+
+
+# What a procedure on the rig fails with once it has started: the devices, the limits, the
+# recording, the acquisition or the procedure itself.  The CLI and the demo turn these into
+# their own errors (the drive is then at zero and the file keeps what was recorded).
+RIG_FAILURES: tuple[type[Exception], ...] = (
+    DeviceError,
+    LimitError,
+    RecordingError,
+    ProcedureError,
+    AcquisitionError,
+    SubscriberOverrunError,
+)
 
 
 class Cancel:

@@ -162,22 +162,12 @@ def _run_on_devices(
     path: Path,
     procedure: Callable[[RigDevices], ProcedureResult],
 ) -> ProcedureResult:
-    from drivers.interfaces import DeviceError, LimitError
-    from rig.engine import AcquisitionError, SubscriberOverrunError
-    from rig.procedures import ProcedureError
-    from rig.recorder import RecordingError
+    from rig.procedures import RIG_FAILURES
 
     devices = open_devices(config, fs)
     try:
         return procedure(devices)
-    except (
-        DeviceError,
-        LimitError,
-        RecordingError,
-        ProcedureError,
-        AcquisitionError,
-        SubscriberOverrunError,
-    ) as error:
+    except RIG_FAILURES as error:
         raise CommandError(
             f"{error} (the drive was ramped to zero; {path} keeps the data recorded so far)"
         ) from None
