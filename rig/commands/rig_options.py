@@ -12,7 +12,7 @@ import math
 import time
 from collections.abc import Callable, Iterable
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from rig.cli import CommandError
 
@@ -173,6 +173,38 @@ def _run_on_devices(
         ) from None
     finally:
         devices.close()
+
+
+def record_and_report(
+    args: argparse.Namespace,
+    config: RigConfig,
+    fs: float | None,
+    procedure: Callable[..., ProcedureResult],
+    plan: Any,
+) -> None:
+    """Run ``procedure(devices, path, plan, ...)`` (a rig.procedures recording) into the
+    checked --out with --notes, --overwrite and the compression, and print its summary."""
+    path = check_output(args)
+    result = run_procedure(
+        config,
+        fs,
+        path,
+        lambda devices: procedure(
+            devices,
+            path,
+            plan,
+            notes=args.notes,
+            overwrite=args.overwrite,
+            compression=compression(args),
+            progress=ProgressLine(),
+        ),
+    )
+    report(result)
+
+
+def drive_amplitude_m(args: argparse.Namespace, config: RigConfig) -> float:
+    """The drive amplitude given as --beta (A = beta L of the rig) or --amplitude-mm."""
+    return args.beta * config.constants.L_m if args.beta is not None else args.amplitude_mm * 1e-3
 
 
 class ProgressLine:
