@@ -7,7 +7,7 @@ import argparse
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from rig.cli import CommandError
+from rig.cli import CommandError, add_command
 from rig.logs import progress
 
 if TYPE_CHECKING:
@@ -48,12 +48,12 @@ examples:
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add the ``analyze`` sub-command."""
-    parser = subparsers.add_parser(
+    parser = add_command(
+        subparsers,
         "analyze",
-        help="find what the model gets wrong on a record and the gain of the fix",
-        description=DESCRIPTION,
-        epilog=EPILOG,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
+        "find what the model gets wrong on a record and the gain of the fix",
+        DESCRIPTION,
+        EPILOG,
     )
     parser.add_argument("file", type=Path, help="exchange CSV or HDF5 recording")
     parser.add_argument("--meta", type=Path, help="JSON sidecar, if not NAME.json beside FILE")

@@ -13,7 +13,7 @@ import math
 from pathlib import Path
 from typing import Any
 
-from rig.cli import CommandError
+from rig.cli import CommandError, add_command
 
 KIND_DEFAULTS = {  # ics, transient periods, record periods
     "bifurcation": (4, 400, 100),
@@ -67,12 +67,12 @@ examples:
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add the ``map`` sub-command."""
-    parser = subparsers.add_parser(
+    parser = add_command(
+        subparsers,
         "map",
-        help="bifurcation, regime or basin maps, on this machine or a Dask cluster -> HDF5 + PNG",
-        description=DESCRIPTION,
-        epilog=EPILOG,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
+        "bifurcation, regime or basin maps, on this machine or a Dask cluster -> HDF5 + PNG",
+        DESCRIPTION,
+        EPILOG,
     )
     parser.add_argument("kind", choices=tuple(KIND_DEFAULTS), help="what to map")
     parser.add_argument(

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 
 from analysis.experiments import NAMES
-from rig.cli import CommandError
+from rig.cli import CommandError, add_command
 from rig.commands.rig_options import (
     add_rig_options,
     check_drive_limits,
@@ -47,12 +47,12 @@ examples:
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add the ``record`` sub-command."""
-    parser = subparsers.add_parser(
+    parser = add_command(
+        subparsers,
         "record",
-        help="record the rig (real or --sim) to a crash-safe HDF5 file",
-        description=DESCRIPTION,
-        epilog=EPILOG,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
+        "record the rig (real or --sim) to a crash-safe HDF5 file",
+        DESCRIPTION,
+        EPILOG,
     )
     add_rig_options(parser)
     run_group = parser.add_argument_group("experiment")

@@ -21,7 +21,7 @@ from pathlib import Path
 from typing import Any
 
 from analysis.experiments import FORCED, IMPACT_DECAY, NAMES, experiment_kind
-from rig.cli import CommandError
+from rig.cli import CommandError, add_command
 from rig.logs import log, progress
 
 DRIVE_PARAMETERS = {
@@ -75,12 +75,12 @@ examples:
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add the ``simulate`` sub-command."""
-    parser = subparsers.add_parser(
+    parser = add_command(
+        subparsers,
         "simulate",
-        help="simulate the pendulum and write CSV + JSON or HDF5",
-        description=DESCRIPTION,
-        epilog=EPILOG,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
+        "simulate the pendulum and write CSV + JSON or HDF5",
+        DESCRIPTION,
+        EPILOG,
     )
     parser.add_argument(
         "--experiment",

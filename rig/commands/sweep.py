@@ -6,7 +6,7 @@ import argparse
 
 import numpy as np
 
-from rig.cli import CommandError
+from rig.cli import CommandError, add_command
 from rig.commands.rig_options import (
     add_rig_options,
     check_drive_limits,
@@ -39,12 +39,12 @@ examples:
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add the ``sweep`` sub-command."""
-    parser = subparsers.add_parser(
+    parser = add_command(
+        subparsers,
         "sweep",
-        help="forced-response sweep of frequency or amplitude, up and down, recorded",
-        description=DESCRIPTION,
-        epilog=EPILOG,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
+        "forced-response sweep of frequency or amplitude, up and down, recorded",
+        DESCRIPTION,
+        EPILOG,
     )
     add_rig_options(parser)
     plan = parser.add_argument_group("sweep")
