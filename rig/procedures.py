@@ -16,7 +16,7 @@ import threading
 import time
 from collections import deque
 from collections.abc import Callable, Iterable
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -635,34 +635,14 @@ def run_sweep(
             try:
                 session.wait(plan.settle_s)
                 dwell_start = session.engine.latest_index or settle_start
-                mark = StepMark(
-                    number,
-                    direction,
-                    frequency_hz,
-                    amplitude_m,
-                    settle_start,
-                    dwell_start,
-                    dwell_start,
-                    complete=False,
-                )
+                mark = replace(mark, dwell_start_index=dwell_start, dwell_end_index=dwell_start)
                 progress(f"step {number + 1}/{len(steps)} {arrow}: dwell {plan.dwell_s:g} s")
                 session.wait(plan.dwell_s)
             except BaseException:
                 end = session.engine.latest_index or mark.dwell_start_index
-                session.engine.mark_step(StepMark(**{**asdict(mark), "dwell_end_index": end}))
+                session.engine.mark_step(replace(mark, dwell_end_index=end))
                 raise
             end = session.engine.latest_index or dwell_start
-            session.engine.mark_step(
-                StepMark(
-                    number,
-                    direction,
-                    frequency_hz,
-                    amplitude_m,
-                    settle_start,
-                    dwell_start,
-                    end,
-                    complete=True,
-                )
-            )
+            session.engine.mark_step(replace(mark, dwell_end_index=end, complete=True))
             done += 1
     return session.result(FORCED.name, steps=done)
