@@ -1066,58 +1066,9 @@ def _salvage(
             findings.append(f"attribute {key} unreadable; left empty")
             return default
 
-    specs, samples, pulses = [], {}, {}
-    kept: dict[str, int] = {}
-    lost: dict[str, int] = {}
-    for top, kind in (("channels", "samples"), ("pulses", "pulses")):
-        try:
-            names = list(damaged[top].keys())
-        except (OSError, RuntimeError, KeyError):
-            findings.append(f"/{top} unreadable: its channels are lost")
-            continue
-        for name in names:
-            try:
-                group = damaged[top][name]
-                group_attrs = read_attributes(group)
-                rate = float(group_attrs["sample_rate_hz"])
-                spec = ChannelSpec(
-                    name,
-                    kind,
-                    str(group_attrs.get("unit", "")),
-                    rate,
-                    str(group_attrs.get("device", "")),
-                    json.loads(group_attrs.get("calibration_json", "null")),
-                    str(group["raw"].dtype) if kind == "samples" else "int32",
-                )
-                rows, rows_good = _readable(group["blocks"], TABLE_CHUNK_ROWS)
-                gaps, gaps_good = _readable(group["gaps"], TABLE_CHUNK_ROWS)
-            except (OSError, RuntimeError, KeyError, ValueError, TypeError) as error:
-                findings.append(f"/{top}/{name} unreadable ({_first_line(error)}): lost")
-                continue
-            if not rows_good.all():
-                findings.append(f"/{top}/{name}/blocks: {int((~rows_good).sum())} rows unreadable")
-            specs.append(spec)
-            if kind == "samples":
-                samples[name] = _salvage_samples(group, rows[rows_good], gaps[gaps_good], rate)
-                kept[name], lost[name] = samples[name][-2:]
-            else:
-                pulses[name] = _salvage_pulses(group, rows[rows_good], gaps[gaps_good])
-                kept[name], lost[name] = pulses[name][-2:]
-    tables = {}
-    for name, dtype in (("drive", DRIVE_DTYPE), ("sweep_steps", STEP_DTYPE)):
-        try:
-            rows, good = _readable(damaged[name], TABLE_CHUNK_ROWS)
-            tables[name] = rows[good]
-            if not good.all():
-                findings.append(f"/{name}: {int((~good).sum())} rows unreadable")
-        except (OSError, RuntimeError, KeyError):
-            tables[name] = np.zeros(0, dtype)
-            findings.append(f"/{name} unreadable: lost")
-    try:
-        status = damaged["status"][0]
-        reason = bytes(status["stop_reason"]).rstrip(b"\0").decode("utf-8", "replace")
-    except (OSError, RuntimeError, KeyError):
-        reason = "unknown (status unreadable)"
+    specs, samples, pulses, kept, lost = _salvaged_channels(damaged, findings)
+    tables = _salvaged_tables(damaged, findings)
+    reason = _stop_reason(damaged)
     from analysis.provenance import provenance
 
     extra = decoded("extra_json", {})
@@ -1161,6 +1112,76 @@ def _salvage(
     finally:
         writer.close()
     return RepairReport(source, destination, kept, lost, tuple(findings))
+
+
+def _salvaged_channels(damaged: h5py.File, findings: list[str]) -> tuple[
+    list[ChannelSpec], dict[str, tuple[Any, ...]], dict[str, tuple[Any, ...]],
+    dict[str, int], dict[str, int],
+]:
+    """The readable sample and pulse channels: specs, their salvaged data, and per channel the
+    samples kept and lost; what cannot be read is noted in ``findings``."""
+    specs, samples, pulses = [], {}, {}
+    kept: dict[str, int] = {}
+    lost: dict[str, int] = {}
+    for top, kind in (("channels", "samples"), ("pulses", "pulses")):
+        try:
+            names = list(damaged[top].keys())
+        except (OSError, RuntimeError, KeyError):
+            findings.append(f"/{top} unreadable: its channels are lost")
+            continue
+        for name in names:
+            try:
+                group = damaged[top][name]
+                group_attrs = read_attributes(group)
+                rate = float(group_attrs["sample_rate_hz"])
+                spec = ChannelSpec(
+                    name,
+                    kind,
+                    str(group_attrs.get("unit", "")),
+                    rate,
+                    str(group_attrs.get("device", "")),
+                    json.loads(group_attrs.get("calibration_json", "null")),
+                    str(group["raw"].dtype) if kind == "samples" else "int32",
+                )
+                rows, rows_good = _readable(group["blocks"], TABLE_CHUNK_ROWS)
+                gaps, gaps_good = _readable(group["gaps"], TABLE_CHUNK_ROWS)
+            except (OSError, RuntimeError, KeyError, ValueError, TypeError) as error:
+                findings.append(f"/{top}/{name} unreadable ({_first_line(error)}): lost")
+                continue
+            if not rows_good.all():
+                findings.append(f"/{top}/{name}/blocks: {int((~rows_good).sum())} rows unreadable")
+            specs.append(spec)
+            if kind == "samples":
+                samples[name] = _salvage_samples(group, rows[rows_good], gaps[gaps_good], rate)
+                kept[name], lost[name] = samples[name][-2:]
+            else:
+                pulses[name] = _salvage_pulses(group, rows[rows_good], gaps[gaps_good])
+                kept[name], lost[name] = pulses[name][-2:]
+    return specs, samples, pulses, kept, lost
+
+
+def _salvaged_tables(damaged: h5py.File, findings: list[str]) -> dict[str, np.ndarray]:
+    """The readable rows of the drive and sweep-step tables (empty where a table is lost)."""
+    tables = {}
+    for name, dtype in (("drive", DRIVE_DTYPE), ("sweep_steps", STEP_DTYPE)):
+        try:
+            rows, good = _readable(damaged[name], TABLE_CHUNK_ROWS)
+            tables[name] = rows[good]
+            if not good.all():
+                findings.append(f"/{name}: {int((~good).sum())} rows unreadable")
+        except (OSError, RuntimeError, KeyError):
+            tables[name] = np.zeros(0, dtype)
+            findings.append(f"/{name} unreadable: lost")
+    return tables
+
+
+def _stop_reason(damaged: h5py.File) -> str:
+    """Why the damaged run stopped, as its status row says (when that row can be read)."""
+    try:
+        status = damaged["status"][0]
+        return bytes(status["stop_reason"]).rstrip(b"\0").decode("utf-8", "replace")
+    except (OSError, RuntimeError, KeyError):
+        return "unknown (status unreadable)"
 
 
 def _salvage_samples(

@@ -175,21 +175,13 @@ class _AnalogRole(_BoardRole):
         self.analog_channel = analog_channel
         self._column = board.column_of(analog_channel)  # unknown channel: clear error now
 
-    def _read_counts(self, timeout_s: float) -> tuple[RawChunk, int, np.ndarray] | None:
+    def read(self, timeout_s: float = 0.1) -> SampleBlock | None:
         taken = self._take(timeout_s)
         if taken is None:
             return None
         chunk, lost = taken
-        return chunk, lost, chunk.analog[:, self._column]
-
-    def _block(
-        self,
-        chunk: RawChunk,
-        lost: int,
-        counts: np.ndarray,
-        values: np.ndarray,
-        flags: np.ndarray | None = None,
-    ) -> SampleBlock:
+        counts = chunk.analog[:, self._column]
+        values, flags = self._convert(counts)
         rate = self.board.sample_rate_hz
         return SampleBlock(
             channel=self.channel,
@@ -202,6 +194,10 @@ class _AnalogRole(_BoardRole):
             flags=flags,
         )
 
+    def _convert(self, counts: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
+        """The role's values of a block's ADC counts, and its per-sample flags (or None)."""
+        raise NotImplementedError
+
 
 class AnalogVoltageInput(_AnalogRole):
     """A plain analog input in volts (spare channels, monitoring)."""
@@ -211,12 +207,8 @@ class AnalogVoltageInput(_AnalogRole):
     def __init__(self, board: DaqBoard, analog_channel: int, name: str | None = None) -> None:
         super().__init__(board, analog_channel, name or f"ai{analog_channel}")
 
-    def read(self, timeout_s: float = 0.1) -> SampleBlock | None:
-        taken = self._read_counts(timeout_s)
-        if taken is None:
-            return None
-        chunk, lost, counts = taken
-        return self._block(chunk, lost, counts, counts * self.board.volts_per_count)
+    def _convert(self, counts: np.ndarray) -> tuple[np.ndarray, None]:
+        return counts * self.board.volts_per_count, None
 
 
 class PotentiometerAngleSensor(_AnalogRole):
@@ -234,13 +226,8 @@ class PotentiometerAngleSensor(_AnalogRole):
         super().__init__(board, analog_channel, name)
         self.calibration = calibration
 
-    def read(self, timeout_s: float = 0.1) -> SampleBlock | None:
-        taken = self._read_counts(timeout_s)
-        if taken is None:
-            return None
-        chunk, lost, counts = taken
-        volts = counts * self.board.volts_per_count
-        return self._block(chunk, lost, counts, self.calibration.angle_rad(volts))
+    def _convert(self, counts: np.ndarray) -> tuple[np.ndarray, None]:
+        return self.calibration.angle_rad(counts * self.board.volts_per_count), None
 
 
 class LaserDisplacementSensor(_AnalogRole):
@@ -262,17 +249,13 @@ class LaserDisplacementSensor(_AnalogRole):
         super().__init__(board, analog_channel, name)
         self.calibration = calibration
 
-    def read(self, timeout_s: float = 0.1) -> SampleBlock | None:
-        taken = self._read_counts(timeout_s)
-        if taken is None:
-            return None
-        chunk, lost, counts = taken
+    def _convert(self, counts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         reading = counts * self.board.volts_per_count if self.calibration.unit == "V" else counts
         values = self.calibration.displacement_m(reading)
         flags = self.calibration.range_flags(values)
         low, high = self.board.adc_limits
         flags[(counts <= low) | (counts >= high)] |= FLAG_AT_RAIL
-        return self._block(chunk, lost, counts, values, flags)
+        return values, flags
 
 
 class Tachometer(_BoardRole):

@@ -6,7 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from rig.cli import CommandError
+from rig.cli import CommandError, add_command
 
 VIEWS = ("time", "spectrum", "poincare", "phase", "analysis")
 
@@ -34,12 +34,12 @@ examples:
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add the ``gui`` sub-command."""
-    parser = subparsers.add_parser(
+    parser = add_command(
+        subparsers,
         "gui",
-        help="the desktop application (--sim, --config FILE, --replay FILE)",
-        description=DESCRIPTION,
-        epilog=EPILOG,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
+        "the desktop application (--sim, --config FILE, --replay FILE)",
+        DESCRIPTION,
+        EPILOG,
     )
     source = parser.add_mutually_exclusive_group()
     source.add_argument("--sim", action="store_true", help="connect to the virtual rig at start")

@@ -7,7 +7,7 @@ and draws the measured and the model's curves on top of each other.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -47,17 +47,7 @@ def identify_recording(path: str | Path, experiment: str | None = None) -> Model
     """
     record = load_record(path)
     if experiment and experiment != record.experiment:
-        record = Record(
-            time_s=record.time_s,
-            angle_rad=record.angle_rad,
-            experiment=experiment,
-            rig=record.rig,
-            drive=record.drive,
-            table_m=record.table_m,
-            tach_indices=record.tach_indices,
-            source=record.source,
-            notes=record.notes,
-        )
+        record = replace(record, experiment=experiment)
     t = record.time_s - record.time_s[0]
     if record.kind is FREE_DECAY:
         result = fit_free_decay(record)

@@ -71,6 +71,20 @@ def add_common_options(parser: argparse.ArgumentParser) -> None:
     )
 
 
+def add_command(
+    subparsers: argparse._SubParsersAction, name: str, summary: str, description: str,
+    epilog: str,
+) -> argparse.ArgumentParser:
+    """A sub-command whose --help shows its description and examples as they are written."""
+    return subparsers.add_parser(
+        name,
+        help=summary,
+        description=description,
+        epilog=epilog,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+
+
 def _register_unavailable(subparsers: argparse._SubParsersAction, name: str, error: Exception):
     """Keep the rest of the command line working when one command cannot be imported."""
     reason = f"unavailable on this installation ({error})"

@@ -16,7 +16,7 @@ import threading
 import time
 from collections import deque
 from collections.abc import Callable, Iterable
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -28,9 +28,15 @@ from drivers.limits import ShakerLimits
 from drivers.shaker import ShakerAmplifier
 from rig.devices import ANGLE, TABLE, TACH, RigDevices
 from rig.drive_monitor import DriveMonitor
-from rig.engine import AcquisitionEngine, Delivery, Subscription
+from rig.engine import (
+    AcquisitionEngine,
+    AcquisitionError,
+    Delivery,
+    SubscriberOverrunError,
+    Subscription,
+)
 from rig.events import COMMANDED, DriveSetting, StepMark
-from rig.recorder import Recorder, RecorderThread, RecordingMetadata
+from rig.recorder import Recorder, RecorderThread, RecordingError, RecordingMetadata
 
 Progress = Callable[[str], None]
 FIRST_DATA_TIMEOUT_S = 15.0  # generous: a loaded lab PC can be slow to start streaming
@@ -44,6 +50,19 @@ class ProcedureError(RuntimeError):
 class ProcedureCancelledError(ProcedureError):
     """Raised at a procedure's next wait once its ``Cancel`` was requested; the session ends
     the procedure there, closes the file with the request's reason and returns normally."""
+
+
+# What a procedure on the rig fails with once it has started: the devices, the limits, the
+# recording, the acquisition or the procedure itself.  The CLI and the demo turn these into
+# their own errors (the drive is then at zero and the file keeps what was recorded).
+RIG_FAILURES: tuple[type[Exception], ...] = (
+    DeviceError,
+    LimitError,
+    RecordingError,
+    ProcedureError,
+    AcquisitionError,
+    SubscriberOverrunError,
+)
 
 
 class Cancel:
@@ -616,34 +635,14 @@ def run_sweep(
             try:
                 session.wait(plan.settle_s)
                 dwell_start = session.engine.latest_index or settle_start
-                mark = StepMark(
-                    number,
-                    direction,
-                    frequency_hz,
-                    amplitude_m,
-                    settle_start,
-                    dwell_start,
-                    dwell_start,
-                    complete=False,
-                )
+                mark = replace(mark, dwell_start_index=dwell_start, dwell_end_index=dwell_start)
                 progress(f"step {number + 1}/{len(steps)} {arrow}: dwell {plan.dwell_s:g} s")
                 session.wait(plan.dwell_s)
             except BaseException:
                 end = session.engine.latest_index or mark.dwell_start_index
-                session.engine.mark_step(StepMark(**{**asdict(mark), "dwell_end_index": end}))
+                session.engine.mark_step(replace(mark, dwell_end_index=end))
                 raise
             end = session.engine.latest_index or dwell_start
-            session.engine.mark_step(
-                StepMark(
-                    number,
-                    direction,
-                    frequency_hz,
-                    amplitude_m,
-                    settle_start,
-                    dwell_start,
-                    end,
-                    complete=True,
-                )
-            )
+            session.engine.mark_step(replace(mark, dwell_end_index=end, complete=True))
             done += 1
     return session.result(FORCED.name, steps=done)

@@ -21,7 +21,7 @@ from scipy.optimize import least_squares
 from analysis.discrepancy.candidates import plan_for
 from analysis.extensions import NONE, ParameterPlan, RecordScale, cause
 from analysis.identify.intervals import Z95, sandwich_covariance
-from analysis.identify.result import Estimate, Residuals
+from analysis.identify.result import Estimate, Residuals, SampledRecord
 from analysis.model import Drive, Model, RigParameters
 from analysis.model_values import measured_angle, model_from_values, packed_from_values
 from analysis.simulate import SimulationResult, SimulationSettings, simulate_packed
@@ -46,7 +46,7 @@ BOUNDS = {
 
 
 @dataclass(frozen=True)
-class FitData:
+class FitData(SampledRecord):
     """The part of a record a fit uses: uniform times from 0, angle (NaN where excluded)."""
 
     experiment: str
@@ -58,16 +58,6 @@ class FitData:
     drive: Drive = field(default_factory=Drive)
     barrier: bool = False
     phase0_rad: float = 0.0
-
-    @property
-    def dt(self) -> float:
-        """Sample period."""
-        return float(self.t[1] - self.t[0])
-
-    @property
-    def n_valid(self) -> int:
-        """Number of usable samples."""
-        return int(np.count_nonzero(self.valid))
 
     def head(self, fraction: float) -> FitData:
         """The first ``fraction`` of the record (for held-out prediction of the rest)."""

@@ -145,36 +145,7 @@ def analyze_forced_fits(
     base_full = fit_cause(data, NONE, screened[NONE], lay, threads)
     base = ModelFits(NONE, base_full)
     say(f"baseline rms {base_full.rms:.3g} rad ({base_full.rms / data.noise_rad:.3g} x noise)")
-    ranked = sorted(names, key=lambda n: -bic[n])
-    screened_gain = dict(bic)
-    fits: dict[str, ShootingFit] = {}
-    complete = None  # the first refined cause that gains, is plausible and leaves white noise
-    for name in [n for n in ranked if bic[n] > 0.0][:REFINED]:
-        if complete is not None and screened_gain[name] < RIVAL_SCREENED * screened_gain[complete]:
-            say(f"  {name} not fitted over the record: {complete} leaves white noise and "
-                f"{name} screened {screened_gain[complete] / screened_gain[name]:.3g} x lower")
-            continue
-        # the best full fit so far lends its states when it fits the record closely
-        best = min([base_full, *fits.values()], key=lambda f: f.rms)
-        seed = best if best.rms < SEED_RMS * data.noise_rad else None
-        fits[name] = fit_cause(data, name, screened[name], lay, threads, seed)
-        # a model ending worse than the baseline found a worse basin: start again from the
-        # baseline's optimum, then (when the first start was another model's states) from
-        # its own states drawn onto the data afresh
-        if fits[name].rss > base_full.rss:
-            fits[name] = min(fits[name], extend(data, NONE, base_full, name, lay.full, threads),
-                             key=lambda f: f.rss)
-        if fits[name].rss > base_full.rss and seed is not None:
-            fits[name] = min(fits[name], fit_cause(data, name, screened[name], lay, threads),
-                             key=lambda f: f.rss)
-        bic[name] = _bic(data, base, fits[name])
-        say(f"  {name} over the record: BIC gain {bic[name]:.3g}")
-        if complete is None and bic[name] > BIC_MARGIN and not implausibility(
-                name, fits[name].values) and not _structured(data, fits[name], period):
-            complete = name
-    for name in names:
-        if name not in fits:  # judged on its screening: it did not come close
-            bic[name] = min(bic[name], BIC_MARGIN)
+    fits = _fit_over_record(data, names, screened, bic, base_full, lay, threads, period, say)
     # The judges, best information criterion first: forecasts over the training stretches
     # (and, on a chaotic record, the invariant statistics of the model's own long run); the
     # first cause they accept is the finding, and the rest need no training fits.
@@ -190,24 +161,8 @@ def analyze_forced_fits(
             measured = invariants(data.t, data.y, data.drive.frequency_hz,
                                   data.drive.phase0_rad)
             base_distance = model_invariants_distance(data, measured, NONE, base_full)
-    judged: dict[str, Verdict] = {}
-    trains: dict[str, ShootingFit] = {}
-    accepted = None
-    for name in passing:
-        if accepted is not None:
-            judged[name] = verdict_of(
-                data, ModelFits(name, fits[name]), base, lay,
-                not_judged=f"not judged further: {accepted} scores higher and earns its place")
-            continue
-        distances: tuple[float | None, float | None] = (None, None)
-        if chaotic:
-            distances = (base_distance,
-                         model_invariants_distance(data, measured, name, fits[name]))
-        trains[name] = refit(data, name, fits[name], lay, threads, heldout_s=data.segment_s)
-        judged[name] = verdict_of(data, ModelFits(name, fits[name], trains[name]), base, lay,
-                                  distances)
-        if judged[name].earns_keep:
-            accepted = name
+    judged, trains, accepted = _judge_in_order(
+        data, passing, fits, base, lay, threads, measured, base_distance)
     steps: list[tuple[str, Verdict]] = []
     final = indistinct = None
     if accepted is not None:
@@ -227,6 +182,86 @@ def analyze_forced_fits(
     timings["fits"] = time.perf_counter() - clock - sum(timings.values())
     return ForcedOutcome(data, ident, base, outcomes, chaotic, timings, notes, lay, steps,
                          final, indistinct or [])
+
+
+def _fit_over_record(
+    data: ForcedData, names: list[str], screened: Mapping[str, ShootingFit],
+    bic: dict[str, float], base_full: ShootingFit, lay: Layouts, threads: int | None,
+    period: int, say: Progress,
+) -> dict[str, ShootingFit]:
+    """Fit the REFINED best screened causes over the whole record (see analyze_forced_fits);
+    ``bic`` is updated in place: a fitted cause's gain over the record, and an unfitted
+    one's screening gain capped at BIC_MARGIN (it did not come close)."""
+    ranked = sorted(names, key=lambda n: -bic[n])
+    screened_gain = dict(bic)
+    fits: dict[str, ShootingFit] = {}
+    complete = None  # the first refined cause that gains, is plausible and leaves white noise
+    for name in [n for n in ranked if bic[n] > 0.0][:REFINED]:
+        if complete is not None and screened_gain[name] < RIVAL_SCREENED * screened_gain[complete]:
+            say(f"  {name} not fitted over the record: {complete} leaves white noise and "
+                f"{name} screened {screened_gain[complete] / screened_gain[name]:.3g} x lower")
+            continue
+        fits[name] = _fit_cause_over_record(data, name, screened[name], base_full, fits, lay,
+                                            threads)
+        bic[name] = _bic(data, ModelFits(NONE, base_full), fits[name])
+        say(f"  {name} over the record: BIC gain {bic[name]:.3g}")
+        if complete is None and bic[name] > BIC_MARGIN and not implausibility(
+                name, fits[name].values) and not _structured(data, fits[name], period):
+            complete = name
+    for name in names:
+        if name not in fits:  # judged on its screening: it did not come close
+            bic[name] = min(bic[name], BIC_MARGIN)
+    return fits
+
+
+def _fit_cause_over_record(
+    data: ForcedData, name: str, screened: ShootingFit, base_full: ShootingFit,
+    fits: Mapping[str, ShootingFit], lay: Layouts, threads: int | None,
+) -> ShootingFit:
+    """One cause's fit over the record, restarted when it ends in a worse basin than the
+    baseline's."""
+    # the best full fit so far lends its states when it fits the record closely
+    best = min([base_full, *fits.values()], key=lambda f: f.rms)
+    seed = best if best.rms < SEED_RMS * data.noise_rad else None
+    fit = fit_cause(data, name, screened, lay, threads, seed)
+    # a model ending worse than the baseline found a worse basin: start again from the
+    # baseline's optimum, then (when the first start was another model's states) from
+    # its own states drawn onto the data afresh
+    if fit.rss > base_full.rss:
+        fit = min(fit, extend(data, NONE, base_full, name, lay.full, threads),
+                  key=lambda f: f.rss)
+    if fit.rss > base_full.rss and seed is not None:
+        fit = min(fit, fit_cause(data, name, screened, lay, threads), key=lambda f: f.rss)
+    return fit
+
+
+def _judge_in_order(
+    data: ForcedData, passing: list[str], fits: Mapping[str, ShootingFit], base: ModelFits,
+    lay: Layouts, threads: int | None, measured: Invariants | None,
+    base_distance: float | None,
+) -> tuple[dict[str, Verdict], dict[str, ShootingFit], str | None]:
+    """Judge the passing causes, best first, by forecasts (and, with ``measured``, the
+    invariants) until one earns its keep: the verdicts, the training fits made, and the
+    accepted cause (None when none is); the rest are not judged further."""
+    judged: dict[str, Verdict] = {}
+    trains: dict[str, ShootingFit] = {}
+    accepted = None
+    for name in passing:
+        if accepted is not None:
+            judged[name] = verdict_of(
+                data, ModelFits(name, fits[name]), base, lay,
+                not_judged=f"not judged further: {accepted} scores higher and earns its place")
+            continue
+        distances: tuple[float | None, float | None] = (None, None)
+        if measured is not None:
+            distances = (base_distance,
+                         model_invariants_distance(data, measured, name, fits[name]))
+        trains[name] = refit(data, name, fits[name], lay, threads, heldout_s=data.segment_s)
+        judged[name] = verdict_of(data, ModelFits(name, fits[name], trains[name]), base, lay,
+                                  distances)
+        if judged[name].earns_keep:
+            accepted = name
+    return judged, trains, accepted
 
 
 def _forward_selection(

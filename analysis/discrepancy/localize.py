@@ -94,21 +94,30 @@ def localize(
 ) -> Localization:
     """Describe the baseline's residual (model - data) of a fitted record, given the model's
     rate and its contact samples."""
+    f = _residual_features(data, baseline, theta_dot, in_contact)
+    # envelope of the data
+    times, sizes = envelope(data.t, data.y, data.valid)
+    shape = envelope_shape(times, sizes)
+    f.update({f"envelope_{k}": v for k, v in shape.items()})
+    return Localization("; ".join(_describe(f, shape, data.barrier)), f)
+
+
+def _residual_features(
+    data: FitData, baseline: FitResult, theta_dot: np.ndarray, in_contact: np.ndarray
+) -> dict[str, Any]:
+    """The residual's size sorted by time, angle, rate, contact, drive phase and frequency."""
     r = baseline.residual
     valid = np.isfinite(r)
     noise = data.noise_rad
     rms = _rms(r)
     f: dict[str, Any] = {"rms_residual_rad": rms, "noise_rad": noise,
                          "rms_over_noise": rms / max(noise, 1e-300)}
-    words: list[str] = []
     model_theta = np.where(valid, data.y + np.nan_to_num(r), np.nan)
     # constant part: a sensor zero
-    mean = float(np.nanmean(r))
-    f["mean_residual_rad"] = mean
+    f["mean_residual_rad"] = float(np.nanmean(r))
     # time: thirds of the record
     n = r.size
-    thirds = [_rms(r[i * n // 3:(i + 1) * n // 3]) for i in range(3)]
-    f["rms_by_time_third"] = thirds
+    f["rms_by_time_third"] = [_rms(r[i * n // 3:(i + 1) * n // 3]) for i in range(3)]
     # angle and velocity: residual in the outer and inner halves of each
     amp = np.nanmax(np.abs(model_theta))
     big_angle = np.abs(model_theta) > 0.5 * amp
@@ -143,79 +152,87 @@ def localize(
         k = int(np.argmax(spectrum[1:])) + 1
         f["residual_peak_hz"] = float(freqs[k])
         f["residual_peak_over_swing_frequency"] = float(freqs[k] / omega_hz)
-    # envelope of the data
-    times, sizes = envelope(data.t, data.y, data.valid)
-    shape = envelope_shape(times, sizes)
-    f.update({f"envelope_{k}": v for k, v in shape.items()})
+    return f
 
+
+def _describe(f: dict[str, Any], shape: dict[str, float], barrier: bool) -> list[str]:
+    """The phrases that name what stands out in the residual's features."""
+    rms, mean, thirds = f["rms_residual_rad"], f["mean_residual_rad"], f["rms_by_time_third"]
     ratio = f["rms_over_noise"]
     if ratio < 1.3:
-        words.append(
+        return [
             f"the baseline explains the record within its noise (residual {rms:.2g} rad, "
             f"{ratio:.2g} x the noise)"
-        )
-    else:
-        words.append(f"the baseline leaves {rms:.2g} rad rms, {ratio:.3g} x the noise")
-        if shape and not data.barrier:
-            lin, ex = shape["linear_fit_rms"], shape["exponential_fit_rms"]
-            early, late = shape["decay_rate_early_per_s"], shape["decay_rate_late_per_s"]
-            if lin < 0.7 * ex and late > 1.3 * early:
-                words.append(
-                    "the baseline decays exponentially but the measured envelope falls "
-                    "linearly in time, its relative decay rate rising from "
-                    f"{early:.3g}/s to {late:.3g}/s as the swing shrinks - typical of dry friction"
-                )
-            elif early > 1.3 * late:
-                words.append(
-                    f"the measured swing decays faster at large amplitude ({early:.3g}/s) than "
-                    f"at small ({late:.3g}/s) - damping that grows with speed, typical of drag "
-                    "(or a large-swing effect)"
-                )
-            else:
-                words.append(
-                    f"the envelope is close to exponential (decay rate {early:.3g}/s early, "
-                    f"{late:.3g}/s late)"
-                )
-        if abs(mean) > 0.3 * rms:
-            words.append(
-                f"the residual has a constant part of {mean:.3g} rad: the model's rest angle "
-                "differs from the measured one (sensor zero or barrier)"
-            )
-        worst = int(np.argmax(thirds))
+        ]
+    words = [f"the baseline leaves {rms:.2g} rad rms, {ratio:.3g} x the noise"]
+    if shape and not barrier:
+        words.append(_envelope_words(shape))
+    if abs(mean) > 0.3 * rms:
         words.append(
-            f"it is largest in the {('first', 'middle', 'last')[worst]} third of the record "
-            f"({thirds[worst]:.2g} rad)"
+            f"the residual has a constant part of {mean:.3g} rad: the model's rest angle "
+            "differs from the measured one (sensor zero or barrier)"
         )
-        if "rms_near_contact_rad" in f:
-            near, free = f["rms_near_contact_rad"], f["rms_free_flight_rad"]
-            if near > 1.5 * free:
-                words.append(
-                    f"it concentrates around the {f['contacts']} contacts ({near:.2g} rad against "
-                    f"{free:.2g} rad in free flight): the contact phase is mis-modelled"
-                )
-            else:
-                words.append(
-                    f"it is spread over free flight ({free:.2g} rad) as much as contacts "
-                    f"({near:.2g} rad)"
-                )
-        if f["rms_large_angle_over_small"] > 1.5:
+    worst = int(np.argmax(thirds))
+    words.append(
+        f"it is largest in the {('first', 'middle', 'last')[worst]} third of the record "
+        f"({thirds[worst]:.2g} rad)"
+    )
+    if "rms_near_contact_rad" in f:
+        words.append(_contact_words(f))
+    if f["rms_large_angle_over_small"] > 1.5:
+        words.append(
+            f"it is {f['rms_large_angle_over_small']:.2g} x larger at large angles than near "
+            "the rest position"
+        )
+    corr = f.get("correlation_with_angle_cubed", 0.0)
+    if abs(corr) > 0.5:
+        words.append(f"it follows the cube of the angle (correlation {corr:.2f})")
+    if "residual_peak_over_swing_frequency" in f:
+        words.append(
+            f"its strongest spectral line is at {f['residual_peak_hz']:.3g} Hz "
+            f"({f['residual_peak_over_swing_frequency']:.2f} x the swing frequency)"
+        )
+    if "rms_by_drive_phase" in f:
+        by_phase = np.array(f["rms_by_drive_phase"])
+        if np.nanmax(by_phase) > 1.5 * np.nanmin(by_phase):
+            k = int(np.nanargmax(by_phase))
             words.append(
-                f"it is {f['rms_large_angle_over_small']:.2g} x larger at large angles than near "
-                "the rest position"
+                f"it peaks at drive phase {45 * k}-{45 * (k + 1)} degrees"
             )
-        corr = f.get("correlation_with_angle_cubed", 0.0)
-        if abs(corr) > 0.5:
-            words.append(f"it follows the cube of the angle (correlation {corr:.2f})")
-        if "residual_peak_over_swing_frequency" in f:
-            words.append(
-                f"its strongest spectral line is at {f['residual_peak_hz']:.3g} Hz "
-                f"({f['residual_peak_over_swing_frequency']:.2f} x the swing frequency)"
-            )
-        if "rms_by_drive_phase" in f:
-            by_phase = np.array(f["rms_by_drive_phase"])
-            if np.nanmax(by_phase) > 1.5 * np.nanmin(by_phase):
-                k = int(np.nanargmax(by_phase))
-                words.append(
-                    f"it peaks at drive phase {45 * k}-{45 * (k + 1)} degrees"
-                )
-    return Localization("; ".join(words), f)
+    return words
+
+
+def _envelope_words(shape: dict[str, float]) -> str:
+    """What the measured envelope's shape says about the damping."""
+    lin, ex = shape["linear_fit_rms"], shape["exponential_fit_rms"]
+    early, late = shape["decay_rate_early_per_s"], shape["decay_rate_late_per_s"]
+    if lin < 0.7 * ex and late > 1.3 * early:
+        return (
+            "the baseline decays exponentially but the measured envelope falls "
+            "linearly in time, its relative decay rate rising from "
+            f"{early:.3g}/s to {late:.3g}/s as the swing shrinks - typical of dry friction"
+        )
+    if early > 1.3 * late:
+        return (
+            f"the measured swing decays faster at large amplitude ({early:.3g}/s) than "
+            f"at small ({late:.3g}/s) - damping that grows with speed, typical of drag "
+            "(or a large-swing effect)"
+        )
+    return (
+        f"the envelope is close to exponential (decay rate {early:.3g}/s early, "
+        f"{late:.3g}/s late)"
+    )
+
+
+def _contact_words(f: dict[str, Any]) -> str:
+    """Whether the residual gathers around the contacts or spreads over free flight."""
+    near, free = f["rms_near_contact_rad"], f["rms_free_flight_rad"]
+    if near > 1.5 * free:
+        return (
+            f"it concentrates around the {f['contacts']} contacts ({near:.2g} rad against "
+            f"{free:.2g} rad in free flight): the contact phase is mis-modelled"
+        )
+    return (
+        f"it is spread over free flight ({free:.2g} rad) as much as contacts "
+        f"({near:.2g} rad)"
+    )

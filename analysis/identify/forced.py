@@ -43,7 +43,13 @@ from analysis.identify.preprocess import (
     noise_and_quantum,
     record_tails,
 )
-from analysis.identify.result import Estimate, FitQuality, IdentificationError, IdentificationResult
+from analysis.identify.result import (
+    Estimate,
+    FitQuality,
+    IdentificationError,
+    IdentificationResult,
+    SampledRecord,
+)
 from analysis.identify.shooting import (
     MAX_ITERATIONS,
     FreeParameter,
@@ -77,7 +83,7 @@ BASELINE_PLANS: dict[str, tuple[float, bool, float, float]] = {
 
 
 @dataclass(frozen=True)
-class ForcedData:
+class ForcedData(SampledRecord):
     """The fit's view of a forced record: times from 0, angle (NaN where excluded), the
     measured drive and the rig constants the lab knows (m, l, R, g), and its noise's tails
     (judged before any fit: heavy tails make every fit of it robust)."""
@@ -114,15 +120,6 @@ class ForcedData:
         chaotic = kind in ("chaotic", "undetermined")
         return replace(self, segment_s=CHAOTIC_SEGMENT_S if chaotic else SEGMENT_S)
 
-    @property
-    def dt(self) -> float:
-        """Sample period [s]."""
-        return float(self.t[1] - self.t[0])
-
-    @property
-    def n_valid(self) -> int:
-        """Usable samples."""
-        return int(np.count_nonzero(self.valid))
 
 
 def forced_data(record: Record) -> ForcedData:

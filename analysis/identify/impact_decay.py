@@ -66,53 +66,9 @@ def impact_events(
     filled = np.interp(idx, idx[good], theta[good])
     high = np.percentile(filled, 99.5)
     low = np.percentile(filled, 0.5)
-    hysteresis = 6.0 * signal.noise_rad
-    starts, stops = _segments(filled, high - 0.15 * (high - low), hysteresis)
-    peaks_all = np.array([filled[a:b].max() for a, b in zip(starts, stops, strict=True)])
-    if peaks_all.size < 3:
-        raise IdentificationError(
-            f"no impacts found: only {peaks_all.size} excursion(s) reach the upper level; an "
-            "impact-decay record needs at least 3 impacts"
-        )
-    guard = 0.08 * (high - low)
-    cstarts, cstops = _segments(filled, np.median(peaks_all) - guard, hysteresis)
-    if cstarts.size < 4:
-        raise IdentificationError(
-            f"no impacts found: only {cstarts.size} upper excursions; need at least 4"
-        )
-    # Lower turning points between successive upper excursions, and their curvature.
-    troughs = np.array([
-        cstops[k] + int(np.argmin(filled[cstops[k]:cstarts[k + 1]]))
-        for k in range(cstarts.size - 1)
-    ])
-    spacing = float(np.median(np.diff(troughs))) if troughs.size > 1 else 0.0
-    half = max(3, int(0.1 * spacing))
-    depth, curvature = [], []
-    for i in troughs:
-        if i - half < 0 or i + half >= t.size:
-            continue
-        window = slice(i - half, i + half + 1)
-        tau = t[window] - t[i]
-        coeffs = np.polyfit(tau[good[window]], filled[window][good[window]], 4)
-        depth.append(filled[i])
-        curvature.append(2.0 * coeffs[-3])
-    depth_a, curvature_a = np.array(depth), np.array(curvature)
-    if depth_a.size >= 3 and np.ptp(depth_a) > 0.1 * np.median(np.abs(depth_a - high)):
-        slope, intercept = np.polyfit(depth_a, curvature_a, 1)  # curv = -w^2 (depth - c)
-        omega = math.sqrt(max(-slope, 1e-12))
-        offset = intercept / omega**2
-    elif omega_hint:
-        omega = omega_hint
-        offset = float(np.median(depth_a + curvature_a / omega**2))
-    else:
-        raise IdentificationError(
-            "cannot separate frequency and sensor zero: the lower turning points hardly "
-            "change depth; hold L_m (--hold or --free-decay)"
-        )
-    if omega_hint:  # a held length is exact; the curvature estimate is not
-        omega = omega_hint
-        # theta'' = -omega^2 sin(depth - offset) at a turning point, solved for the offset
-        offset = float(np.median(depth_a + np.arcsin(np.clip(curvature_a / omega**2, -1, 1))))
+    cstarts, cstops = _contact_runs(filled, high, low, 6.0 * signal.noise_rad)
+    depth_a, curvature_a = _lower_turning_points(t, good, filled, cstarts, cstops)
+    omega, offset = _frequency_and_zero(depth_a, curvature_a, high, omega_hint)
     # Free flights between contacts, each a sinusoid about the sensor zero.
     pieces = [(cstops[k], cstarts[k + 1]) for k in range(cstarts.size - 1)]
     arcs = []
@@ -177,6 +133,72 @@ def impact_events(
         "omega_rad_s": omega, "offset_rad": offset, "theta_b_rad": theta_b, "K": K,
         "mu0": max(mu0, 0.0), "v_in": w_in, "restitution": restitution, "t_c": t_c,
     }
+
+
+def _contact_runs(
+    filled: np.ndarray, high: float, low: float, hysteresis: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Start and stop indices of the upper excursions that reach the barrier."""
+    starts, stops = _segments(filled, high - 0.15 * (high - low), hysteresis)
+    peaks_all = np.array([filled[a:b].max() for a, b in zip(starts, stops, strict=True)])
+    if peaks_all.size < 3:
+        raise IdentificationError(
+            f"no impacts found: only {peaks_all.size} excursion(s) reach the upper level; an "
+            "impact-decay record needs at least 3 impacts"
+        )
+    guard = 0.08 * (high - low)
+    cstarts, cstops = _segments(filled, np.median(peaks_all) - guard, hysteresis)
+    if cstarts.size < 4:
+        raise IdentificationError(
+            f"no impacts found: only {cstarts.size} upper excursions; need at least 4"
+        )
+    return cstarts, cstops
+
+
+def _lower_turning_points(
+    t: np.ndarray, good: np.ndarray, filled: np.ndarray, cstarts: np.ndarray, cstops: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Depth and curvature of the lower turning points between successive upper excursions."""
+    troughs = np.array([
+        cstops[k] + int(np.argmin(filled[cstops[k]:cstarts[k + 1]]))
+        for k in range(cstarts.size - 1)
+    ])
+    spacing = float(np.median(np.diff(troughs))) if troughs.size > 1 else 0.0
+    half = max(3, int(0.1 * spacing))
+    depth, curvature = [], []
+    for i in troughs:
+        if i - half < 0 or i + half >= t.size:
+            continue
+        window = slice(i - half, i + half + 1)
+        tau = t[window] - t[i]
+        coeffs = np.polyfit(tau[good[window]], filled[window][good[window]], 4)
+        depth.append(filled[i])
+        curvature.append(2.0 * coeffs[-3])
+    return np.array(depth), np.array(curvature)
+
+
+def _frequency_and_zero(
+    depth_a: np.ndarray, curvature_a: np.ndarray, high: float, omega_hint: float | None
+) -> tuple[float, float]:
+    """omega and the sensor zero from theta'' = -omega^2 sin(theta - offset) at the turning
+    points; a held omega (``omega_hint``) is exact and only the zero is solved for."""
+    if depth_a.size >= 3 and np.ptp(depth_a) > 0.1 * np.median(np.abs(depth_a - high)):
+        slope, intercept = np.polyfit(depth_a, curvature_a, 1)  # curv = -w^2 (depth - c)
+        omega = math.sqrt(max(-slope, 1e-12))
+        offset = intercept / omega**2
+    elif omega_hint:
+        omega = omega_hint
+        offset = float(np.median(depth_a + curvature_a / omega**2))
+    else:
+        raise IdentificationError(
+            "cannot separate frequency and sensor zero: the lower turning points hardly "
+            "change depth; hold L_m (--hold or --free-decay)"
+        )
+    if omega_hint:  # a held length is exact; the curvature estimate is not
+        omega = omega_hint
+        # theta'' = -omega^2 sin(depth - offset) at a turning point, solved for the offset
+        offset = float(np.median(depth_a + np.arcsin(np.clip(curvature_a / omega**2, -1, 1))))
+    return omega, offset
 
 
 def _crossing_time(amp: float, phase: float, w: float, level: float, near: float,

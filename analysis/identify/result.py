@@ -33,6 +33,24 @@ class Residuals:
         return math.sqrt(self.rss / max(self.n, 1))
 
 
+class SampledRecord:
+    """Sample period and usable-sample count of a record's uniform times ``t`` and its
+    ``valid`` mask (the fits' views of a record share them)."""
+
+    t: np.ndarray
+    valid: np.ndarray
+
+    @property
+    def dt(self) -> float:
+        """Sample period [s]."""
+        return float(self.t[1] - self.t[0])
+
+    @property
+    def n_valid(self) -> int:
+        """Number of usable samples."""
+        return int(np.count_nonzero(self.valid))
+
+
 class IdentificationError(ValueError):
     """A record cannot be fitted; the message says why (too short, no oscillation, ...)."""
 

@@ -5,9 +5,13 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-from rig.cli import CommandError
+from rig.cli import CommandError, add_command
 from rig.logs import progress
+
+if TYPE_CHECKING:
+    from analysis.records import Record
 
 DESCRIPTION = """\
 Explain a measured record: fit the baseline model of docs/MODEL.md section 2, show where it
@@ -44,12 +48,12 @@ examples:
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add the ``analyze`` sub-command."""
-    parser = subparsers.add_parser(
+    parser = add_command(
+        subparsers,
         "analyze",
-        help="find what the model gets wrong on a record and the gain of the fix",
-        description=DESCRIPTION,
-        epilog=EPILOG,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
+        "find what the model gets wrong on a record and the gain of the fix",
+        DESCRIPTION,
+        EPILOG,
     )
     parser.add_argument("file", type=Path, help="exchange CSV or HDF5 recording")
     parser.add_argument("--meta", type=Path, help="JSON sidecar, if not NAME.json beside FILE")
@@ -76,39 +80,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     """Analyse the record and print the verdict (and the JSON when no --json is given)."""
     from analysis.discrepancy import AnalysisError, analyze_record
-    from analysis.discrepancy.analyze import priors_from_decays
     from analysis.identify import IdentificationError
     from analysis.json_output import to_json_text
-    from analysis.output_paths import check_outputs, record_inputs
     from analysis.provenance import provenance
-    from analysis.record_loaders import load_record
     from analysis.report.discrepancy import report_json
 
-    if not args.file.exists():
-        raise CommandError(f"{args.file}: no such file")
-    if args.workers is not None and args.workers < 1:
-        raise CommandError(f"--workers {args.workers}: expected at least 1")
-    inputs = record_inputs(args.file, args.meta)
-    for decay in (args.free_decay, args.impact_decay):
-        inputs += record_inputs(decay) if decay else []
-    outputs = [args.json_out] if args.json_out else []
-    if args.report and args.report.exists():  # a new folder is made by write_report
-        if not args.report.is_dir():
-            raise CommandError(f"--report {args.report}: is a file; expected a folder")
-        outputs += report_files(args.report, args.file.stem)
-    check_outputs(outputs, inputs=inputs, overwrite=args.overwrite)  # before a long analysis
-
-    try:
-        record = load_record(args.file, args.meta)
-        priors = None
-        if args.free_decay or args.impact_decay:
-            priors = priors_from_decays(
-                load_record(args.free_decay) if args.free_decay else None,
-                load_record(args.impact_decay) if args.impact_decay else None,
-            )
-            progress(f"start values from the decays: {priors}")
-    except ValueError as error:  # a file's format error names the file and field itself
-        raise CommandError(str(error)) from error
+    _check_files(args)
+    record, priors = _load_record_and_priors(args)
     try:
         analysis = analyze_record(record, workers=args.workers, progress=progress,
                                   priors=priors)
@@ -124,20 +102,65 @@ def run(args: argparse.Namespace) -> int:
     if not args.json_out:
         print(to_json_text(js))
     else:
-        if len(js["causes"]) > 1:
-            print("causes: " + ", ".join(c["cause"] for c in js["causes"]))
-        else:
-            print(f"cause: {js['cause']}")
-        for pair in js.get("indistinct", []):
-            print(f"cannot tell apart: {pair['why']}")
-        for finding in js.get("residual_findings", []):
-            print(f"residual finding ({finding['kind']}): {finding['text']}")
-        for term in js.get("proposed_terms", []):
-            print(term["text"])
-        print(f"where the baseline fails: {js['localization']}")
-        for warning in js["warnings"]:
-            print(f"caution: {warning}")
+        _print_summary(js)
     return 0
+
+
+def _check_files(args: argparse.Namespace) -> None:
+    """Refuse a missing input, a bad --workers or outputs in the way, before a long analysis."""
+    from analysis.output_paths import check_outputs, record_inputs
+
+    if not args.file.exists():
+        raise CommandError(f"{args.file}: no such file")
+    if args.workers is not None and args.workers < 1:
+        raise CommandError(f"--workers {args.workers}: expected at least 1")
+    inputs = record_inputs(args.file, args.meta)
+    for decay in (args.free_decay, args.impact_decay):
+        inputs += record_inputs(decay) if decay else []
+    outputs = [args.json_out] if args.json_out else []
+    if args.report and args.report.exists():  # a new folder is made by write_report
+        if not args.report.is_dir():
+            raise CommandError(f"--report {args.report}: is a file; expected a folder")
+        outputs += report_files(args.report, args.file.stem)
+    check_outputs(outputs, inputs=inputs, overwrite=args.overwrite)
+
+
+def _load_record_and_priors(
+    args: argparse.Namespace,
+) -> tuple[Record, dict[str, float] | None]:
+    """The record, and the start values from --free-decay and --impact-decay (None without)."""
+    from analysis.discrepancy.analyze import priors_from_decays
+    from analysis.record_loaders import load_record
+
+    try:
+        record = load_record(args.file, args.meta)
+        priors = None
+        if args.free_decay or args.impact_decay:
+            priors = priors_from_decays(
+                load_record(args.free_decay) if args.free_decay else None,
+                load_record(args.impact_decay) if args.impact_decay else None,
+            )
+            progress(f"start values from the decays: {priors}")
+    except ValueError as error:  # a file's format error names the file and field itself
+        raise CommandError(str(error)) from error
+    return record, priors
+
+
+def _print_summary(js: dict) -> None:
+    """The verdict in lines, when the JSON report went to a file."""
+    if len(js["causes"]) > 1:
+        print("causes: " + ", ".join(c["cause"] for c in js["causes"]))
+    else:
+        print(f"cause: {js['cause']}")
+    for pair in js.get("indistinct", []):
+        print(f"cannot tell apart: {pair['why']}")
+    for finding in js.get("residual_findings", []):
+        print(f"residual finding ({finding['kind']}): {finding['text']}")
+    for term in js.get("proposed_terms", []):
+        print(term["text"])
+    print(f"where the baseline fails: {js['localization']}")
+    for warning in js["warnings"]:
+        print(f"caution: {warning}")
 
 
 def report_files(folder: Path, name: str) -> list[Path]:

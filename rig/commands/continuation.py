@@ -7,7 +7,7 @@ import math
 import sys
 from pathlib import Path
 
-from rig.cli import CommandError
+from rig.cli import CommandError, add_command
 
 SETTLE_PERIODS = 2000
 
@@ -51,13 +51,13 @@ examples:
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add the ``continue`` sub-command."""
-    parser = subparsers.add_parser(
+    parser = add_command(
+        subparsers,
         "continue",
-        help="follow periodic orbits through a parameter: multipliers, period-doublings, "
+        "follow periodic orbits through a parameter: multipliers, period-doublings, "
         "folds, grazings",
-        description=DESCRIPTION,
-        epilog=EPILOG,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
+        DESCRIPTION,
+        EPILOG,
     )
     parser.add_argument("--f-drive-hz", type=float, metavar="F", help="drive frequency [Hz]")
     parser.add_argument("--case", help="start from the paper's forced case a..i")

@@ -6,7 +6,7 @@ import argparse
 import time
 from pathlib import Path
 
-from rig.cli import CommandError
+from rig.cli import CommandError, add_command
 from rig.logs import progress
 
 DEFAULT_OUT = "impact-rig-demo"
@@ -43,12 +43,12 @@ causes (docs/MODEL.md section 6): coulomb_friction, quadratic_drag, barrier_offs
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add the ``demo`` sub-command."""
-    parser = subparsers.add_parser(
+    parser = add_command(
+        subparsers,
         "demo",
-        help="the whole job on the virtual rig: record, identify, explain, report",
-        description=DESCRIPTION,
-        epilog=EPILOG,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
+        "the whole job on the virtual rig: record, identify, explain, report",
+        DESCRIPTION,
+        EPILOG,
     )
     parser.add_argument(
         "--out",

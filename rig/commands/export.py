@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from rig.cli import CommandError
+from rig.cli import CommandError, add_command
 from rig.logs import progress
 
 DESCRIPTION = """\
@@ -30,12 +30,8 @@ examples:
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add the ``export`` sub-command."""
-    parser = subparsers.add_parser(
-        "export",
-        help="recording (HDF5) -> CSV + JSON exchange files",
-        description=DESCRIPTION,
-        epilog=EPILOG,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
+    parser = add_command(
+        subparsers, "export", "recording (HDF5) -> CSV + JSON exchange files", DESCRIPTION, EPILOG
     )
     parser.add_argument("recording", metavar="FILE.h5", help="the recording to export")
     parser.add_argument(

@@ -6,7 +6,7 @@ import argparse
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from rig.cli import CommandError
+from rig.cli import CommandError, add_command
 from rig.logs import progress
 
 if TYPE_CHECKING:
@@ -43,12 +43,12 @@ examples:
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add the ``identify`` sub-command."""
-    parser = subparsers.add_parser(
+    parser = add_command(
+        subparsers,
         "identify",
-        help="identify model parameters of a record (exchange CSV + JSON, or HDF5)",
-        description=DESCRIPTION,
-        epilog=EPILOG,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
+        "identify model parameters of a record (exchange CSV + JSON, or HDF5)",
+        DESCRIPTION,
+        EPILOG,
     )
     parser.add_argument(
         "files", type=Path, nargs="+", metavar="FILE",

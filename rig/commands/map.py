@@ -13,7 +13,7 @@ import math
 from pathlib import Path
 from typing import Any
 
-from rig.cli import CommandError
+from rig.cli import CommandError, add_command
 
 KIND_DEFAULTS = {  # ics, transient periods, record periods
     "bifurcation": (4, 400, 100),
@@ -67,12 +67,12 @@ examples:
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add the ``map`` sub-command."""
-    parser = subparsers.add_parser(
+    parser = add_command(
+        subparsers,
         "map",
-        help="bifurcation, regime or basin maps, on this machine or a Dask cluster -> HDF5 + PNG",
-        description=DESCRIPTION,
-        epilog=EPILOG,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
+        "bifurcation, regime or basin maps, on this machine or a Dask cluster -> HDF5 + PNG",
+        DESCRIPTION,
+        EPILOG,
     )
     parser.add_argument("kind", choices=tuple(KIND_DEFAULTS), help="what to map")
     parser.add_argument(
@@ -86,18 +86,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--param", action="append", default=[], metavar="NAME=VALUE",
         help="set a model parameter (repeatable; names as in 'impact-rig simulate --help')",
     )
-    parser.add_argument(
-        "--ics", type=int, metavar="M",
-        help="random initial states per point (bifurcation 4, regimes 4)",
-    )
-    parser.add_argument(
-        "--transient-periods", type=int, metavar="P",
-        help="drive periods run and discarded first (bifurcation 400, others 200)",
-    )
-    parser.add_argument(
-        "--record-periods", type=int, metavar="Q",
-        help="Poincare samples kept per trajectory, >= 50 (bifurcation 100, others 64)",
-    )
+    for option, metavar, text in (
+        ("--ics", "M", "random initial states per point (bifurcation 4, regimes 4)"),
+        ("--transient-periods", "P",
+         "drive periods run and discarded first (bifurcation 400, others 200)"),
+        ("--record-periods", "Q",
+         "Poincare samples kept per trajectory, >= 50 (bifurcation 100, others 64)"),
+    ):
+        parser.add_argument(option, type=int, metavar=metavar, help=text)
     parser.add_argument(
         "--overlay", type=Path, metavar="SWEEP.h5",
         help="bifurcation: draw a recorded sweep (impact-rig sweep) over the diagram, the "
@@ -200,77 +196,14 @@ def plan_from_args(args: argparse.Namespace) -> Any:
     """The map the options describe; CommandError naming the option when they do not make one."""
     import numpy as np
 
-    from analysis.maps import (
-        BASIN_AXES,
-        Axis,
-        AxisError,
-        MapSettings,
-        PlanError,
-        basin_plan,
-        bifurcation_plan,
-        regime_plan,
-    )
-    from rig.commands.simulate import build_model, parameter_names, parse_assignments
+    from analysis.maps import PlanError, basin_plan, bifurcation_plan, regime_plan
+    from rig.commands.simulate import build_model
 
-    wanted = {"bifurcation": 1, "regimes": 2, "basins": 2}[args.kind]
-    if len(args.vary) != wanted:
-        raise CommandError(
-            f"map {args.kind} takes --vary {wanted} time(s), got {len(args.vary)}"
-            + (f" ({' and '.join(BASIN_AXES)})" if args.kind == "basins" else "")
-        )
-    axes = []
-    for text in args.vary:
-        try:
-            axes.append(Axis.parse(text))
-        except AxisError as error:
-            raise CommandError(f"--vary {error}") from None
+    axes = _axes_from_args(args)
     names = [axis.name for axis in axes]
-    if len(set(names)) != len(names):
-        raise CommandError(f"--vary: {names[0]} is varied twice")
-    params = parse_assignments(args.param)
-    for option, name in (("--f-drive-hz", "f_drive_hz"), ("--beta", "beta")):
-        value = getattr(args, name)
-        if value is not None:
-            if name in params:
-                raise CommandError(f"{option} and --param {name} both given: give one")
-            params[name] = value
-    if args.kind == "basins":
-        if sorted(names) != sorted(BASIN_AXES):
-            raise CommandError(
-                f"--vary {', '.join(names)}: a basin map varies the initial state, "
-                f"{' and '.join(BASIN_AXES)} (rad, rad/s)"
-            )
-        axes.sort(key=lambda axis: BASIN_AXES.index(axis.name))
-    else:
-        for name in names:
-            if name in BASIN_AXES:
-                raise CommandError(
-                    f"--vary {name}: initial states are varied in 'map basins'; here they are "
-                    "random (--ics)"
-                )
-            if name in params:
-                raise CommandError(f"--vary {name} and a fixed value of {name}: give one")
-            if name not in parameter_names():
-                raise CommandError(
-                    f"--vary {name}: unknown parameter; valid names: {', '.join(parameter_names())}"
-                )
-    ics, transient, record = KIND_DEFAULTS[args.kind]
-    if args.kind == "basins" and args.ics:
-        raise CommandError("--ics: a basin map's initial states are its grid (--vary)")
-    if not (math.isfinite(args.rtol) and 0 < args.rtol < 1):
-        raise CommandError(f"--rtol {args.rtol}: must lie in (0, 1)")
-    try:
-        settings = MapSettings(
-            transient_periods=_given(args.transient_periods, transient),
-            record_periods=_given(args.record_periods, record),
-            ics=_given(args.ics, ics),
-            seed=args.seed,
-            batch=args.batch,
-            rtol=args.rtol,
-            atol=args.rtol * 1e-2,
-        )
-    except PlanError as error:
-        raise CommandError(str(error)) from None
+    params = _fixed_values(args)
+    _check_varied(args.kind, axes, params)
+    settings = _settings_from_args(args)
 
     def packed(values: dict[str, float]) -> Any:
         model, _ = build_model(None, "forced", {**params, **values}, [])
@@ -291,6 +224,94 @@ def plan_from_args(args: argparse.Namespace) -> Any:
         raise CommandError(str(error)) from None
     except CommandError as error:
         raise CommandError(f"{error} (while building the map's models)") from None
+
+
+def _axes_from_args(args: argparse.Namespace) -> list[Any]:
+    """The --vary axes, as many as the kind of map takes and each quantity once."""
+    from analysis.maps import BASIN_AXES, Axis, AxisError
+
+    wanted = {"bifurcation": 1, "regimes": 2, "basins": 2}[args.kind]
+    if len(args.vary) != wanted:
+        raise CommandError(
+            f"map {args.kind} takes --vary {wanted} time(s), got {len(args.vary)}"
+            + (f" ({' and '.join(BASIN_AXES)})" if args.kind == "basins" else "")
+        )
+    axes = []
+    for text in args.vary:
+        try:
+            axes.append(Axis.parse(text))
+        except AxisError as error:
+            raise CommandError(f"--vary {error}") from None
+    names = [axis.name for axis in axes]
+    if len(set(names)) != len(names):
+        raise CommandError(f"--vary: {names[0]} is varied twice")
+    return axes
+
+
+def _fixed_values(args: argparse.Namespace) -> dict[str, float]:
+    """The model values held over the map: --param, --f-drive-hz and --beta (each once)."""
+    from rig.commands.simulate import parse_assignments
+
+    params = parse_assignments(args.param)
+    for option, name in (("--f-drive-hz", "f_drive_hz"), ("--beta", "beta")):
+        value = getattr(args, name)
+        if value is not None:
+            if name in params:
+                raise CommandError(f"{option} and --param {name} both given: give one")
+            params[name] = value
+    return params
+
+
+def _check_varied(kind: str, axes: list[Any], params: dict[str, float]) -> None:
+    """A basin map varies the initial state (axes put in BASIN_AXES order); the others vary
+    model parameters that are known and not also held fixed."""
+    from analysis.maps import BASIN_AXES
+    from rig.commands.simulate import parameter_names
+
+    names = [axis.name for axis in axes]
+    if kind == "basins":
+        if sorted(names) != sorted(BASIN_AXES):
+            raise CommandError(
+                f"--vary {', '.join(names)}: a basin map varies the initial state, "
+                f"{' and '.join(BASIN_AXES)} (rad, rad/s)"
+            )
+        axes.sort(key=lambda axis: BASIN_AXES.index(axis.name))
+        return
+    for name in names:
+        if name in BASIN_AXES:
+            raise CommandError(
+                f"--vary {name}: initial states are varied in 'map basins'; here they are "
+                "random (--ics)"
+            )
+        if name in params:
+            raise CommandError(f"--vary {name} and a fixed value of {name}: give one")
+        if name not in parameter_names():
+            raise CommandError(
+                f"--vary {name}: unknown parameter; valid names: {', '.join(parameter_names())}"
+            )
+
+
+def _settings_from_args(args: argparse.Namespace) -> Any:
+    """The integration and sampling settings, the kind's defaults where an option is not given."""
+    from analysis.maps import MapSettings, PlanError
+
+    ics, transient, record = KIND_DEFAULTS[args.kind]
+    if args.kind == "basins" and args.ics:
+        raise CommandError("--ics: a basin map's initial states are its grid (--vary)")
+    if not (math.isfinite(args.rtol) and 0 < args.rtol < 1):
+        raise CommandError(f"--rtol {args.rtol}: must lie in (0, 1)")
+    try:
+        return MapSettings(
+            transient_periods=_given(args.transient_periods, transient),
+            record_periods=_given(args.record_periods, record),
+            ics=_given(args.ics, ics),
+            seed=args.seed,
+            batch=args.batch,
+            rtol=args.rtol,
+            atol=args.rtol * 1e-2,
+        )
+    except PlanError as error:
+        raise CommandError(str(error)) from None
 
 
 def _check_axes_matter(axes: list[Any], vectors: Any, shape: tuple[int, ...]) -> None:

@@ -5,16 +5,13 @@ from __future__ import annotations
 import argparse
 
 from analysis.experiments import NAMES
-from rig.cli import CommandError
+from rig.cli import CommandError, add_command
 from rig.commands.rig_options import (
-    ProgressLine,
     add_rig_options,
     check_drive_limits,
-    check_output,
-    compression,
+    drive_amplitude_m,
     load_rig_config,
-    report,
-    run_procedure,
+    record_and_report,
 )
 
 IMPACT_DECAY_FS_HZ = 20_000.0
@@ -50,12 +47,12 @@ examples:
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add the ``record`` sub-command."""
-    parser = subparsers.add_parser(
+    parser = add_command(
+        subparsers,
         "record",
-        help="record the rig (real or --sim) to a crash-safe HDF5 file",
-        description=DESCRIPTION,
-        epilog=EPILOG,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
+        "record the rig (real or --sim) to a crash-safe HDF5 file",
+        DESCRIPTION,
+        EPILOG,
     )
     add_rig_options(parser)
     run_group = parser.add_argument_group("experiment")
@@ -107,7 +104,6 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     """Validate everything, open the rig, run the procedure, print a summary."""
     import math
-    from functools import partial
 
     from analysis.experiments import FORCED, FREE_DECAY, IMPACT_DECAY, experiment_kind
     from rig.procedures import DecayPlan, TimedPlan, record_decay, record_timed
@@ -123,9 +119,7 @@ def run(args: argparse.Namespace) -> int:
     if kind.driven:
         if args.drive_hz is None or (args.beta is None and args.amplitude_mm is None):
             raise CommandError("a forced recording needs --drive-hz and --beta (or --amplitude-mm)")
-        amplitude_m = (
-            args.beta * config.constants.L_m if args.beta is not None else args.amplitude_mm * 1e-3
-        )
+        amplitude_m = drive_amplitude_m(args, config)
         check_drive_limits(config, [(args.drive_hz, amplitude_m)])
         plan = TimedPlan(experiment, args.duration, args.drive_hz, amplitude_m, args.settle)
         procedure = record_timed
@@ -153,15 +147,5 @@ def run(args: argparse.Namespace) -> int:
     fs = args.fs
     if fs is None and kind is IMPACT_DECAY:
         fs = IMPACT_DECAY_FS_HZ
-    path = check_output(args)
-    run_plan = partial(
-        procedure,
-        path=path,
-        plan=plan,
-        notes=args.notes,
-        overwrite=args.overwrite,
-        compression=compression(args),
-        progress=ProgressLine(),
-    )
-    report(run_procedure(config, fs, path, run_plan))
+    record_and_report(args, config, fs, procedure, plan)
     return 0

@@ -6,6 +6,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from rig.cli import add_command
+
 DESCRIPTION = """\
 Recover a recording that the other commands refuse: one that was truncated (copied
 while being written, a full disk), has damaged bytes (every chunk carries a checksum,
@@ -28,12 +30,12 @@ examples:
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add the ``repair`` sub-command."""
-    parser = subparsers.add_parser(
+    parser = add_command(
+        subparsers,
         "repair",
-        help="recover what can be read of a damaged or killed recording into a new file",
-        description=DESCRIPTION,
-        epilog=EPILOG,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
+        "recover what can be read of a damaged or killed recording into a new file",
+        DESCRIPTION,
+        EPILOG,
     )
     parser.add_argument("recording", type=Path, metavar="FILE.h5", help="the damaged recording")
     parser.add_argument(

@@ -8,7 +8,7 @@ import math
 import time
 from pathlib import Path
 
-from rig.cli import CommandError
+from rig.cli import CommandError, add_command
 from rig.logs import progress
 
 DESCRIPTION = """\
@@ -30,12 +30,12 @@ examples:
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add the ``replay`` sub-command."""
-    parser = subparsers.add_parser(
+    parser = add_command(
+        subparsers,
         "replay",
-        help="play a recording through the replay drivers and the engine",
-        description=DESCRIPTION,
-        epilog=EPILOG,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
+        "play a recording through the replay drivers and the engine",
+        DESCRIPTION,
+        EPILOG,
     )
     parser.add_argument("recording", metavar="FILE.h5", help="the recording to play")
     pace = parser.add_mutually_exclusive_group()

@@ -12,7 +12,7 @@ import math
 import time
 from collections.abc import Callable, Iterable
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from rig.cli import CommandError
 
@@ -162,27 +162,49 @@ def _run_on_devices(
     path: Path,
     procedure: Callable[[RigDevices], ProcedureResult],
 ) -> ProcedureResult:
-    from drivers.interfaces import DeviceError, LimitError
-    from rig.engine import AcquisitionError, SubscriberOverrunError
-    from rig.procedures import ProcedureError
-    from rig.recorder import RecordingError
+    from rig.procedures import RIG_FAILURES
 
     devices = open_devices(config, fs)
     try:
         return procedure(devices)
-    except (
-        DeviceError,
-        LimitError,
-        RecordingError,
-        ProcedureError,
-        AcquisitionError,
-        SubscriberOverrunError,
-    ) as error:
+    except RIG_FAILURES as error:
         raise CommandError(
             f"{error} (the drive was ramped to zero; {path} keeps the data recorded so far)"
         ) from None
     finally:
         devices.close()
+
+
+def record_and_report(
+    args: argparse.Namespace,
+    config: RigConfig,
+    fs: float | None,
+    procedure: Callable[..., ProcedureResult],
+    plan: Any,
+) -> None:
+    """Run ``procedure(devices, path, plan, ...)`` (a rig.procedures recording) into the
+    checked --out with --notes, --overwrite and the compression, and print its summary."""
+    path = check_output(args)
+    result = run_procedure(
+        config,
+        fs,
+        path,
+        lambda devices: procedure(
+            devices,
+            path,
+            plan,
+            notes=args.notes,
+            overwrite=args.overwrite,
+            compression=compression(args),
+            progress=ProgressLine(),
+        ),
+    )
+    report(result)
+
+
+def drive_amplitude_m(args: argparse.Namespace, config: RigConfig) -> float:
+    """The drive amplitude given as --beta (A = beta L of the rig) or --amplitude-mm."""
+    return args.beta * config.constants.L_m if args.beta is not None else args.amplitude_mm * 1e-3
 
 
 class ProgressLine:

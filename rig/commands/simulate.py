@@ -21,7 +21,7 @@ from pathlib import Path
 from typing import Any
 
 from analysis.experiments import FORCED, IMPACT_DECAY, NAMES, experiment_kind
-from rig.cli import CommandError
+from rig.cli import CommandError, add_command
 from rig.logs import log, progress
 
 DRIVE_PARAMETERS = {
@@ -75,12 +75,12 @@ examples:
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add the ``simulate`` sub-command."""
-    parser = subparsers.add_parser(
+    parser = add_command(
+        subparsers,
         "simulate",
-        help="simulate the pendulum and write CSV + JSON or HDF5",
-        description=DESCRIPTION,
-        epilog=EPILOG,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
+        "simulate the pendulum and write CSV + JSON or HDF5",
+        DESCRIPTION,
+        EPILOG,
     )
     parser.add_argument(
         "--experiment",
@@ -182,21 +182,31 @@ def build_model(
     case: str | None, experiment: str | None, params: dict[str, float], causes: list[str]
 ) -> tuple[Any, str]:
     """The Model and experiment name the options describe (CommandError when inconsistent)."""
-    from dataclasses import fields, replace
+    from dataclasses import fields
 
-    from analysis.extensions import CAUSES
-    from analysis.model import (
-        Drive,
-        Model,
-        RigParameters,
-        from_nondimensional,
-        paper_case,
-        to_nondimensional,
-    )
+    from analysis.model import Model, RigParameters
     from analysis.packed import ParameterError
 
     rig_names = [f.name for f in fields(RigParameters)]
-    cause_of = _cause_parameters(rig_names)
+    experiment = _checked_experiment(case, experiment, params, causes)
+    kind = experiment_kind(experiment)
+    try:
+        rig, drive = _rig_and_drive(case, kind.driven, params, rig_names)
+        model = Model(rig, drive, barrier=kind.barrier)
+        for name, values in _switched_on_causes(params, causes, rig_names).items():
+            model = model.with_extension(name, **values)
+    except ParameterError as error:
+        raise CommandError(str(error)) from None
+    return model, experiment
+
+
+def _checked_experiment(
+    case: str | None, experiment: str | None, params: dict[str, float], causes: list[str]
+) -> str:
+    """The experiment's name (forced with --case or a drive, else impact_decay), once the
+    parameter and cause names are known and fit it."""
+    from analysis.extensions import CAUSES
+
     valid = parameter_names()
     unknown = [name for name in params if name not in valid]
     if unknown:
@@ -218,43 +228,61 @@ def build_model(
         raise CommandError(
             f"drive or nondimensional parameters given for the unforced {experiment} experiment"
         )
-    try:
-        rig, frequency, amplitude = RigParameters(), 0.0, 0.0
-        if case:
-            rig, drive = paper_case(case).dimensional()
-            frequency, amplitude = drive.frequency_hz, drive.amplitude_m
-        rig = rig.with_values(**{k: v for k, v in params.items() if k in rig_names})
-        frequency = params.get("f_drive_hz", frequency)
-        nondimensional = {k: v for k, v in params.items() if k in NONDIMENSIONAL_PARAMETERS}
-        if nondimensional:
-            if frequency <= 0:
-                raise CommandError("eta, mu and gamma need the drive frequency (f_drive_hz)")
-            beta = amplitude / rig.L_m
-            nd = replace(to_nondimensional(rig, Drive(0.0, frequency)), **nondimensional)
-            rig, _ = from_nondimensional(nd, frequency, rig)
-            amplitude = beta * rig.L_m
-        if "beta" in params:
-            amplitude = params["beta"] * rig.L_m
-        amplitude = params.get("A_m", amplitude)
-        if kind.driven:
-            if frequency <= 0 or amplitude <= 0:
-                raise CommandError(
-                    "a forced run needs a drive: --case, or --param f_drive_hz=... with "
-                    "--param A_m=... or --param beta=..."
-                )
-            drive = Drive(amplitude_m=amplitude, frequency_hz=frequency)
-        else:
-            drive = Drive()
-        extensions: dict[str, dict[str, float]] = {name: {} for name in causes}
-        for name, value in params.items():
-            if name in cause_of:
-                extensions.setdefault(cause_of[name], {})[name] = value
-        model = Model(rig, drive, barrier=kind.barrier)
-        for name, values in extensions.items():
-            model = model.with_extension(name, **values)
-    except ParameterError as error:
-        raise CommandError(str(error)) from None
-    return model, experiment
+    return experiment
+
+
+def _rig_and_drive(
+    case: str | None, driven: bool, params: dict[str, float], rig_names: list[str]
+) -> tuple[Any, Any]:
+    """The rig and drive: the paper's case (or the default rig), then the rig values, the
+    nondimensional ones and the drive's given in ``params``, in that order."""
+    from dataclasses import replace
+
+    from analysis.model import (
+        Drive,
+        RigParameters,
+        from_nondimensional,
+        paper_case,
+        to_nondimensional,
+    )
+
+    rig, frequency, amplitude = RigParameters(), 0.0, 0.0
+    if case:
+        rig, drive = paper_case(case).dimensional()
+        frequency, amplitude = drive.frequency_hz, drive.amplitude_m
+    rig = rig.with_values(**{k: v for k, v in params.items() if k in rig_names})
+    frequency = params.get("f_drive_hz", frequency)
+    nondimensional = {k: v for k, v in params.items() if k in NONDIMENSIONAL_PARAMETERS}
+    if nondimensional:
+        if frequency <= 0:
+            raise CommandError("eta, mu and gamma need the drive frequency (f_drive_hz)")
+        beta = amplitude / rig.L_m
+        nd = replace(to_nondimensional(rig, Drive(0.0, frequency)), **nondimensional)
+        rig, _ = from_nondimensional(nd, frequency, rig)
+        amplitude = beta * rig.L_m
+    if "beta" in params:
+        amplitude = params["beta"] * rig.L_m
+    amplitude = params.get("A_m", amplitude)
+    if not driven:
+        return rig, Drive()
+    if frequency <= 0 or amplitude <= 0:
+        raise CommandError(
+            "a forced run needs a drive: --case, or --param f_drive_hz=... with "
+            "--param A_m=... or --param beta=..."
+        )
+    return rig, Drive(amplitude_m=amplitude, frequency_hz=frequency)
+
+
+def _switched_on_causes(
+    params: dict[str, float], causes: list[str], rig_names: list[str]
+) -> dict[str, dict[str, float]]:
+    """Each cause switched on (by --cause or by one of its parameters) with its given values."""
+    cause_of = _cause_parameters(rig_names)
+    extensions: dict[str, dict[str, float]] = {name: {} for name in causes}
+    for name, value in params.items():
+        if name in cause_of:
+            extensions.setdefault(cause_of[name], {})[name] = value
+    return extensions
 
 
 # --------------------------------------------------------------------------- output

@@ -6,16 +6,13 @@ import argparse
 
 import numpy as np
 
-from rig.cli import CommandError
+from rig.cli import CommandError, add_command
 from rig.commands.rig_options import (
-    ProgressLine,
     add_rig_options,
     check_drive_limits,
-    check_output,
-    compression,
+    drive_amplitude_m,
     load_rig_config,
-    report,
-    run_procedure,
+    record_and_report,
 )
 
 DESCRIPTION = """\
@@ -42,12 +39,12 @@ examples:
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add the ``sweep`` sub-command."""
-    parser = subparsers.add_parser(
+    parser = add_command(
+        subparsers,
         "sweep",
-        help="forced-response sweep of frequency or amplitude, up and down, recorded",
-        description=DESCRIPTION,
-        epilog=EPILOG,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
+        "forced-response sweep of frequency or amplitude, up and down, recorded",
+        DESCRIPTION,
+        EPILOG,
     )
     add_rig_options(parser)
     plan = parser.add_argument_group("sweep")
@@ -103,9 +100,7 @@ def run(args: argparse.Namespace) -> int:
             raise CommandError(
                 "a frequency sweep needs its fixed amplitude: --beta or --amplitude-mm"
             )
-        fixed = (
-            args.beta * config.constants.L_m if args.beta is not None else args.amplitude_mm * 1e-3
-        )
+        fixed = drive_amplitude_m(args, config)
     else:
         if args.drive_hz is None:
             raise CommandError("an amplitude sweep needs its fixed frequency: --drive-hz")
@@ -123,20 +118,5 @@ def run(args: argparse.Namespace) -> int:
     except ValueError as error:
         raise CommandError(str(error)) from None
     check_drive_limits(config, [(f, a) for _, f, a in plan.steps()])
-    path = check_output(args)
-    result = run_procedure(
-        config,
-        args.fs,
-        path,
-        lambda devices: run_sweep(
-            devices,
-            path,
-            plan,
-            notes=args.notes,
-            overwrite=args.overwrite,
-            compression=compression(args),
-            progress=ProgressLine(),
-        ),
-    )
-    report(result)
+    record_and_report(args, config, args.fs, run_sweep, plan)
     return 0

@@ -20,8 +20,8 @@ from rig.demo.settings import (
     indented,
 )
 from rig.procedures import (
+    RIG_FAILURES,
     DecayPlan,
-    ProcedureError,
     ProcedureResult,
     SweepPlan,
     record_decay,
@@ -89,21 +89,9 @@ def record_everything(
     config: RigConfig, folder: Path, settings: DemoSettings, say: Progress
 ) -> dict[str, ProcedureResult]:
     """The three recordings; a device or recording failure is a DemoError saying so."""
-    from drivers.interfaces import DeviceError, LimitError
-    from rig.engine import AcquisitionError, SubscriberOverrunError
-    from rig.recorder import RecordingError
-
-    failures = (
-        DeviceError,
-        LimitError,
-        RecordingError,
-        ProcedureError,
-        AcquisitionError,
-        SubscriberOverrunError,
-    )
     try:
         return _record_on_open_rig(config, folder, settings, say)
-    except failures as error:
+    except RIG_FAILURES as error:
         raise DemoError(
             f"recording on the virtual rig failed: {error} (the drive was ramped to zero; the "
             f"recordings so far are in {folder / RECORDINGS})"

@@ -45,6 +45,14 @@ def _data(case, tmp_path):
     return forced_data(load_record(write_forced_case(case, tmp_path, overwrite=True)))
 
 
+def _heavy_tailed(name, duration_s, tmp_path):
+    """The named HEAVY draw, ``duration_s`` long, and its fit's view of the written record."""
+    seed, frequency = HEAVY[name]
+    case = draw_unregistered_case(seed, "heavy_tailed_noise", frequency_hz=frequency,
+                                  duration_s=duration_s)
+    return case, _data(case, tmp_path)
+
+
 def _truth(case) -> dict[str, float]:
     rig = case.rig
     return {"omega_rad_s": rig.omega_rad_s, "zeta": rig.zeta,
@@ -68,10 +76,7 @@ def test_gaussian_noise_is_not_heavy_tailed_quantised_or_not(seed, frequency, tm
 
 @pytest.mark.parametrize("name", list(HEAVY))
 def test_heavy_tailed_noise_is_found_before_any_fit(name, tmp_path):
-    seed, frequency = HEAVY[name]
-    case = draw_unregistered_case(seed, "heavy_tailed_noise", frequency_hz=frequency,
-                                  duration_s=DECISION_S)
-    data = _data(case, tmp_path)
+    _, data = _heavy_tailed(name, DECISION_S, tmp_path)
     assert data.heavy_tailed
     tails = data.tails
     # dozens of spikes of each sign where Gaussian noise puts one in a hundred records
@@ -82,10 +87,7 @@ def test_heavy_tailed_noise_is_found_before_any_fit(name, tmp_path):
 
 @pytest.mark.parametrize("name", list(HEAVY))
 def test_a_heavy_tailed_record_is_identified_with_honest_tighter_intervals(name, tmp_path):
-    seed, frequency = HEAVY[name]
-    case = draw_unregistered_case(seed, "heavy_tailed_noise", frequency_hz=frequency,
-                                  duration_s=FIT_S)
-    data = _data(case, tmp_path)
+    case, data = _heavy_tailed(name, FIT_S, tmp_path)
     robust = identify_forced(data, threads=2)
     plain = identify_forced(replace(data, tails=None), threads=2)  # least squares
     # the report says why, and the spikes alone are no poor fit

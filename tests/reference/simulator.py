@@ -13,6 +13,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 from scipy.integrate import solve_ivp
@@ -306,24 +307,8 @@ def simulate_reference(
     Raises OverTheTopError when the pendulum reaches the horizontal.
     """
     t_eval = np.asarray(t_eval_s, dtype=float)
-    if t_eval.ndim != 1:
-        raise ValueError(f"t_eval_s has shape {t_eval.shape}; expected a 1-d array")
-    t_end = float(t_eval[-1]) if t_end_s is None else float(t_end_s)
-    if not (math.isfinite(t_start_s) and math.isfinite(t_end) and t_end > t_start_s):
-        raise ValueError(f"time span ({t_start_s!r}, {t_end!r}): expected finite, start < end")
-    if t_eval.size and (
-        np.any(np.diff(t_eval) <= 0) or t_eval[0] < t_start_s or t_eval[-1] > t_end
-    ):
-        raise ValueError(
-            f"t_eval_s must increase strictly within [{t_start_s}, {t_end}]; "
-            f"it spans [{t_eval[0]}, {t_eval[-1]}]"
-        )
-    if lowpass_tau_s is not None:
-        _require_finite("lowpass_tau_s", lowpass_tau_s, lower=0.0, strict=True)
-    for name, value in (("theta0_rad", theta0_rad), ("theta_dot0_rad_s", theta_dot0_rad_s)):
-        _require_finite(name, value, lower=-math.inf, strict=False)
-    if math.cos(theta0_rad) <= 0.0:
-        raise OverTheTopError(f"theta0_rad = {theta0_rad!r} is at or above the horizontal")
+    t_end = _checked_span(t_eval, t_start_s, t_end_s)
+    _check_start(theta0_rad, theta_dot0_rad_s, lowpass_tau_s)
 
     equations = _Equations(pendulum, table, lowpass_tau_s)
     state = [float(theta0_rad), float(theta_dot0_rad_s)]
@@ -368,11 +353,7 @@ def simulate_reference(
         if empty_pieces > MAX_EMPTY_PIECES:
             raise RuntimeError(f"event logic makes no progress at t = {t_event} ({mode})")
         t = float(t_event)
-        for index, found in enumerate(solution.t_events):
-            if len(found) and found[-1] == t_event:
-                y = np.array(solution.y_events[index][-1], dtype=float)
-                kind = handlers[index](t, y, mode)
-                events.append(Event(t, kind, float(y[0]), float(y[1])))
+        y = _handle_events(solution, t_event, handlers, mode, events, y)
         if mode.stuck:
             y[1] = 0.0
     if filled != times.size:
@@ -386,6 +367,50 @@ def simulate_reference(
         final_t_s=t_end,
         final_state=samples[:, -1].copy(),
     )
+
+
+def _checked_span(t_eval: np.ndarray, t_start_s: float, t_end_s: float | None) -> float:
+    """The end of the span; ValueError unless the sample times increase within it."""
+    if t_eval.ndim != 1:
+        raise ValueError(f"t_eval_s has shape {t_eval.shape}; expected a 1-d array")
+    t_end = float(t_eval[-1]) if t_end_s is None else float(t_end_s)
+    if not (math.isfinite(t_start_s) and math.isfinite(t_end) and t_end > t_start_s):
+        raise ValueError(f"time span ({t_start_s!r}, {t_end!r}): expected finite, start < end")
+    if t_eval.size and (
+        np.any(np.diff(t_eval) <= 0) or t_eval[0] < t_start_s or t_eval[-1] > t_end
+    ):
+        raise ValueError(
+            f"t_eval_s must increase strictly within [{t_start_s}, {t_end}]; "
+            f"it spans [{t_eval[0]}, {t_eval[-1]}]"
+        )
+    return t_end
+
+
+def _check_start(
+    theta0_rad: float, theta_dot0_rad_s: float, lowpass_tau_s: float | None
+) -> None:
+    """ValueError for a non-finite start or filter constant; OverTheTopError above horizontal."""
+    if lowpass_tau_s is not None:
+        _require_finite("lowpass_tau_s", lowpass_tau_s, lower=0.0, strict=True)
+    for name, value in (("theta0_rad", theta0_rad), ("theta_dot0_rad_s", theta_dot0_rad_s)):
+        _require_finite(name, value, lower=-math.inf, strict=False)
+    if math.cos(theta0_rad) <= 0.0:
+        raise OverTheTopError(f"theta0_rad = {theta0_rad!r} is at or above the horizontal")
+
+
+def _handle_events(
+    solution: Any, t_event: float, handlers: list, mode: _Mode, events: list[Event],
+    y: np.ndarray,
+) -> np.ndarray:
+    """Apply the events that ended a piece at ``t_event`` to the mode and log them; the state
+    to restart from (``y`` when none of them fired there)."""
+    t = float(t_event)
+    for index, found in enumerate(solution.t_events):
+        if len(found) and found[-1] == t_event:
+            y = np.array(solution.y_events[index][-1], dtype=float)
+            kind = handlers[index](t, y, mode)
+            events.append(Event(t, kind, float(y[0]), float(y[1])))
+    return y
 
 
 def _initial_mode(equations: _Equations, t: float, y: np.ndarray) -> _Mode:
@@ -415,8 +440,18 @@ def _stick_or_slide(equations: _Equations, t: float, theta: float, mode: _Mode) 
 
 def _piece_events(equations: _Equations, mode: _Mode):
     """The terminal event functions of one mode and, for each, what it does to the mode."""
-    functions = []
-    handlers = []
+    pairs = [_over_the_top_event()]
+    if equations.p.barrier:
+        pairs.append(_surface_event(equations, mode))
+    if mode.in_contact and not mode.stuck:
+        pairs.append(_clamp_event(equations, mode))
+    if equations.friction_acc > 0.0:
+        pairs += _slip_events(equations) if mode.stuck else [_reversal_event(equations, mode)]
+    return [function for function, _ in pairs], [handler for _, handler in pairs]
+
+
+def _over_the_top_event():
+    """Reaching the horizontal: refused, outside the experiment's regime."""
 
     def over_the_top(t: float, y: np.ndarray) -> float:
         return math.cos(y[0])
@@ -427,75 +462,76 @@ def _piece_events(equations: _Equations, mode: _Mode):
             "driven over the top, outside the experiment's regime"
         )
 
-    functions.append(_terminal(over_the_top, -1.0))
-    handlers.append(refuse_over_the_top)
+    return _terminal(over_the_top, -1.0), refuse_over_the_top
 
-    if equations.p.barrier:
 
-        def surface(t: float, y: np.ndarray) -> float:
-            return equations.surface(y[0])
+def _surface_event(equations: _Equations, mode: _Mode):
+    """Crossing the barrier's surface: contact entry or exit."""
 
-        def cross_surface(t: float, y: np.ndarray, mode: _Mode) -> str:
-            mode.in_contact = not mode.in_contact
-            mode.clamped = False  # the force starts from 0 and grows at entry; 0 after exit
-            return "contact_entry" if mode.in_contact else "contact_exit"
+    def surface(t: float, y: np.ndarray) -> float:
+        return equations.surface(y[0])
 
-        # after entry only an exit can come next, and vice versa: a restart that lands a
-        # rounding error on the wrong side cannot fire the same crossing again
-        functions.append(_terminal(surface, -1.0 if mode.in_contact else 1.0))
-        handlers.append(cross_surface)
+    def cross_surface(t: float, y: np.ndarray, mode: _Mode) -> str:
+        mode.in_contact = not mode.in_contact
+        mode.clamped = False  # the force starts from 0 and grows at entry; 0 after exit
+        return "contact_entry" if mode.in_contact else "contact_exit"
 
-    if mode.in_contact and not mode.stuck:
+    # after entry only an exit can come next, and vice versa: a restart that lands a
+    # rounding error on the wrong side cannot fire the same crossing again
+    return _terminal(surface, -1.0 if mode.in_contact else 1.0), cross_surface
 
-        def clamp(t: float, y: np.ndarray) -> float:
-            return equations.clamp_indicator(t, y[0], y[1])
 
-        def toggle_clamp(t: float, y: np.ndarray, mode: _Mode) -> str:
-            mode.clamped = not mode.clamped
-            return "clamp" if mode.clamped else "unclamp"
+def _clamp_event(equations: _Equations, mode: _Mode):
+    """In contact: the contact force reaching zero (clamp) or leaving it (unclamp)."""
 
-        functions.append(_terminal(clamp, 1.0 if mode.clamped else -1.0))
-        handlers.append(toggle_clamp)
+    def clamp(t: float, y: np.ndarray) -> float:
+        return equations.clamp_indicator(t, y[0], y[1])
 
-    if equations.friction_acc > 0.0:
-        if mode.stuck:
+    def toggle_clamp(t: float, y: np.ndarray, mode: _Mode) -> str:
+        mode.clamped = not mode.clamped
+        return "clamp" if mode.clamped else "unclamp"
 
-            def slip_forward(t: float, y: np.ndarray) -> float:
-                other = equations.acceleration_without_friction(t, y[0], 0.0)
-                return other - equations.friction_acc
+    return _terminal(clamp, 1.0 if mode.clamped else -1.0), toggle_clamp
 
-            def slip_backward(t: float, y: np.ndarray) -> float:
-                other = equations.acceleration_without_friction(t, y[0], 0.0)
-                return other + equations.friction_acc
 
-            def slip(direction: float):
-                def start_sliding(t: float, y: np.ndarray, mode: _Mode) -> str:
-                    mode.stuck = False
-                    mode.direction = direction
-                    return "slip"
+def _slip_events(equations: _Equations) -> list:
+    """Stuck: the other torques exceeding friction forward or backward start a slide."""
 
-                return start_sliding
+    def slip_forward(t: float, y: np.ndarray) -> float:
+        other = equations.acceleration_without_friction(t, y[0], 0.0)
+        return other - equations.friction_acc
 
-            functions += [_terminal(slip_forward, 1.0), _terminal(slip_backward, -1.0)]
-            handlers += [slip(1.0), slip(-1.0)]
-        else:
+    def slip_backward(t: float, y: np.ndarray) -> float:
+        other = equations.acceleration_without_friction(t, y[0], 0.0)
+        return other + equations.friction_acc
 
-            direction = mode.direction
+    def slip(direction: float):
+        def start_sliding(t: float, y: np.ndarray, mode: _Mode) -> str:
+            mode.stuck = False
+            mode.direction = direction
+            return "slip"
 
-            def speed(t: float, y: np.ndarray) -> float:
-                # A piece that starts from a reversal starts at theta' = 0, a root the event
-                # search would return at once when theta' comes back through 0 within the
-                # first step (a fast drive turning it round): offset so that the start lies
-                # on the side the motion leaves, and the crossing is the one ahead.
-                return y[1] + REVERSAL_OFFSET_RAD_S * direction
+        return start_sliding
 
-            def speed_zero(t: float, y: np.ndarray, mode: _Mode) -> str:
-                y[1] = 0.0
-                return _stick_or_slide(equations, t, float(y[0]), mode)
+    return [(_terminal(slip_forward, 1.0), slip(1.0)), (_terminal(slip_backward, -1.0), slip(-1.0))]
 
-            functions.append(_terminal(speed, -mode.direction))
-            handlers.append(speed_zero)
-    return functions, handlers
+
+def _reversal_event(equations: _Equations, mode: _Mode):
+    """Sliding: theta' reaching zero, where the pendulum sticks or slides back."""
+    direction = mode.direction
+
+    def speed(t: float, y: np.ndarray) -> float:
+        # A piece that starts from a reversal starts at theta' = 0, a root the event
+        # search would return at once when theta' comes back through 0 within the
+        # first step (a fast drive turning it round): offset so that the start lies
+        # on the side the motion leaves, and the crossing is the one ahead.
+        return y[1] + REVERSAL_OFFSET_RAD_S * direction
+
+    def speed_zero(t: float, y: np.ndarray, mode: _Mode) -> str:
+        y[1] = 0.0
+        return _stick_or_slide(equations, t, float(y[0]), mode)
+
+    return _terminal(speed, -mode.direction), speed_zero
 
 
 def _require_finite(name: str, value: float, *, lower: float, strict: bool) -> None:
