@@ -104,6 +104,9 @@ class Cause:
     doc: str
     dynamics: DynamicsHook | None = None
     measurement: MeasurementHook | None = None
+    # the measurement reads a sample through earlier ones (a filter): it must run over
+    # contiguous stretches, never over samples from several at once
+    measurement_memory: bool = False
     # what a record needs for this cause to show in it (analysis.experiments: "barrier",
     # "drive", "harmonics"); the experiment kind says why it cannot where one is missing
     needs: frozenset[str] = frozenset()
@@ -447,6 +450,7 @@ register(
                        (0.0, 0.05)),),
         "Angle channel low-pass filtered with time constant tau.",
         measurement=_lag,
+        measurement_memory=True,
         needs=frozenset({"harmonics"}),
         plan=_plan_lag,
     )

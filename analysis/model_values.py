@@ -68,6 +68,11 @@ def measured_angle(
     return out
 
 
+def measurement_has_memory(causes: Sequence[str]) -> bool:
+    """True when the sensor of ``causes`` reads a sample through earlier ones (a filter)."""
+    return any(name != NONE and cause(name).measurement_memory for name in causes)
+
+
 def has_measurement(causes: Sequence[str]) -> bool:
     """True when some cause of ``causes`` acts on the measured angle."""
     return any(name != NONE and cause(name).measurement is not None for name in causes)

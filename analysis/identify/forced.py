@@ -59,7 +59,12 @@ from analysis.identify.shooting import (
     cut_segments,
 )
 from analysis.model import RigParameters
-from analysis.model_values import has_measurement, measured_angle, packed_from_values
+from analysis.model_values import (
+    has_measurement,
+    measured_angle,
+    measurement_has_memory,
+    packed_from_values,
+)
 from analysis.records import Record
 
 SHORT_SEGMENT_S = 0.1  # first stage: short enough that 10 % off in omega is a small phase error
@@ -170,6 +175,7 @@ class ForcedModel:
         return ShootingProblem(
             d.t, d.y, d.valid, d.noise_rad, segments, self.packed, list(free), fixed,
             measure=self.measure if has_measurement(self.causes) else None,
+            measure_has_memory=measurement_has_memory(self.causes),
             rate_scale=d.drive.omega_rad_s, threads=threads, robust=d.heavy_tailed,
         )
 

@@ -111,8 +111,8 @@ ROBUST_GAUSSIAN_SCALE = (_gaussian_mean(lambda e: (e / _spread(e)) ** 2)
 
 PackedOf = Callable[[Mapping[str, float]], np.ndarray]
 # (values, times, true angle, rate at the first time) -> measured angle, for one stretch of
-# contiguous samples
-Measure = Callable[[Mapping[str, float], np.ndarray, np.ndarray, float], np.ndarray]
+# contiguous samples (or for all samples at once, the rate None, when it has no memory)
+Measure = Callable[[Mapping[str, float], np.ndarray, np.ndarray, float | None], np.ndarray]
 
 
 @dataclass(frozen=True)
@@ -238,6 +238,7 @@ class ShootingProblem:
         fixed: Mapping[str, float],
         *,
         measure: Measure | None = None,
+        measure_has_memory: bool = True,
         rate_scale: float = 1.0,
         threads: int | None = None,
         robust: bool = False,
@@ -251,6 +252,9 @@ class ShootingProblem:
         self.segments = segments
         self.packed_of = packed_of
         self.measure = measure
+        # a sensor without memory (a zero, a cubic) reads all samples in one call; one with
+        # memory (a filter) reads each chain of linked segments as one stretch
+        self.measure_has_memory = measure_has_memory
         self.free = list(free)
         self.fixed = dict(fixed)
         self.rate_scale = float(rate_scale)  # theta' jumps count as theta jumps times this
@@ -326,7 +330,9 @@ class ShootingProblem:
         th, om = self._integrate(values, states, split)
         ends = np.column_stack([th[self.is_end], om[self.is_end]])
         theta = th[~self.is_end]
-        if self.measure is not None:
+        if self.measure is not None and not self.measure_has_memory:
+            theta = self.measure(values, self.t[self.sample_of], theta, None)
+        elif self.measure is not None:
             times = self.t[self.sample_of]
             theta = np.concatenate([
                 self.measure(values, times[a:b], theta[a:b], float(om[first]))

@@ -25,12 +25,18 @@ THROWN = 17  # the segment thrown off
 
 
 @pytest.fixture(scope="module")
-def thrown_off(tmp_path_factory):
-    """The problem, the true states and the states with one thrown off."""
+def chaotic_case(tmp_path_factory):
+    """A chaotic 10 Hz record of the reference simulator, and its data as the fit sees it."""
     case = draw_forced_case(7101, "none", frequency_hz=10.0, regime="chaotic", laser=True,
                             duration_s=8.0)
     record = load_record(write_forced_case(case, tmp_path_factory.mktemp("chaotic")))
-    data = forced_data(record).for_regime("chaotic")
+    return case, forced_data(record).for_regime("chaotic")
+
+
+@pytest.fixture(scope="module")
+def thrown_off(chaotic_case):
+    """The problem, the true states and the states with one thrown off."""
+    case, data = chaotic_case
     segments = record_segments(data)
     rig = case.rig
     truth = {"omega_rad_s": rig.omega_rad_s, "zeta": rig.zeta,
@@ -73,3 +79,25 @@ def test_runs_split_over_threads_equal_one_whole_run_to_the_bit(thrown_off):
     edges = [g for pair in problem.groups for g in pair]
     assert edges[0] == 0 and edges[-1] == problem.segments.count
     assert all(edges[i] == edges[i + 1] for i in range(1, len(edges) - 1, 2))
+
+
+@pytest.mark.parametrize("sensor, size", [("sensor_nonlinearity", {"k3": -0.3}),
+                                          ("sensor_offset", {"offset_rad": 0.02})])
+def test_a_sensor_without_memory_reads_every_sample_at_once_to_the_same_bit(
+        thrown_off, chaotic_case, sensor, size):
+    """A zero or a cubic reads each sample alone: one call over all segments' samples gives
+    what the call per chain of segments gives (a filter could not: it is read per chain)."""
+    from analysis.model_values import measurement_has_memory
+
+    problem, true_states, _states, _noise = thrown_off
+    assert not measurement_has_memory((sensor,)) and measurement_has_memory(("sensor_lag",))
+    model = ForcedModel(chaotic_case[1], (sensor,))
+    sensed = model.problem(problem.segments, problem.free, size, threads=2)
+    assert not sensed.measure_has_memory
+    values = sensed.values_of(np.zeros(len(sensed.free)))
+    at_once, _ = sensed.run(values, true_states)
+    sensed.measure_has_memory = True
+    per_chain, _ = sensed.run(values, true_states)
+    np.testing.assert_array_equal(at_once, per_chain)
+    plain, _ = problem.run(values, true_states)
+    assert np.max(np.abs(at_once - plain)) > 1e-4  # the sensor does act
