@@ -17,7 +17,7 @@ import math
 import os
 import struct
 import time
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -151,40 +151,12 @@ class RecordingMetadata:
 
 
 @dataclass(frozen=True)
-class RecordingInfo:
-    """The recording's metadata (root attributes), decoded."""
+class RecordingInfo(RecordingMetadata):
+    """The recording's metadata (root attributes), decoded, with the software and format
+    version that wrote it."""
 
-    experiment: str
-    notes: str
-    start_time_utc: str
-    software_version: str
-    format_version: int
-    rig: dict[str, Any] = field(default_factory=dict)
-    calibrations: dict[str, Any] = field(default_factory=dict)
-    devices: dict[str, Any] = field(default_factory=dict)
-    config_toml: str = ""
-    drive: dict[str, float] | None = None
-    roles: dict[str, str] = field(default_factory=dict)
-    extra: dict[str, Any] = field(default_factory=dict)
-    provenance: dict[str, Any] = field(default_factory=dict)
-
-    def metadata(self, **changes: Any) -> RecordingMetadata:
-        """The metadata to write a copy of this recording with (``changes`` replace fields)."""
-        values = {
-            "experiment": self.experiment,
-            "notes": self.notes,
-            "rig": self.rig,
-            "calibrations": self.calibrations,
-            "devices": self.devices,
-            "config_toml": self.config_toml,
-            "drive": self.drive,
-            "roles": self.roles,
-            "extra": self.extra,
-            "start_time_utc": self.start_time_utc,
-            "provenance": self.provenance,
-        }
-        values.update(changes)
-        return RecordingMetadata(**values)
+    software_version: str = ""
+    format_version: int = 0
 
 
 @dataclass(frozen=True)
@@ -414,6 +386,7 @@ class RecordingWriter:
     ) -> None:
         self.path = path
         self._rates = {spec.name: float(spec.sample_rate_hz) for spec in channels}
+        self._kinds = {spec.name: spec.kind for spec in channels}
         self._file = h5py.File(path, "w-", libver=LIBVER)
         try:
             self._create_layout(channels, meta, software_version, compression)
@@ -474,39 +447,25 @@ class RecordingWriter:
         f.create_dataset("status", (1,), dtype=STATUS_DTYPE, chunks=(1,), fletcher32=True)
         f.swmr_mode = True
 
-    def append_samples(
+    def append_channel(
         self,
         name: str,
-        raw: list[np.ndarray],
-        values: list[np.ndarray],
-        flags: list[np.ndarray],
+        columns: Mapping[str, list[np.ndarray]],
         blocks: list[tuple],
         gaps: list[tuple],
     ) -> None:
-        """Append a sampled channel's pending samples, their block rows and gaps."""
-        group = self._file["channels"][name]
-        rows = np.array(blocks, dtype=SAMPLE_BLOCK_DTYPE)
-        append(group["raw"], raw)
-        append(group["values"], values)
-        append(group["flags"], flags)
-        if rows.size:
+        """Append a channel's pending data: its columns (``raw``, ``values`` and ``flags``
+        of a sampled channel, ``edge_indices`` and ``edge_times_s`` of a pulse channel),
+        their block rows and gaps."""
+        sampled = self._kinds[name] == "samples"
+        group = self._file["channels" if sampled else "pulses"][name]
+        for column, parts in columns.items():
+            append(group[column], parts)
+        block_dtype = SAMPLE_BLOCK_DTYPE if sampled else PULSE_BLOCK_DTYPE
+        if sampled and blocks:
+            rows = np.array(blocks, dtype=block_dtype)
             append(group["time_s"], [sample_times(rows, self._rates[name])])
-        append_rows(group["blocks"], blocks, SAMPLE_BLOCK_DTYPE)
-        append_rows(group["gaps"], gaps, GAP_DTYPE)
-
-    def append_pulses(
-        self,
-        name: str,
-        edges: list[np.ndarray],
-        edge_times: list[np.ndarray],
-        blocks: list[tuple],
-        gaps: list[tuple],
-    ) -> None:
-        """Append a pulse channel's pending edges, their block rows and gaps."""
-        group = self._file["pulses"][name]
-        append(group["edge_indices"], edges)
-        append(group["edge_times_s"], edge_times)
-        append_rows(group["blocks"], blocks, PULSE_BLOCK_DTYPE)
+        append_rows(group["blocks"], blocks, block_dtype)
         append_rows(group["gaps"], gaps, GAP_DTYPE)
 
     def append_drive(self, rows: list[tuple]) -> None:
@@ -1093,9 +1052,11 @@ def _salvage(
     )
     try:
         for name, (raw, values, flags, rows, gaps, *_counts) in samples.items():
-            writer.append_samples(name, [raw], [values], [flags], rows, gaps)
+            writer.append_channel(name, {"raw": [raw], "values": [values], "flags": [flags]},
+                                  rows, gaps)
         for name, (edges, times, rows, gaps, *_counts) in pulses.items():
-            writer.append_pulses(name, [edges], [times], rows, gaps)
+            writer.append_channel(name, {"edge_indices": [edges], "edge_times_s": [times]},
+                                  rows, gaps)
         writer.append_drive([tuple(r) for r in tables["drive"]])
         writer.append_steps([tuple(r) for r in tables["sweep_steps"]])
         writer.write_status(

@@ -365,15 +365,10 @@ class Recorder:
         self._last_flush = time.monotonic()
 
     def _write_channel(self, buffer: _ChannelBuffer) -> None:
-        if buffer.spec.kind == "samples":
-            self._file.append_samples(
-                buffer.spec.name, buffer.raw, buffer.values, buffer.flags, buffer.blocks,
-                buffer.gaps,
-            )
-        else:
-            self._file.append_pulses(
-                buffer.spec.name, buffer.edges, buffer.edge_times, buffer.blocks, buffer.gaps
-            )
+        columns = {"raw": buffer.raw, "values": buffer.values, "flags": buffer.flags} \
+            if buffer.spec.kind == "samples" else \
+            {"edge_indices": buffer.edges, "edge_times_s": buffer.edge_times}
+        self._file.append_channel(buffer.spec.name, columns, buffer.blocks, buffer.gaps)
         buffer.clear()
 
     def _write_status(self, *, closed: bool, reason: str) -> None:
