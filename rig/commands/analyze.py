@@ -57,7 +57,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     parser.add_argument("file", type=Path, help="exchange CSV or HDF5 recording")
     parser.add_argument("--meta", type=Path, help="JSON sidecar, if not NAME.json beside FILE")
-    parser.add_argument("--json", type=Path, dest="json_out", help="write the JSON report here")
+    parser.add_argument(
+        "--json", type=Path, dest="json_out", metavar="FILE",
+        help="write the full JSON report to FILE ('-': to stdout instead of the summary)",
+    )
     parser.add_argument("--report", type=Path, help="write a Markdown report with figures here")
     parser.add_argument(
         "--overwrite", action="store_true", help="replace existing --json and report files"
@@ -78,7 +81,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Analyse the record and print the verdict (and the JSON when no --json is given)."""
+    """Analyse the record and print a short summary (the JSON report goes to --json)."""
     from analysis.discrepancy import AnalysisError, analyze_record
     from analysis.identify import IdentificationError
     from analysis.json_output import to_json_text
@@ -94,12 +97,13 @@ def run(args: argparse.Namespace) -> int:
         raise CommandError(f"{args.file}: cannot analyse: {error}") from error
     js = report_json(analysis)
     js["provenance"] = provenance()
-    if args.json_out:
+    to_stdout = args.json_out == STDOUT
+    if args.json_out and not to_stdout:
         _write_json(js, args.json_out, overwrite=args.overwrite)
         progress(f"wrote {args.json_out}")
     if args.report:
         progress(f"wrote {_write_report(analysis, args)}")
-    if not args.json_out:
+    if to_stdout:
         print(to_json_text(js))
     else:
         _print_summary(js)
@@ -117,7 +121,7 @@ def _check_files(args: argparse.Namespace) -> None:
     inputs = record_inputs(args.file, args.meta)
     for decay in (args.free_decay, args.impact_decay):
         inputs += record_inputs(decay) if decay else []
-    outputs = [args.json_out] if args.json_out else []
+    outputs = [args.json_out] if args.json_out and args.json_out != STDOUT else []
     if args.report and args.report.exists():  # a new folder is made by write_report
         if not args.report.is_dir():
             raise CommandError(f"--report {args.report}: is a file; expected a folder")
@@ -147,11 +151,28 @@ def _load_record_and_priors(
 
 
 def _print_summary(js: dict) -> None:
-    """The verdict in lines, when the JSON report went to a file."""
+    """The verdict in a few lines: the causes with their sizes, the fit against the noise,
+    the regime, what is left; the full report is the JSON's."""
+    from analysis.estimate_text import estimate_text
+
     if len(js["causes"]) > 1:
         print("causes: " + ", ".join(c["cause"] for c in js["causes"]))
     else:
         print(f"cause: {js['cause']}")
+    for step in js["causes"]:
+        for name, estimate in step["parameters"].items():
+            print(f"  {name} = {estimate_text(estimate['value'], estimate.get('ci95'))}")
+    noise = js["noise_rad"]
+    fits = [("baseline", js["baseline"]["rms_residual"])]
+    if js["causes"]:
+        fits.append(("with " + " + ".join(c["cause"] for c in js["causes"]),
+                     js["extended"]["rms_residual"]))
+    for label, rms in fits:
+        print(f"{label} fit: rms residual {rms:.3g} rad = {rms / noise:.3g} x the noise")
+    if js.get("regime"):
+        print(f"regime: {js['regime']['label']}")
+    if js.get("unexplained"):
+        print("the model still misses something: see the residual findings")
     for pair in js.get("indistinct", []):
         print(f"cannot tell apart: {pair['why']}")
     for finding in js.get("residual_findings", []):
@@ -161,6 +182,9 @@ def _print_summary(js: dict) -> None:
     print(f"where the baseline fails: {js['localization']}")
     for warning in js["warnings"]:
         print(f"caution: {warning}")
+
+
+STDOUT = Path("-")  # --json -: the report to standard output
 
 
 def report_files(folder: Path, name: str) -> list[Path]:

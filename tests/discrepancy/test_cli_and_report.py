@@ -47,7 +47,14 @@ def test_analyze_writes_section_6_json_and_report(tmp_path):
     assert f"cause: `{case.cause}`" in md
     png = tmp_path / "rep" / "run_fit.png"
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-    assert "cause:" in result.stdout
+    # the console gets a short human summary (the report is in the files): the cause, its
+    # size with an interval, the fits against the noise
+    lines = result.stdout.splitlines()
+    assert case.cause == "none" and lines[0] == "cause: none" and len(lines) < 20
+    noise_ratio = report["baseline"]["rms_residual"] / report["noise_rad"]
+    assert f"baseline fit: rms residual {report['baseline']['rms_residual']:.3g} rad = " \
+        f"{noise_ratio:.3g} x the noise" in lines
+    assert not any(line.lstrip().startswith(("{", '"')) for line in lines)  # no JSON
 
 
 def test_missing_file_is_a_clear_error(tmp_path):
@@ -69,7 +76,7 @@ def test_record_without_motion_is_refused_with_reason(tmp_path):
     assert "Traceback" not in result.stderr
 
 
-def test_analyze_reads_hdf5_records(tmp_path):
+def test_analyze_reads_hdf5_records(tmp_path, capsys):
     h5 = tmp_path / "decay.h5"
     made = subprocess.run(
         [sys.executable, "-m", "rig.cli", "simulate", "--experiment", "free_decay",
@@ -79,10 +86,10 @@ def test_analyze_reads_hdf5_records(tmp_path):
         capture_output=True, text=True, timeout=300,
     )
     assert made.returncode == 0, made.stderr
-    out = tmp_path / "out.json"
-    result = run_cli(str(h5), "--json", str(out), "--workers", "1", "--quiet")
+    result = run_cli(str(h5), "--json", "-", "--workers", "1", "--quiet")
     assert result.returncode == 0, result.stderr
-    report = json.loads(out.read_text())
+    report = json.loads(result.stdout)  # --json -: the report alone on stdout
+    assert not (tmp_path / "-").exists()
     assert report["cause"] == "coulomb_friction"
     scores = [row["score"] for row in report["ranking"]]
     assert report["ranking"][0]["cause"] == "coulomb_friction" and scores == sorted(scores)[::-1]
@@ -90,3 +97,12 @@ def test_analyze_reads_hdf5_records(tmp_path):
     assert tc == report["ranking"][0]["parameters"]["Tc_N_m"]
     # the simulated friction lies in the interval the extended model reports
     assert tc["ci95"][0] <= 3e-5 <= tc["ci95"][1]
+    # without --json the console summary names the cause and its size with the interval
+    from rig.commands.analyze import _print_summary
+
+    capsys.readouterr()
+    _print_summary(report)
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[0] == "cause: coulomb_friction"
+    assert lines[1].startswith("  Tc_N_m = ") and "95% CI [" in lines[1]
+    assert any(line.startswith("with coulomb_friction fit: rms residual") for line in lines)
