@@ -38,7 +38,7 @@ from analysis.dynamics.continuation_output import plot_continuation
 from analysis.dynamics.model_parameters import model_with
 from analysis.dynamics.period_map import PeriodMap
 from analysis.dynamics.periodic_orbits import ShootingError, find_periodic_orbit
-from analysis.dynamics.sweeps import run_poincare
+from analysis.dynamics.sweeps import PoincareSettings, run_poincare
 from analysis.model import Model, paper_case
 from rig.cli import add_common_options
 from rig.cli import main as rig_main
@@ -108,7 +108,7 @@ def search_orbits(beta: float = 0.022, max_period: int = 8) -> None:
     rng = np.random.default_rng(1)
     starts = np.column_stack([rng.uniform(-0.5, 0.0, 200), rng.uniform(-10.0, 10.0, 200)])
     runs = run_poincare(np.tile(model.pack(), (starts.shape[0], 1)), starts,
-                        transient_periods=0, record_periods=60)
+                        PoincareSettings(0, 60))
     rate = 2 * np.pi * model.drive.frequency_hz
     states = np.stack([runs.theta, runs.theta_dot / rate], axis=-1)
     once = PeriodMap(model, "beta", 1)

@@ -50,7 +50,13 @@ from analysis.dynamics.strobe import (
     strobe_record,
     strobe_samples,
 )
-from analysis.dynamics.sweeps import PoincareRuns, continue_along, model_at_beta, run_poincare
+from analysis.dynamics.sweeps import (
+    PoincareRuns,
+    PoincareSettings,
+    continue_along,
+    model_at_beta,
+    run_poincare,
+)
 
 __all__ = [
     "NO_ATTRACTOR",
@@ -62,6 +68,7 @@ __all__ = [
     "LyapunovEstimate",
     "PoincareRuns",
     "PoincareSection",
+    "PoincareSettings",
     "Regime",
     "SpectralPeak",
     "Spectrum",

@@ -18,7 +18,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from analysis.dynamics.regime import Regime, classify_regime, recurrence_distances
-from analysis.dynamics.sweeps import Progress, run_poincare
+from analysis.dynamics.sweeps import PoincareSettings, Progress, run_poincare
 from analysis.model import Model
 
 if TYPE_CHECKING:  # matplotlib is imported by the plot functions only (slow import)
@@ -85,16 +85,9 @@ def basins_of_attraction(
     grid_theta, grid_rate = np.meshgrid(theta0, theta_dot0)
     initial = np.column_stack([grid_theta.ravel(), grid_rate.ravel()])
     packed = np.tile(model.pack(), (initial.shape[0], 1))
-    runs = run_poincare(
-        packed,
-        initial,
-        transient_periods=transient_periods,
-        record_periods=record_periods,
-        rtol=rtol,
-        atol=atol,
-        workers=workers,
-        progress=progress,
-    )
+    runs = run_poincare(packed, initial,
+                        PoincareSettings(transient_periods, record_periods, rtol, atol),
+                        workers=workers, progress=progress)
     ok = np.array([status == "ok" for status in runs.status])
     labels, attractors = identify_attractors(
         runs.theta, runs.theta_dot, ok=ok, tolerance=tolerance, match_tolerance=match_tolerance

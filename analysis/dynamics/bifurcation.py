@@ -24,7 +24,7 @@ import numpy as np
 
 from analysis.dynamics.model_parameters import model_with
 from analysis.dynamics.poincare import PoincareSection
-from analysis.dynamics.sweeps import Progress, continue_along, run_poincare
+from analysis.dynamics.sweeps import PoincareSettings, Progress, continue_along, run_poincare
 from analysis.model import Model
 
 if TYPE_CHECKING:  # matplotlib is imported by the plot functions only (slow import)
@@ -85,12 +85,10 @@ def simulate_bifurcation(
         raise ValueError(f"need 1 <= record_periods ({record_periods}) <= periods ({periods})")
     packed = np.array([model_with(model, parameter, value).pack() for value in betas])
     transient = periods - record_periods
-    settings = dict(
-        transient_periods=transient, record_periods=record_periods, rtol=rtol, atol=atol
-    )
+    settings = PoincareSettings(transient, record_periods, rtol, atol)
     if mode == "fixed":
         initial = np.tile(np.asarray(initial_state, dtype=float), (betas.size, 1))
-        runs = run_poincare(packed, initial, workers=workers, progress=progress, **settings)
+        runs = run_poincare(packed, initial, settings, workers=workers, progress=progress)
         return (BifurcationDiagram(betas, runs.theta, runs.theta_dot, "fixed", parameter),)
     if mode != "continuation":
         raise ValueError(f"mode = {mode!r}: choose 'continuation' or 'fixed'")
@@ -98,9 +96,9 @@ def simulate_bifurcation(
     up, down = continue_along(
         np.stack([packed, packed[::-1]]),
         initial_state,
+        settings,
         workers=workers,
         progress=progress,
-        **settings,
     )
     runs = {"up": up, "down": down}
     orders = {"up": np.arange(betas.size), "down": np.arange(betas.size)[::-1]}

@@ -33,6 +33,21 @@ class PoincareRuns:
     contacts: np.ndarray  # (n,) contacts that ended during the recorded periods
 
 
+@dataclass(frozen=True)
+class PoincareSettings:
+    """How each run of a sweep or map goes: drive periods integrated before sampling, then
+    one Poincare sample a period for ``record_periods``, at the integrator's tolerances."""
+
+    transient_periods: int
+    record_periods: int
+    rtol: float = 1e-8
+    atol: float = 1e-10
+
+    def __post_init__(self) -> None:
+        if self.transient_periods < 0 or self.record_periods < 1:
+            raise ValueError("transient_periods must be >= 0 and record_periods >= 1")
+
+
 def model_at_beta(model: Model, beta: float) -> Model:
     """The same model with drive amplitude A = beta L (beta = A / L, docs/MODEL.md section 4)."""
     if not beta >= 0:
@@ -51,37 +66,26 @@ def default_workers() -> int:
 def run_poincare(
     packed: np.ndarray,
     initial: np.ndarray,
+    settings: PoincareSettings,
     *,
-    transient_periods: int,
-    record_periods: int,
-    rtol: float = 1e-8,
-    atol: float = 1e-10,
     workers: int | None = None,
     progress: Progress | None = None,
 ) -> PoincareRuns:
     """Simulate runs (packed (n, P.SIZE), initial (n, 2)) and keep their Poincare samples.
 
-    Each run integrates ``transient_periods`` drive periods, then records one sample
-    per period for ``record_periods`` periods (rows may differ in drive frequency).
-    ``workers`` caps the threads; ``progress(done, total)`` is called as chunks of runs
-    finish.
+    Each run integrates ``settings.transient_periods`` drive periods, then records one
+    sample per period for ``settings.record_periods`` periods (rows may differ in drive
+    frequency).  ``workers`` caps the threads; ``progress(done, total)`` is called as
+    chunks of runs finish.
     """
-    packed, initial = _check_runs(packed, initial, transient_periods, record_periods)
+    packed, initial = _check_runs(packed, initial)
     n = packed.shape[0]
     chunk = max(1, math.ceil(n / 20), 16 * default_workers())
     parts = []
     for start in range(0, n, chunk):
         stop = min(n, start + chunk)
         parts.append(
-            _ensemble(
-                packed[start:stop],
-                initial[start:stop],
-                transient_periods,
-                record_periods,
-                rtol,
-                atol,
-                workers,
-            )
+            _ensemble(packed[start:stop], initial[start:stop], settings, workers)
         )
         if progress is not None:
             progress(stop, n)
@@ -97,11 +101,8 @@ def run_poincare(
 def continue_along(
     packed: np.ndarray,
     initial_state: tuple[float, float] | np.ndarray,
+    settings: PoincareSettings,
     *,
-    transient_periods: int,
-    record_periods: int,
-    rtol: float = 1e-8,
-    atol: float = 1e-10,
     workers: int | None = None,
     progress: Progress | None = None,
     restart_state: tuple[float, float] | np.ndarray | None = None,
@@ -125,16 +126,14 @@ def continue_along(
     restart = start if restart_state is None else np.broadcast_to(
         np.asarray(restart_state, dtype=float), (sweeps, 2)
     )
-    theta = np.full((sweeps, steps, record_periods), np.nan)
-    theta_dot = np.full((sweeps, steps, record_periods), np.nan)
+    theta = np.full((sweeps, steps, settings.record_periods), np.nan)
+    theta_dot = np.full((sweeps, steps, settings.record_periods), np.nan)
     final = np.full((sweeps, steps, 2), np.nan)
     status = np.empty((sweeps, steps), dtype=object)
     contacts = np.zeros((sweeps, steps), dtype=np.int64)
     state = start.copy()
     for k in range(steps):
-        run = _ensemble(
-            packed[:, k], state, transient_periods, record_periods, rtol, atol, workers
-        )
+        run = _ensemble(packed[:, k], state, settings, workers)
         theta[:, k], theta_dot[:, k], final[:, k] = run.theta, run.theta_dot, run.final_state
         status[:, k] = run.status
         contacts[:, k] = run.contacts
@@ -148,20 +147,18 @@ def continue_along(
     )
 
 
-def _check_runs(packed, initial, transient_periods, record_periods):
+def _check_runs(packed, initial):
     packed = np.atleast_2d(np.asarray(packed, dtype=float))
     initial = np.atleast_2d(np.asarray(initial, dtype=float))
     if packed.shape[0] != initial.shape[0] or initial.shape[1] != 2:
         raise ValueError(
             f"packed {packed.shape} and initial {initial.shape} must be (n, P.SIZE) and (n, 2)"
         )
-    if transient_periods < 0 or record_periods < 1:
-        raise ValueError("transient_periods must be >= 0 and record_periods >= 1")
     return packed, initial
 
 
 def _ensemble(
-    packed, initial, transient_periods, record_periods, rtol, atol, workers
+    packed: np.ndarray, initial: np.ndarray, settings: PoincareSettings, workers: int | None
 ) -> PoincareRuns:
     """Ensemble calls, one per drive frequency; the Poincare sample at the record's end is
     the final state.  (Members run independently, so the grouping does not change them.)"""
@@ -169,6 +166,7 @@ def _ensemble(
     if not np.all(omega > 0):
         raise ValueError("every run needs a drive frequency > 0 for Poincare samples")
     n = packed.shape[0]
+    record_periods = settings.record_periods
     theta = np.full((n, record_periods), np.nan)
     theta_dot = np.full_like(theta, np.nan)
     final = np.full((n, 2), np.nan)
@@ -181,10 +179,10 @@ def _ensemble(
             packed[rows],
             initial[rows],
             duration_s=record_periods * period,
-            skip_s=transient_periods * period,
+            skip_s=settings.transient_periods * period,
             poincare_phase=0.0,
-            rtol=rtol,
-            atol=atol,
+            rtol=settings.rtol,
+            atol=settings.atol,
             workers=workers,
         )
         samples = result.poincare[:, : record_periods + 1]

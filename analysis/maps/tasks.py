@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from analysis.dynamics.sweeps import continue_along, run_poincare
+from analysis.dynamics.sweeps import PoincareSettings, continue_along, run_poincare
 from analysis.maps.plan import MapPlan, Task
 from analysis.model import Drive, Model, RigParameters
 
@@ -84,19 +84,13 @@ def continued_state(final: np.ndarray, status: int, restart: np.ndarray) -> np.n
 
 def run_task(inputs: TaskInput) -> TaskOutput:
     """Run every trajectory of the task in this thread (no pool: one task, one core)."""
-    settings = dict(
-        transient_periods=inputs.transient_periods,
-        record_periods=inputs.record_periods,
-        rtol=inputs.rtol,
-        atol=inputs.atol,
-        workers=1,
-    )
+    settings = PoincareSettings(inputs.transient_periods, inputs.record_periods, inputs.rtol,
+                                inputs.atol)
     if inputs.chain:
-        (runs,) = continue_along(
-            inputs.packed, inputs.initial[0], restart_state=inputs.restart, **settings
-        )
+        (runs,) = continue_along(inputs.packed, inputs.initial[0], settings, workers=1,
+                                 restart_state=inputs.restart)
     else:
-        runs = run_poincare(inputs.packed, inputs.initial, **settings)
+        runs = run_poincare(inputs.packed, inputs.initial, settings, workers=1)
     status = np.array([STATUSES.index(s) for s in runs.status], dtype=np.int8)
     initial = inputs.initial.copy()
     if inputs.chain:
@@ -111,8 +105,7 @@ def warm_up() -> dict[str, str]:
     from analysis.provenance import DEPENDENCIES, git_commit, package_version
 
     model = Model(RigParameters(), Drive(amplitude_m=0.001, frequency_hz=10.0))
-    run_poincare(model.pack()[None], np.zeros((1, 2)), transient_periods=0, record_periods=1,
-                 workers=1)
+    run_poincare(model.pack()[None], np.zeros((1, 2)), PoincareSettings(0, 1), workers=1)
     versions = {name: package_version(name) for name in ("impact-rig", *DEPENDENCIES)}
     versions["impact-rig commit"] = (git_commit() or {}).get("commit", "none (installed)")
     return versions
