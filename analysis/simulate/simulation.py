@@ -137,25 +137,10 @@ def simulate_packed(
     pc_om = np.empty(n_pc)
     state = ig.new_state(0.0, float(theta0), float(theta_dot0), p)
     events, n_events, dense_buf, n_dense, written, pc_written = ig.integrate(
-        p,
-        state,
-        out_t,
-        out_th,
-        out_om,
-        pc_t0,
-        pc_dt,
-        pc_th,
-        pc_om,
-        t_final,
-        settings.rtol,
-        settings.atol,
-        float(settings.max_step_s),
-        DEFAULT_MAX_STEPS,
-        np.empty((16, ig.EV_SIZE)),
-        0,
-        settings.dense,
-        np.empty((1024 if settings.dense else 0, 3)),
-        0,
+        p, state, out_t, out_th, out_om, pc_t0, pc_dt, pc_th, pc_om, t_final,
+        settings.rtol, settings.atol, float(settings.max_step_s), DEFAULT_MAX_STEPS,
+        np.empty((16, ig.EV_SIZE)), 0, settings.dense,
+        np.empty((1024 if settings.dense else 0, 3)), 0,
     )
     # contacts and stick intervals that ended during the record (not in the transient, nor
     # in the part of the last step beyond its end)
