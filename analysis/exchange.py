@@ -173,15 +173,18 @@ def read_exchange(csv_path: str | Path, meta_path: str | Path | None = None) -> 
         row = int(np.flatnonzero(~np.isfinite(time_s))[0]) + 2
         raise ExchangeFormatError(f"{csv_path}: line {row}: time_s is not a finite number")
     steps = np.diff(time_s)
-    mean_step = (time_s[-1] - time_s[0]) / (time_s.size - 1)
-    if mean_step <= 0:
+    # the sampling step is the median one: a single jump moves the mean step off every other
+    # step, and the first step would be blamed instead of the jump
+    step = float(np.median(steps))
+    if step <= 0:
         raise ExchangeFormatError(f"{csv_path}: time_s must increase")
-    bad = np.flatnonzero(np.abs(steps - mean_step) > UNIFORM_TOLERANCE * mean_step + 1e-9)
+    bad = np.flatnonzero(np.abs(steps - step) > UNIFORM_TOLERANCE * step + 1e-9)
     if bad.size:
-        row = int(bad[0]) + 3
+        first = int(bad[0])  # time_s[first + 1], on line first + 3, is off the grid
         raise ExchangeFormatError(
-            f"{csv_path}: line {row}: time_s step {steps[bad[0]]:.6g} s differs from the mean "
-            f"{mean_step:.6g} s; the exchange format needs uniform sampling"
+            f"{csv_path}: line {first + 3}: time_s jumps from {time_s[first]:.9g} to "
+            f"{time_s[first + 1]:.9g} s (a step of {steps[first]:.6g} s; the record's is "
+            f"{step:.6g} s); the exchange format needs uniform sampling"
         )
     for name in ("angle_rad", "table_m"):
         values = columns.get(name)

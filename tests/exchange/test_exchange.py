@@ -64,6 +64,18 @@ def test_non_uniform_time_is_refused(tmp_path):
         read_exchange(path)
 
 
+def test_a_time_jump_is_named_at_its_own_line(tmp_path):
+    """One jump of 50 samples in 1000: the line where time jumps is named, with both times
+    (the mean step, moved 5 % by the jump, once blamed line 3)."""
+    t = np.arange(1000) * 0.001
+    t[600:] += 0.05
+    rows = "".join(f"{ti:.6f},0.1\n" for ti in t)
+    path = write(tmp_path, "time_s,angle_rad\n" + rows)
+    with pytest.raises(ExchangeFormatError, match=r"line 602: time_s jumps from 0\.599 to "
+                                                   r"0\.65 s .*the record's is 0\.001 s"):
+        read_exchange(path)
+
+
 def test_extra_columns_are_ignored(tmp_path):
     path = write(tmp_path, "note,time_s,angle_rad,other\nx,0,1,9\ny,0.1,2,9\n")
     record = read_exchange(path)
