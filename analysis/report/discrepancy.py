@@ -118,6 +118,25 @@ def _fmt(est: dict[str, Any]) -> str:
     return f"{value:.4g} {interval_text(value, ci, '.4g')}"
 
 
+def _parameters_story(js: dict[str, Any]) -> str:
+    """Why this page's baseline values need not equal ``identify``'s or the demo's: which
+    data and which model each column comes from."""
+    method = ("multiple shooting over linked segments of the whole record"
+              if js["experiment"] == "forced" else "one simulation from the release")
+    prepared = "; ".join(n for n in js.get("notes", []) if "sample" in n or "release" in n)
+    extended = js["extended"]["cause"]
+    return (
+        f"Both columns are fitted by this analysis to the record as prepared for it "
+        f"({js['samples_fitted']} samples{'; ' + prepared if prepared else ''}) by {method}. "
+        "`impact-rig identify` fits the baseline to the record with its own method and data "
+        "(every sample, and for an impact decay the free decay's L and zeta held), so its "
+        "values may differ within their intervals. "
+        + (f"The extended model adds `{extended}`: where the baseline bent its own parameters "
+           "to make up for the missing effect, the two columns differ by that bend."
+           if extended != NONE else "No cause was found: the extended model is the baseline.")
+    )
+
+
 def write_report(
     analysis: Analysis, directory: str | Path, name: str = "report", *, overwrite: bool = False
 ) -> Path:
@@ -181,7 +200,8 @@ def write_report(
     if js.get("excluded"):
         lines += ["", "Causes that cannot show in this experiment:", ""]
         lines += [f"- `{k}`: {v}" for k, v in js["excluded"].items()]
-    lines += ["", "## Parameters", "", "| key | baseline | extended |", "|---|---|---|"]
+    lines += ["", "## Parameters", "", _parameters_story(js), "",
+              "| key | baseline | extended |", "|---|---|---|"]
     keys = list(dict.fromkeys([*js["baseline"]["parameters"], *js["extended"]["parameters"]]))
     for k in keys:
         b = js["baseline"]["parameters"].get(k)

@@ -45,6 +45,10 @@ def test_analyze_writes_section_6_json_and_report(tmp_path):
         assert {"cause", "score", "parameters"} <= set(row)
     md = (tmp_path / "rep" / "run.md").read_text()
     assert f"cause: `{case.cause}`" in md
+    # the parameters say which data and model they come from, and why identify may differ
+    story = md.split("## Parameters", 1)[1].split("|", 1)[0]
+    assert f"({report['samples_fitted']} samples" in story and "`impact-rig identify`" in story
+    assert "No cause was found" in story  # seed 11 hides none
     png = tmp_path / "rep" / "run_fit.png"
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     # the console gets a short human summary (the report is in the files): the cause, its
