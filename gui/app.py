@@ -162,6 +162,7 @@ class MainWindow(QMainWindow):
         self.replay_panel.seek_requested.connect(self.replay_seek)
         self.replay_panel.speed_changed.connect(self.replay_speed)
         self.analysis_panel.run_requested.connect(self.run_analysis)
+        self.analysis_panel.explain_requested.connect(self.explain_recording)
 
         self.frame_timer = QTimer(self)
         self.frame_timer.setTimerType(Qt.TimerType.PreciseTimer)
@@ -449,6 +450,22 @@ class MainWindow(QMainWindow):
 
     def _analysis_done(self, overlay) -> None:
         self.analysis_panel.show_result(overlay)
+
+    def explain_recording(self, path: str, experiment: str) -> None:
+        """Run ``analyze`` on ``path`` on the analysis thread (acquisition runs on), showing
+        its stages as it goes, then the explanation."""
+        from gui.model_overlay import explain_recording  # scipy and numba: load when needed
+
+        panel = self.analysis_panel
+
+        def progress(text: str) -> None:  # on the analysis thread: hand over to the GUI's
+            QTimer.singleShot(0, self, lambda: panel.show_progress(text))
+
+        self.analysis_tasks.submit(
+            lambda: explain_recording(path, experiment or None, progress),
+            panel.show_explanation,
+            panel.show_error,
+        )
 
     # -- the frame and status timers ------------------------------------------------------------
 
