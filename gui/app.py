@@ -143,7 +143,7 @@ class MainWindow(QMainWindow):
         scroll = QScrollArea()
         scroll.setWidget(side)
         scroll.setWidgetResizable(True)
-        scroll.setMinimumWidth(side.minimumSizeHint().width())
+        scroll.setMinimumWidth(side.minimumSizeHint().width() + 2 * scroll.frameWidth())
         dock = QDockWidget("Controls")
         dock.setFeatures(QDockWidget.DockWidgetFeature.NoDockWidgetFeatures)
         dock.setWidget(scroll)

@@ -22,7 +22,7 @@ from analysis.identify.free_decay import averaging_solution, simulated_free_deca
 from analysis.model import Drive, Model
 from analysis.record_loaders import load_record
 from analysis.records import Record
-from gui.units import DISPLAY, PARAMETER_SUFFIXES, parameter_unit
+from gui.units import DISPLAY, parameter_unit
 
 GAIN_NAMES = {
     "information_criterion_delta": "information criterion gain",
@@ -75,14 +75,13 @@ def explain_recording(
 
 def _parameter_line(name: str, estimate: dict[str, Any]) -> str:
     """``name = value 95% CI [..] unit`` in the display unit its SI suffix names."""
-    unit = parameter_unit(name)
     value, ci95 = estimate["value"], estimate.get("ci95")
-    if unit is None:
+    named = parameter_unit(name)
+    if named is None:
         return f"{name} = {estimate_text(value, ci95, '.4g')}"
+    symbol, unit = named
     shown_ci = None if ci95 is None else [None if v is None else unit.show(v) for v in ci95]
-    suffix = next(s for s, _ in PARAMETER_SUFFIXES if name.endswith(s))
-    return (f"{name.removesuffix(suffix)} = "
-            f"{estimate_text(unit.show(value), shown_ci, '.4g')} {unit.unit}")
+    return f"{symbol} = {estimate_text(unit.show(value), shown_ci, '.4g')} {unit.unit}"
 
 
 def _gain_line(gain: dict[str, Any]) -> str:

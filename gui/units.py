@@ -39,21 +39,25 @@ DISPLAY: dict[str, DisplayUnit] = {
     "time": DisplayUnit("s", "s", 1.0, 0.1),
 }
 
-# a parameter named with an SI suffix (docs/MODEL.md section 7 keys) is shown in the
-# quantity's display unit; longest suffix first, so "_rad_s" is not read as "_s"
-PARAMETER_SUFFIXES: tuple[tuple[str, str], ...] = (
-    ("_rad_s", "angular_velocity"),
-    ("_rad", "angle"),
-    ("_hz", "frequency"),
-    ("_m", "length"),
+# a parameter named with its SI unit (docs/MODEL.md section 7 keys: theta_b_rad, L_m) is
+# shown in that quantity's display unit; longest unit first, so "_rad_s" is not read as
+# "_s".  A compound unit (Tc_N_m, mu0_s_per_m) is shown as it is.
+PARAMETER_UNITS: tuple[tuple[str, str], ...] = (
+    ("rad_s", "angular_velocity"),
+    ("rad", "angle"),
+    ("hz", "frequency"),
+    ("m", "length"),
 )
+COMPOUND_UNIT_PARTS = frozenset({"N", "kg", "s", "per"})
 
 
-def parameter_unit(name: str) -> DisplayUnit | None:
-    """The display unit of a parameter by its name's SI suffix (None: shown as it is)."""
-    for suffix, quantity in PARAMETER_SUFFIXES:
-        if name.endswith(suffix):
-            return DISPLAY[quantity]
+def parameter_unit(name: str) -> tuple[str, DisplayUnit] | None:
+    """The symbol and display unit of a parameter named ``<symbol>_<SI unit>`` (None: a
+    name without a plain unit, shown as it is)."""
+    for unit, quantity in PARAMETER_UNITS:
+        symbol = name.removesuffix(f"_{unit}")
+        if symbol != name and symbol.rsplit("_", 1)[-1] not in COMPOUND_UNIT_PARTS:
+            return symbol, DISPLAY[quantity]
     return None
 
 

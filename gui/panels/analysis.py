@@ -90,6 +90,7 @@ class AnalysisPanel(QWidget):
         self.overlay: ModelOverlay | None = None
         self.explained: dict | None = None  # the last analysis' JSON report
         self._verb = "identify"  # what the running (or last) request does
+        self.stages: list[str] = []  # the running (or last) analysis' progress messages
         self.use_current.clicked.connect(lambda: self.path.setText(self.current_recording))
         self.browse.clicked.connect(self._browse)
         self.run.clicked.connect(lambda: self._start(self.run_requested, "identify"))
@@ -112,6 +113,7 @@ class AnalysisPanel(QWidget):
         experiment = self.experiment.currentText()
         self._show_busy(True)
         self._verb = verb
+        self.stages.clear()
         self.state.setText(f"{verb}ing {path} ...")
         request.emit(path, "" if experiment == "as recorded" else experiment)
 
@@ -122,7 +124,8 @@ class AnalysisPanel(QWidget):
         self.busy.setVisible(busy)
 
     def show_progress(self, text: str) -> None:
-        """The running analysis' newest stage."""
+        """The running analysis' newest stage (kept: the explanation ends with them)."""
+        self.stages.append(text)
         self.state.setText(text)
 
     def show_result(self, overlay: ModelOverlay) -> None:
@@ -151,7 +154,8 @@ class AnalysisPanel(QWidget):
         self.explained = report
         self._show_busy(False)
         lines = explanation_lines(report)
-        self.explanation.setPlainText("\n".join(lines))
+        self.explanation.setPlainText("\n".join([*lines, "", "how the analysis went:",
+                                                 *self.stages]))
         self.state.setText(lines[0])
 
     def show_error(self, error: BaseException) -> None:
