@@ -16,6 +16,7 @@ from PySide6.QtCore import Qt, QTimer
 from PySide6.QtGui import QCloseEvent
 from PySide6.QtWidgets import (
     QDockWidget,
+    QHBoxLayout,
     QLabel,
     QMainWindow,
     QPushButton,
@@ -27,7 +28,7 @@ from PySide6.QtWidgets import (
 )
 
 from drivers.interfaces import LimitError
-from gui.live_data import LiveData
+from gui.live_data import LiveData, drive_description
 from gui.panels.analysis import AnalysisPanel
 from gui.panels.connection import RECORDING, RIG_FILE, VIRTUAL, ConnectionPanel
 from gui.panels.recording import RecordingPanel
@@ -95,11 +96,15 @@ class MainWindow(QMainWindow):
         )
         self.stop_button.clicked.connect(self.stop_drive)
         self.source_label = QLabel("not connected")
+        self.drive_label = QLabel("")
+        self.drive_label.setToolTip("the drive in force at the newest sample, and the sweep step")
         toolbar = QToolBar("Drive")
         toolbar.setMovable(False)
         toolbar.addWidget(self.stop_button)
         toolbar.addSeparator()
         toolbar.addWidget(self.source_label)
+        toolbar.addSeparator()
+        toolbar.addWidget(self.drive_label)
         self.addToolBar(Qt.ToolBarArea.TopToolBarArea, toolbar)
 
         # views
@@ -122,21 +127,23 @@ class MainWindow(QMainWindow):
         self.recording_panel = RecordingPanel()
         self.replay_panel = ReplayPanel()
         self.status_panel = StatusPanel()
+        # two columns: at 1280 x 800 every panel shows without scrolling (a smaller
+        # window scrolls)
         side = QWidget()
-        column = QVBoxLayout(side)
-        for panel in (
-            self.connection_panel,
-            self.shaker_panel,
-            self.status_panel,
-            self.recording_panel,
-            self.replay_panel,
+        columns = QHBoxLayout(side)
+        for panels in (
+            (self.connection_panel, self.shaker_panel, self.replay_panel),
+            (self.recording_panel, self.status_panel),
         ):
-            column.addWidget(panel)
-        column.addStretch(1)
+            column = QVBoxLayout()
+            for panel in panels:
+                column.addWidget(panel)
+            column.addStretch(1)
+            columns.addLayout(column)
         scroll = QScrollArea()
         scroll.setWidget(side)
         scroll.setWidgetResizable(True)
-        scroll.setMinimumWidth(340)
+        scroll.setMinimumWidth(side.minimumSizeHint().width() + 2 * scroll.frameWidth())
         dock = QDockWidget("Controls")
         dock.setFeatures(QDockWidget.DockWidgetFeature.NoDockWidgetFeatures)
         dock.setWidget(scroll)
@@ -155,6 +162,7 @@ class MainWindow(QMainWindow):
         self.replay_panel.seek_requested.connect(self.replay_seek)
         self.replay_panel.speed_changed.connect(self.replay_speed)
         self.analysis_panel.run_requested.connect(self.run_analysis)
+        self.analysis_panel.explain_requested.connect(self.explain_recording)
 
         self.frame_timer = QTimer(self)
         self.frame_timer.setTimerType(Qt.TimerType.PreciseTimer)
@@ -209,7 +217,9 @@ class MainWindow(QMainWindow):
 
     def _attach_live(self, session: LiveSession) -> None:
         self.session = session
-        self.data = LiveData(session.sample_rate_hz)
+        self.data = LiveData(
+            session.sample_rate_hz, equivalent_length_m=session.config.constants.L_m
+        )
         self.connection_panel.show_state(f"connected: {session.title}", True)
         self.source_label.setText(session.title)
         self.status_panel.show_source(session.title)
@@ -230,7 +240,12 @@ class MainWindow(QMainWindow):
             return
         self.settings.set("connection/recording", path)
         self.session = session
-        self.data = LiveData(session.sample_rate_hz)
+        self.data = LiveData(
+            session.sample_rate_hz,
+            origin_index=session.span.first_index,
+            equivalent_length_m=session.info.rig.get("L_m"),
+            recorded_steps=session.steps,
+        )
         self.connection_panel.show_state(f"replaying {path}", True)
         self.source_label.setText(session.title)
         self.status_panel.show_source(f"{session.title} ({session.info.experiment})")
@@ -252,6 +267,7 @@ class MainWindow(QMainWindow):
                 session.close()
         self.connection_panel.show_state("not connected", False)
         self.source_label.setText("not connected")
+        self.drive_label.setText("")
         self.shaker_panel.setEnabled(False)
         self.recording_panel.setEnabled(False)
         self.replay_panel.setEnabled(False)
@@ -435,6 +451,22 @@ class MainWindow(QMainWindow):
     def _analysis_done(self, overlay) -> None:
         self.analysis_panel.show_result(overlay)
 
+    def explain_recording(self, path: str, experiment: str) -> None:
+        """Run ``analyze`` on ``path`` on the analysis thread (acquisition runs on), showing
+        its stages as it goes, then the explanation."""
+        from gui.model_overlay import explain_recording  # scipy and numba: load when needed
+
+        panel = self.analysis_panel
+
+        def progress(text: str) -> None:  # on the analysis thread: hand over to the GUI's
+            QTimer.singleShot(0, self, lambda: panel.show_progress(text))
+
+        self.analysis_tasks.submit(
+            lambda: explain_recording(path, experiment or None, progress),
+            panel.show_explanation,
+            panel.show_error,
+        )
+
     # -- the frame and status timers ------------------------------------------------------------
 
     def _frame(self) -> None:
@@ -443,6 +475,7 @@ class MainWindow(QMainWindow):
         if session is None or data is None:
             return
         data.ingest(session.drain())
+        self.drive_label.setText(drive_description(data))
         self.poincare_view.collect(data)
         current = self.tabs.currentWidget()
         if current is self.time_view:

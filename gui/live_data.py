@@ -13,6 +13,7 @@ from collections.abc import Iterable
 import numpy as np
 
 from drivers.interfaces import PulseBlock, SampleBlock
+from gui.units import DISPLAY
 from rig.events import DriveSetting, Gap, StepMark
 
 DEFAULT_KEEP_S = 30.0
@@ -90,16 +91,30 @@ class ChannelRing:
 class LiveData:
     """The newest data of the angle, the table and the tach, as the views need it."""
 
-    def __init__(self, sample_rate_hz: float, keep_s: float = DEFAULT_KEEP_S) -> None:
+    def __init__(
+        self,
+        sample_rate_hz: float,
+        keep_s: float = DEFAULT_KEEP_S,
+        *,
+        origin_index: int | None = None,
+        equivalent_length_m: float | None = None,
+        recorded_steps: Iterable[StepMark] = (),
+    ) -> None:
+        """``origin_index`` is the source's first sample (time zero of the views; default:
+        the first sample that arrives), ``equivalent_length_m`` the rig's L (None: unknown,
+        no beta), ``recorded_steps`` a recording's sweep steps, known before they play."""
         self.sample_rate_hz = float(sample_rate_hz)
         self.keep_s = keep_s
+        self.origin_index = origin_index
+        self.equivalent_length_m = equivalent_length_m
+        self.recorded_steps = tuple(recorded_steps)
         capacity = max(1024, int(keep_s * self.sample_rate_hz))
         self.angle = ChannelRing(capacity)
         self.table = ChannelRing(capacity)
         self.tach_edges: deque[int] = deque(maxlen=MAX_TACH_EDGES)
         self.tach_edges_seen = 0  # all edges ever added (views track their own progress)
         self.drive: DriveSetting | None = None
-        self.steps: list[StepMark] = []
+        self.steps: list[StepMark] = list(self.recorded_steps)
         self.gaps = 0
         self.samples_in = 0
         self.generation = 0  # bumped by clear(): views drop what they accumulated
@@ -112,6 +127,8 @@ class LiveData:
                 if ring is None and event.channel == "table":
                     ring = self.table
                 if ring is not None:
+                    if self.origin_index is None:
+                        self.origin_index = event.first_index
                     ring.append(event.first_index, event.values)
                     self.samples_in += len(event)
             elif isinstance(event, PulseBlock):
@@ -120,10 +137,22 @@ class LiveData:
                     self.tach_edges_seen += 1
             elif isinstance(event, DriveSetting):
                 self.drive = event
-            elif isinstance(event, StepMark):
+            elif isinstance(event, StepMark) and event not in self.recorded_steps:
                 self.steps.append(event)
             elif isinstance(event, Gap):
                 self.gaps += 1
+
+    def seconds(self, indices: np.ndarray | int) -> np.ndarray:
+        """Sample indices as seconds from the start of the source (not device time)."""
+        return (np.asarray(indices) - (self.origin_index or 0)) / self.sample_rate_hz
+
+    def current_step(self) -> StepMark | None:
+        """The newest sweep step that began before the newest sample (None: no sweep)."""
+        end = self.angle.end_index
+        if end is None:
+            return None
+        begun = [mark for mark in self.steps if mark.settle_start_index < end]
+        return max(begun, key=lambda mark: mark.settle_start_index, default=None)
 
     def drive_frequency_hz(self) -> float | None:
         """The drive frequency: from the tach when it ticks, else the last drive setting.
@@ -153,6 +182,29 @@ class LiveData:
         self.table.clear()
         self.tach_edges.clear()
         self.tach_edges_seen = 0
-        self.steps.clear()
+        self.steps = list(self.recorded_steps)
         self.gaps = 0
         self.generation += 1
+
+
+def drive_description(data: LiveData) -> str:
+    """The drive in force and the sweep step, as the operator reads them (Hz, mm, beta)."""
+    drive = data.drive
+    if drive is None:
+        text = "drive: none recorded"
+    elif not drive.enabled:
+        text = "drive: off"
+    else:
+        amplitude = DISPLAY["displacement"]
+        text = (
+            f"drive: {drive.frequency_hz:.3f} Hz, "
+            f"{amplitude.show(drive.amplitude_m):.3f} {amplitude.unit}"
+        )
+        if data.equivalent_length_m:
+            text += f", β = A/L = {drive.amplitude_m / data.equivalent_length_m:.4f}"
+    step = data.current_step()
+    if step is not None:
+        where = "in" if (data.angle.end_index or 0) <= step.dwell_end_index else "after"
+        total = f" of {len(data.recorded_steps)}" if data.recorded_steps else ""
+        text += f"   |   {where} sweep step {step.step + 1}{total}"
+    return text

@@ -1,23 +1,34 @@
-"""Identification of a recording and the identified model's response, for the analysis panel.
+"""Identification and explanation of a recording, for the analysis panel.
 
-Pure computation (no Qt): the panel runs :func:`identify_recording` on a worker thread
-and draws the measured and the model's curves on top of each other.
+Pure computation (no Qt): the panel runs :func:`identify_recording` (the baseline fit and
+the model's response) or :func:`explain_recording` (the discrepancy analysis) on a worker
+thread; :func:`explanation_lines` says what the analysis found in the GUI's units.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
+from analysis.estimate_text import estimate_text
 from analysis.experiments import FREE_DECAY
 from analysis.identify import IdentificationResult, fit_drive, fit_free_decay, fit_impact_decay
 from analysis.identify.free_decay import averaging_solution, simulated_free_decay
 from analysis.model import Drive, Model
 from analysis.record_loaders import load_record
 from analysis.records import Record
+from gui.units import DISPLAY, parameter_unit
+
+GAIN_NAMES = {
+    "information_criterion_delta": "information criterion gain",
+    "heldout_ratio": "held-out error ratio",
+    "invariant_ratio": "invariant statistics ratio",
+}
 
 
 @dataclass(frozen=True)
@@ -39,15 +50,87 @@ class ModelOverlay:
         return float(np.sqrt(np.mean((on_model - self.model) ** 2)))
 
 
+def _load(path: str | Path, experiment: str | None) -> Record:
+    """The record, as the experiment ``experiment`` when one is given (else as it states)."""
+    record = load_record(path)
+    if experiment and experiment != record.experiment:
+        record = replace(record, experiment=experiment)
+    return record
+
+
+def explain_recording(
+    path: str | Path,
+    experiment: str | None = None,
+    progress: Callable[[str], None] | None = None,
+) -> dict[str, Any]:
+    """Run ``analyze`` on a recording; returns its JSON report (analysis.report).
+
+    One worker, in this thread: a process pool forked from the GUI's threads is unsafe.
+    """
+    from analysis.discrepancy import analyze_record
+    from analysis.report.discrepancy import report_json
+
+    return report_json(analyze_record(_load(path, experiment), workers=1, progress=progress))
+
+
+def _parameter_line(name: str, estimate: dict[str, Any]) -> str:
+    """``name = value 95% CI [..] unit`` in the display unit its SI suffix names."""
+    value, ci95 = estimate["value"], estimate.get("ci95")
+    named = parameter_unit(name)
+    if named is None:
+        return f"{name} = {estimate_text(value, ci95, '.4g')}"
+    symbol, unit = named
+    shown_ci = None if ci95 is None else [None if v is None else unit.show(v) for v in ci95]
+    return f"{symbol} = {estimate_text(unit.show(value), shown_ci, '.4g')} {unit.unit}"
+
+
+def _gain_line(gain: dict[str, Any]) -> str:
+    """The gain of a cause's step, every measure the analysis gave."""
+    parts = [f"{GAIN_NAMES.get(key, key)} {value:.3g}"
+             for key, value in gain.items() if value is not None]
+    return "gain: " + ("; ".join(parts) if parts else "none measured")
+
+
+def explanation_lines(report: dict[str, Any]) -> list[str]:
+    """What the analysis found, in the GUI's units: the causes with their parameters and
+    gain, the residual before and after, the findings, the regime and the cautions."""
+    causes = report["causes"]
+    if not causes:
+        lines = [f"cause: {report['cause']} (no cause earns its keep over the baseline)"]
+    else:
+        lines = [("causes: " if len(causes) > 1 else "cause: ")
+                 + " + ".join(c["cause"] for c in causes)]
+    for step in causes:
+        lines.append(f"{step['cause']}:")
+        lines += [f"    {_parameter_line(name, estimate)}"
+                  for name, estimate in step["parameters"].items()]
+        lines.append(f"    {_gain_line(step['gain'])}")
+    angle = DISPLAY["angle"]
+    noise = report["noise_rad"]
+    after = "with " + " + ".join(c["cause"] for c in causes) if causes else "unchanged"
+    for label, rms in (("before (baseline)", report["baseline"]["rms_residual"]),
+                       (f"after ({after})", report["extended"]["rms_residual"])):
+        ratio = f" = {rms / noise:.3g} x the noise" if noise else ""
+        lines.append(f"residual {label}: {angle.show(rms):.3g} {angle.unit} rms{ratio}")
+    if noise:
+        lines.append(f"noise: {angle.show(noise):.3g} {angle.unit} rms")
+    if report.get("regime"):
+        lines.append(f"regime: {report['regime']['label']}")
+    if report.get("unexplained"):
+        lines.append("the model still misses something: see the residual findings")
+    lines += [f"residual finding ({f['kind']}): {f['text']}"
+              for f in report.get("residual_findings", [])]
+    lines += [f"caution: {warning}" for warning in report.get("warnings", [])]
+    return lines
+
+
 def identify_recording(path: str | Path, experiment: str | None = None) -> ModelOverlay:
     """Identify a recording (its experiment decides the fit) and compute the model's response.
 
     ``experiment`` overrides the one the file states (a GUI recording is 'forced' by
     default, but the operator may have recorded a decay).
     """
-    record = load_record(path)
-    if experiment and experiment != record.experiment:
-        record = replace(record, experiment=experiment)
+    record = _load(path, experiment)
     t = record.time_s - record.time_s[0]
     if record.kind is FREE_DECAY:
         result = fit_free_decay(record)

@@ -38,7 +38,7 @@ from rig.procedures import (
     run_sweep,
 )
 from rig.recorder import Recorder, RecorderThread, attach_recorder
-from rig.replay import Replay
+from rig.replay import Replay, step_marks
 
 VIEW_QUEUE_ITEMS = 4000  # the GUI's own bounded queue; when full it loses only its own view
 OPERATOR_STOP = "stopped by the operator"  # why a file ends when the operator ended it
@@ -424,6 +424,7 @@ class ReplaySession(Session):
                 recording.sample_rate_hz(angle),
             )
             self.info = recording.info
+            self.steps = step_marks(recording)
         self.sample_rate_hz = self.span.sample_rate_hz
         self.title = f"replay of {self.path.name}"
         self.speed = 1.0

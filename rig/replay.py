@@ -186,6 +186,23 @@ def _annotation_index(event: DriveSetting | StepMark) -> int:
     return event.sample_index if isinstance(event, DriveSetting) else event.dwell_end_index
 
 
+def step_marks(recording: Recording) -> list[StepMark]:
+    """A recording's sweep step marks, as the sweep published them."""
+    return [
+        StepMark(
+            int(r["step"]),
+            int(r["direction"]),
+            float(r["frequency_hz"]),
+            float(r["amplitude_m"]),
+            int(r["settle_start_index"]),
+            int(r["dwell_start_index"]),
+            int(r["dwell_end_index"]),
+            bool(r["complete"]),
+        )
+        for r in recording.sweep_steps()
+    ]
+
+
 class Replay:
     """A recording opened for replay: its streams share one clock; close it when done."""
 
@@ -247,20 +264,7 @@ class Replay:
             )
             for r in self.recording.drive_log()
         ]
-        steps = [
-            StepMark(
-                int(r["step"]),
-                int(r["direction"]),
-                float(r["frequency_hz"]),
-                float(r["amplitude_m"]),
-                int(r["settle_start_index"]),
-                int(r["dwell_start_index"]),
-                int(r["dwell_end_index"]),
-                bool(r["complete"]),
-            )
-            for r in self.recording.sweep_steps()
-        ]
-        return sorted(drive + steps, key=_annotation_index)
+        return sorted(drive + step_marks(self.recording), key=_annotation_index)
 
     def publish_annotations(self, engine: AnnotationSink) -> None:
         """Publish the drive settings and step marks into ``engine`` when their sample is due.

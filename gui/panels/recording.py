@@ -10,6 +10,7 @@ from PySide6.QtWidgets import (
     QDoubleSpinBox,
     QFileDialog,
     QFormLayout,
+    QGridLayout,
     QGroupBox,
     QHBoxLayout,
     QLabel,
@@ -58,9 +59,12 @@ class RecordingPanel(QGroupBox):
         form = QFormLayout()
         form.addRow("File", file_row)
         form.addRow("Notes", self.notes)
+        progress_row = QHBoxLayout()
+        progress_row.addWidget(self.elapsed)
+        progress_row.addWidget(QLabel("File size"))
+        progress_row.addWidget(self.size, 1)
         form.addRow(self.start_stop)
-        form.addRow("Elapsed", self.elapsed)
-        form.addRow("File size", self.size)
+        form.addRow("Elapsed", progress_row)
         # sweep runner
         self.sweep_parameter = QComboBox()
         self.sweep_parameter.addItems(["frequency", "amplitude"])
@@ -78,18 +82,23 @@ class RecordingPanel(QGroupBox):
         self.sweep_progress = QProgressBar()
         self.sweep_text = QLabel("")
         self.sweep_text.setWordWrap(True)
-        sweep = QGroupBox("Sweep (frequency in Hz, amplitude in mm)")
-        sweep_form = QFormLayout(sweep)
-        sweep_form.addRow("Sweep", self.sweep_parameter)
-        sweep_form.addRow("From", self.sweep_from)
-        sweep_form.addRow("To", self.sweep_to)
-        sweep_form.addRow("Steps", self.sweep_steps)
-        sweep_form.addRow("Fixed", self.sweep_fixed)
-        sweep_form.addRow("Settle", self.sweep_settle)
-        sweep_form.addRow("Dwell", self.sweep_dwell)
-        sweep_form.addRow(self.sweep_down, self.sweep_run)
-        sweep_form.addRow(self.sweep_progress)
-        sweep_form.addRow(self.sweep_text)
+        sweep = QGroupBox("Sweep")
+        sweep_grid = QGridLayout(sweep)
+        for row, pairs in enumerate((
+            (("Sweep", self.sweep_parameter), ("Steps", self.sweep_steps)),
+            (("From", self.sweep_from), ("To", self.sweep_to)),
+            (("Fixed", self.sweep_fixed),),
+            (("Settle", self.sweep_settle), ("Dwell", self.sweep_dwell)),
+        )):
+            for pair, (title, widget) in enumerate(pairs):
+                sweep_grid.addWidget(QLabel(title), row, 2 * pair)
+                sweep_grid.addWidget(widget, row, 2 * pair + 1)
+        sweep_grid.addWidget(self.sweep_down, 4, 0, 1, 2)
+        sweep_grid.addWidget(self.sweep_run, 4, 2, 1, 2)
+        sweep_grid.addWidget(self.sweep_progress, 5, 0, 1, 4)
+        sweep_grid.addWidget(self.sweep_text, 6, 0, 1, 4)
+        self.sweep_parameter.currentTextChanged.connect(self._label_sweep_units)
+        self._label_sweep_units(self.sweep_parameter.currentText())
         layout = QVBoxLayout(self)
         layout.addLayout(form)
         layout.addWidget(self.message)
@@ -100,6 +109,13 @@ class RecordingPanel(QGroupBox):
         self.start_stop.clicked.connect(self._start_stop)
         self.sweep_run.clicked.connect(self._sweep_clicked)
         self.setEnabled(False)
+
+    def _label_sweep_units(self, parameter: str) -> None:
+        """The swept values in Hz or mm, the fixed one in the other."""
+        swept, fixed = (" Hz", " mm") if parameter == "frequency" else (" mm", " Hz")
+        self.sweep_from.setSuffix(swept)
+        self.sweep_to.setSuffix(swept)
+        self.sweep_fixed.setSuffix(fixed)
 
     def _browse(self) -> None:
         name, _ = QFileDialog.getSaveFileName(self, "Record to", self.path.text(), "*.h5")

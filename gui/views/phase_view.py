@@ -8,6 +8,8 @@ from PySide6.QtWidgets import QDoubleSpinBox, QHBoxLayout, QLabel, QVBoxLayout, 
 
 from analysis.dynamics.poincare import smoothed_derivative
 from gui.live_data import LiveData
+from gui.plot_axes import fit_axes, label_axis
+from gui.units import DISPLAY
 
 MAX_POINTS = 6000
 
@@ -23,8 +25,8 @@ class PhasePortraitView(QWidget):
         controls.addWidget(self.length_s)
         controls.addStretch(1)
         self.plot = pg.PlotWidget()
-        self.plot.setLabel("bottom", "angle", units="rad")
-        self.plot.setLabel("left", "angular velocity", units="rad/s")
+        label_axis(self.plot, "bottom", "angle", DISPLAY["angle"])
+        label_axis(self.plot, "left", "angular velocity", DISPLAY["angular_velocity"])
         self.curve = self.plot.plot(pen=pg.mkPen("#6a2a9c", width=1))
         layout = QVBoxLayout(self)
         layout.setContentsMargins(0, 0, 0, 0)
@@ -45,4 +47,7 @@ class PhasePortraitView(QWidget):
             return
         rate = smoothed_derivative(theta, fs, window_samples=window)
         step = max(1, theta.size // MAX_POINTS)
-        self.curve.setData(theta[::step], rate[::step])
+        angle, velocity = DISPLAY["angle"], DISPLAY["angular_velocity"]
+        x, y = angle.show(theta[::step]), velocity.show(rate[::step])
+        self.curve.setData(x, y)
+        fit_axes(self.plot, x, y, angle, velocity)

@@ -12,6 +12,8 @@ from PySide6.QtWidgets import QComboBox, QHBoxLayout, QLabel, QPushButton, QVBox
 
 from analysis.dynamics.poincare import delayed_map, poincare_from_pulses
 from gui.live_data import LiveData
+from gui.plot_axes import fit_axes, label_axis
+from gui.units import DISPLAY
 
 MODES = ("angle vs angular velocity", "angle vs delayed angle")
 DERIVATIVE_WINDOW = 15
@@ -104,14 +106,17 @@ class PoincareView(QWidget):
             return
         self._drawn = drawn
         self.count.setText(f"{theta.size} points")
+        angle = DISPLAY["angle"]
         if self.mode.currentIndex() == 0:
+            y_unit = DISPLAY["angular_velocity"]
             x, y = theta, rate
-            self.plot.setLabel("left", "angular velocity", units="rad/s")
-        elif theta.size > 1:
-            x, y = delayed_map(theta, 1)
-            self.plot.setLabel("left", "next angle", units="rad")
+            label_axis(self.plot, "left", "angular velocity", y_unit)
         else:
-            x, y = np.zeros(0), np.zeros(0)
-        self.plot.setLabel("bottom", "angle at the pulse", units="rad")
+            y_unit = angle
+            x, y = delayed_map(theta, 1) if theta.size > 1 else (np.zeros(0), np.zeros(0))
+            label_axis(self.plot, "left", "next angle", y_unit)
+        label_axis(self.plot, "bottom", "angle at the pulse", angle)
+        x, y = angle.show(x), y_unit.show(y)
         self.scatter.setData(x, y)
         self.newest.setData(x[-1:], y[-1:])
+        fit_axes(self.plot, x, y, angle, y_unit)

@@ -21,6 +21,8 @@ from PySide6.QtWidgets import (
 
 from analysis.dynamics.spectrum import Spectrum, amplitude_spectrum
 from gui.live_data import LiveData
+from gui.plot_axes import label_axis
+from gui.units import DISPLAY
 
 WINDOWS = ("hann", "blackman", "flattop", "boxcar")
 MAX_SPECTRUM_SAMPLES = 1 << 19
@@ -50,7 +52,7 @@ class SpectrumView(QWidget):
         controls.addWidget(self.log_scale)
         controls.addStretch(1)
         self.plot = pg.PlotWidget()
-        self.plot.setLabel("bottom", "frequency", units="Hz")
+        label_axis(self.plot, "bottom", "frequency", DISPLAY["frequency"])
         self.plot.showGrid(x=True, y=True, alpha=0.2)
         self.curve = self.plot.plot(pen=pg.mkPen("#1f4e9c", width=1))
         self.labels = [pg.TextItem(color="#a02020", anchor=(0.5, 1.0)) for _ in range(MAX_LABELS)]
@@ -93,8 +95,10 @@ class SpectrumView(QWidget):
         keep = spectrum.frequency_hz <= self.max_frequency.value()
         f = spectrum.frequency_hz[keep]
         log = self.log_scale.isChecked()
-        y = spectrum.amplitude_db[keep] if log else spectrum.amplitude[keep]
-        self.plot.setLabel("left", "amplitude", units="dB re max" if log else "rad")
+        angle = DISPLAY["angle"]
+        y = spectrum.amplitude_db[keep] if log else angle.show(spectrum.amplitude[keep])
+        label_axis(self.plot, "left", "amplitude (dB re the largest)" if log else
+                   "amplitude", None if log else angle)
         self.curve.setData(f, y)
         self.drive_line.setVisible(drive is not None)
         if drive is not None:
@@ -103,7 +107,9 @@ class SpectrumView(QWidget):
         shown = [p for p in spectrum.peaks if p.frequency_hz <= self.max_frequency.value()]
         for item, peak in zip(self.labels, shown[:MAX_LABELS], strict=False):
             height = (
-                (20 * np.log10(max(peak.amplitude, 1e-300)) - top_db) if log else peak.amplitude
+                (20 * np.log10(max(peak.amplitude, 1e-300)) - top_db)
+                if log
+                else angle.show(peak.amplitude)
             )
             item.setText(peak.label)
             item.setPos(peak.frequency_hz, height)
