@@ -74,6 +74,9 @@ SEGMENT_S = 0.4  # second stage: a few drive periods at 10 Hz, about one swing a
 # and a near-grazing impact makes it steep: its segments are shorter.
 CHAOTIC_SEGMENT_S = 0.2
 MIN_DURATION_S = 2.0
+# a table amplitude no laser measured starts within this relative error of the stated one
+# (eps = A / A_stated - 1): an amplifier a factor of 2 off is a broken rig, not a finding
+PLAUSIBLE_EPS = (-0.5, 1.0)
 SMOOTHING_S = 0.012
 
 Progress = Callable[[str], None]
@@ -327,6 +330,32 @@ def fit_model(
     return problem.fit(states, state_steps=steps, max_iterations=max_iterations), problem
 
 
+def _flight_at_stated_amplitude(
+    data: ForcedData, motion: TableMotion, flight: FlightEstimate
+) -> tuple[FlightEstimate, str | None]:
+    """The flight regression again with the table amplitude held at the stated one, when
+    the regression that fitted it (no laser watched the table) found one no rig has: on a
+    record whose swing follows the drive, the table's terms and gravity's can trade off, and
+    the regression then buys a smaller misfit with an absurd omega (19 times the true one
+    on a 10 Hz period-2 record with dry friction).  Returns the estimate and a note, or the
+    given estimate and None when its amplitude is plausible."""
+    stated = data.drive.stated_amplitude_m
+    if not stated or not stated > 0 or flight.amplitude_m is None:
+        return flight, None
+    eps = flight.amplitude_m / stated - 1.0
+    if PLAUSIBLE_EPS[0] <= eps <= PLAUSIBLE_EPS[1]:
+        return flight, None
+    phase = motion.phase_rad if motion.phase_rad is not None else flight.phase_rad
+    held = replace(motion, amplitude_m=stated, phase_rad=phase or 0.0)
+    again = flight_regression(data.t, data.y, data.valid, data.noise_rad, held,
+                              data.rig.g_m_s2)
+    note = (f"the flight regression's table amplitude, {1e3 * flight.amplitude_m:.3g} mm "
+            f"(omega {flight.omega_rad_s:.4g} rad/s), is no rig's against the stated "
+            f"{1e3 * stated:.3g} mm: start values from a regression with the stated amplitude "
+            f"(omega {again.omega_rad_s:.4g} rad/s)")
+    return replace(again, amplitude_m=stated, phase_rad=held.phase_rad), note
+
+
 @dataclass
 class ForcedIdentification:
     """Everything the identification of a forced record found, for reports and as the start
@@ -372,6 +401,9 @@ def identify_forced(
     )
     flight = flight_regression(data.t, data.y, data.valid, data.noise_rad, motion,
                                data.rig.g_m_s2)
+    if not amplitude_known:
+        flight, note = _flight_at_stated_amplitude(data, motion, flight)
+        notes += [note] if note else []
     say(f"flight regression: omega {flight.omega_rad_s:.4g} rad/s, zeta {flight.zeta:.3g}, "
         f"sensor zero {flight.offset_rad:.3g} rad")
     rig = data.rig
@@ -398,7 +430,7 @@ def identify_forced(
     if not amplitude_known:
         eps = (flight.amplitude_m / drive.stated_amplitude_m - 1.0) if flight.amplitude_m \
             else 0.0
-        eps = float(np.clip(eps, -0.5, 1.0))
+        eps = float(np.clip(eps, *PLAUSIBLE_EPS))
         start["eps"] = eps
         causes.append("excitation_amplitude")
         extra.append(FreeParameter("eps", eps, 1e-5, False, -0.9, 9.0))

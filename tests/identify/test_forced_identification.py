@@ -115,6 +115,24 @@ def test_equation_error_finds_gravity_under_a_distorted_table_no_laser_watches(s
         case.causes
 
 
+def test_a_table_amplitude_no_rig_has_is_not_a_start(tmp_path):
+    """A 10 Hz period-2 record with dry friction and no laser: the regression that fits the
+    table's amplitude buys a smaller misfit with 1/50 of the stated amplitude and an omega
+    18 times the true one (a shooting fit from there ran for over ten minutes).  The start
+    comes from the regression with the stated amplitude instead, and the notes say so."""
+    case = draw_forced_case(9137, "coulomb_friction", frequency_hz=10.0, laser=False,
+                            duration_s=10.0)
+    data = forced_data(load_record(write_forced_case(case, tmp_path)))
+    d = data.drive
+    free = flight_regression(data.t, data.y, data.valid, data.noise_rad,
+                             TableMotion(d.omega_rad_s, d.phase0_rad, None), data.rig.g_m_s2)
+    assert free.amplitude_m < 0.5 * d.stated_amplitude_m  # the trap is still there
+    ident = identify_forced(data, whole=False)
+    assert ident.start["omega_rad_s"] == pytest.approx(case.rig.omega_rad_s, rel=0.05)
+    assert ident.start["eps"] == 0.0
+    assert any("is no rig's against the stated 1.17 mm" in note for note in ident.notes)
+
+
 def test_decays_only_start_the_fit(tmp_path):
     # priors far off (a decay of another rig) change where the fit starts, not where it ends
     case, record = _record(tmp_path, 4101, "none", 2.0, True)
