@@ -29,6 +29,10 @@ class DisplayUnit:
         """``si_value`` (a number or an array) in display units."""
         return si_value * self.factor
 
+    def si(self, shown: float) -> float:
+        """A value entered in display units, in SI (what files and devices take)."""
+        return shown / self.factor
+
 
 DISPLAY: dict[str, DisplayUnit] = {
     "angle": DisplayUnit("rad", "deg", DEGREES_PER_RADIAN, 1.0),
@@ -37,6 +41,7 @@ DISPLAY: dict[str, DisplayUnit] = {
     "length": DisplayUnit("m", "mm", 1e3, 1.0),
     "frequency": DisplayUnit("Hz", "Hz", 1.0, 1.0),
     "time": DisplayUnit("s", "s", 1.0, 0.1),
+    "speed": DisplayUnit("m/s", "mm/s", 1e3, 1.0),
 }
 
 # a parameter named with its SI unit (docs/MODEL.md section 7 keys: theta_b_rad, L_m) is

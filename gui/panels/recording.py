@@ -23,7 +23,14 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
+from gui.units import DISPLAY, DisplayUnit
 from rig.procedures import SweepPlan
+
+
+def _swept_and_fixed(parameter: str) -> tuple[DisplayUnit, DisplayUnit]:
+    """The display units of a sweep's swept values and of the one held fixed."""
+    frequency, amplitude = DISPLAY["frequency"], DISPLAY["displacement"]
+    return (frequency, amplitude) if parameter == "frequency" else (amplitude, frequency)
 
 
 def human_size(size_bytes: int) -> str:
@@ -112,10 +119,10 @@ class RecordingPanel(QGroupBox):
 
     def _label_sweep_units(self, parameter: str) -> None:
         """The swept values in Hz or mm, the fixed one in the other."""
-        swept, fixed = (" Hz", " mm") if parameter == "frequency" else (" mm", " Hz")
-        self.sweep_from.setSuffix(swept)
-        self.sweep_to.setSuffix(swept)
-        self.sweep_fixed.setSuffix(fixed)
+        swept, fixed = _swept_and_fixed(parameter)
+        self.sweep_from.setSuffix(f" {swept.unit}")
+        self.sweep_to.setSuffix(f" {swept.unit}")
+        self.sweep_fixed.setSuffix(f" {fixed.unit}")
 
     def _browse(self) -> None:
         name, _ = QFileDialog.getSaveFileName(self, "Record to", self.path.text(), "*.h5")
@@ -133,12 +140,11 @@ class RecordingPanel(QGroupBox):
         values = np.linspace(
             self.sweep_from.value(), self.sweep_to.value(), self.sweep_steps.value()
         )
-        frequency = self.sweep_parameter.currentText() == "frequency"
-        scale = 1.0 if frequency else 1e-3
+        swept, fixed = _swept_and_fixed(self.sweep_parameter.currentText())
         return SweepPlan(
             parameter=self.sweep_parameter.currentText(),
-            values=tuple(float(v) * scale for v in values),
-            fixed=self.sweep_fixed.value() * (1e-3 if frequency else 1.0),
+            values=tuple(swept.si(float(v)) for v in values),
+            fixed=fixed.si(self.sweep_fixed.value()),
             settle_s=self.sweep_settle.value(),
             dwell_s=self.sweep_dwell.value(),
             down=self.sweep_down.isChecked(),

@@ -23,6 +23,10 @@ from drivers.amplifier_registers import (
     DEVICE_MAX_RAMP_RATE_UM_S,
 )
 from drivers.interfaces import LimitError
+from gui.units import DISPLAY
+
+MM = DISPLAY["displacement"]
+MM_S = DISPLAY["speed"]
 
 
 class ShakerPanel(QGroupBox):
@@ -40,12 +44,12 @@ class ShakerPanel(QGroupBox):
         self.frequency.setSuffix(" Hz")
         self.frequency.setValue(10.0)
         self.amplitude_mm = QDoubleSpinBox(decimals=3, maximum=DEVICE_MAX_AMPLITUDE_UM / 1000.0)
-        self.amplitude_mm.setSuffix(" mm")
+        self.amplitude_mm.setSuffix(f" {MM.unit}")
         self.amplitude_mm.setSingleStep(0.1)
         self.beta = QDoubleSpinBox(decimals=4, maximum=100.0, singleStep=0.005)
         self.beta.setToolTip("beta = A / L, the nondimensional drive amplitude (docs/MODEL.md)")
         self.ramp = QDoubleSpinBox(decimals=3, maximum=DEVICE_MAX_RAMP_RATE_UM_S / 1000.0)
-        self.ramp.setSuffix(" mm/s")
+        self.ramp.setSuffix(f" {MM_S.unit}")
         self.ramp.setValue(5.0)
         self.enable = QCheckBox("drive on")
         self.apply = QPushButton("Apply")
@@ -78,8 +82,10 @@ class ShakerPanel(QGroupBox):
         self.L_m = L_m
         self.limits_label.setText(
             f"limits: {limits.min_frequency_hz:g}-{limits.max_frequency_hz:g} Hz, "
-            f"up to {limits.max_amplitude_m * 1e3:g} mm (beta {limits.max_amplitude_m / L_m:.3g}), "
-            f"ramp {limits.min_ramp_rate_m_s * 1e3:g}-{limits.max_ramp_rate_m_s * 1e3:g} mm/s"
+            f"up to {MM.show(limits.max_amplitude_m):g} {MM.unit} "
+            f"(beta {limits.max_amplitude_m / L_m:.3g}), ramp "
+            f"{MM_S.show(limits.min_ramp_rate_m_s):g}-{MM_S.show(limits.max_ramp_rate_m_s):g} "
+            f"{MM_S.unit}"
         )
         self._amplitude_changed(self.amplitude_mm.value())
 
@@ -87,23 +93,23 @@ class ShakerPanel(QGroupBox):
         if self._syncing:
             return
         self._syncing = True
-        self.beta.setValue(millimetres * 1e-3 / self.L_m)
+        self.beta.setValue(MM.si(millimetres) / self.L_m)
         self._syncing = False
 
     def _beta_changed(self, beta: float) -> None:
         if self._syncing:
             return
         self._syncing = True
-        self.amplitude_mm.setValue(beta * self.L_m * 1e3)
+        self.amplitude_mm.setValue(MM.show(beta * self.L_m))
         self._syncing = False
 
     def values(self) -> tuple[float, float, bool, float]:
         """(frequency_hz, amplitude_m, enabled, ramp_rate_m_s) as entered."""
         return (
             self.frequency.value(),
-            self.amplitude_mm.value() * 1e-3,
+            MM.si(self.amplitude_mm.value()),
             self.enable.isChecked(),
-            self.ramp.value() * 1e-3,
+            MM_S.si(self.ramp.value()),
         )
 
     def check(self) -> str:

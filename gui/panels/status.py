@@ -5,6 +5,7 @@ from __future__ import annotations
 from PySide6.QtWidgets import QFormLayout, QGroupBox, QLabel, QWidget
 
 from drivers.interfaces import ActuatorStatus, StreamStatus
+from gui.units import DISPLAY
 from rig.engine import EngineStats
 
 ROWS = (
@@ -80,7 +81,8 @@ class StatusPanel(QGroupBox):
         if measured:
             self.fields["drive"].setText(
                 f"{measured.get('frequency_hz', 0.0):.3f} Hz, "
-                f"{measured.get('amplitude_m', 0.0) * 1e3:.3f} mm"
+                f"{DISPLAY['displacement'].show(measured.get('amplitude_m', 0.0)):.3f} "
+                f"{DISPLAY['displacement'].unit}"
             )
         faults = ", ".join(status.faults)
         self.fields["faults"].setText(faults or "none")
