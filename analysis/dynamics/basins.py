@@ -19,6 +19,7 @@ from scipy.spatial import cKDTree
 
 from analysis.dynamics.regime import Regime, classify_regime, recurrence_distances
 from analysis.dynamics.sweeps import PoincareSettings, Progress, run_poincare
+from analysis.figure_style import legend_beside, save_figure
 from analysis.model import Model
 
 if TYPE_CHECKING:  # matplotlib is imported by the plot functions only (slow import)
@@ -232,12 +233,10 @@ def plot_basins(
     axes.set_ylabel("theta_dot0 [rad/s]")
     if title:
         axes.set_title(title)
-    axes.legend(loc="upper right", fontsize="small")
+    legend_beside(axes, fontsize="small")
     figure.tight_layout()
     if path is not None:
-        from analysis.provenance import png_metadata
-
-        figure.savefig(Path(path), format="png", metadata=png_metadata())
+        save_figure(figure, path)
     return figure
 
 

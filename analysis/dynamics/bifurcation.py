@@ -25,6 +25,7 @@ import numpy as np
 from analysis.dynamics.model_parameters import model_with
 from analysis.dynamics.poincare import PoincareSection
 from analysis.dynamics.sweeps import PoincareSettings, Progress, continue_along, run_poincare
+from analysis.figure_style import legend_beside, save_figure
 from analysis.model import Model
 
 if TYPE_CHECKING:  # matplotlib is imported by the plot functions only (slow import)
@@ -192,12 +193,10 @@ def plot_bifurcation(
     axes.set_ylabel("theta at drive phase 0 [rad]")
     if title:
         axes.set_title(title)
-    legend = axes.legend(loc="best", markerscale=8)
+    legend = legend_beside(axes, markerscale=8)
     for handle in legend.legend_handles:
         handle.set_alpha(1.0)
     figure.tight_layout()
     if path is not None:
-        from analysis.provenance import png_metadata
-
-        figure.savefig(Path(path), format="png", metadata=png_metadata())
+        save_figure(figure, path)
     return figure

@@ -34,6 +34,7 @@ import numpy as np
 
 from analysis.dynamics.bifurcation import BifurcationDiagram, diagram_style
 from analysis.dynamics.continuation import BifurcationEvent, ContinuationResult
+from analysis.figure_style import legend_beside, save_figure
 from analysis.json_output import to_json_text
 from analysis.model import Model
 
@@ -148,7 +149,7 @@ def plot_continuation(result: ContinuationResult, *,
         top.plot(event.value, event.point.max_angle_rad, marker=marker, color=colour,
                  linestyle="none", markersize=6, markeredgecolor="white", markeredgewidth=0.6)
     _legend_entries(top, colours, events)
-    top.legend(loc="best", fontsize=7.5, ncols=2)
+    legend_beside(top, fontsize=7.5)
     axes = [top]
     if overlays:
         lower = figure.add_subplot(grid[1], sharex=top)
@@ -165,7 +166,7 @@ def plot_continuation(result: ContinuationResult, *,
                        marker=marker, color=colour, linestyle="none", markersize=5,
                        markeredgecolor="white", markeredgewidth=0.5, zorder=4)
         lower.set_ylabel("angle at drive phase 0 [rad]")
-        legend = lower.legend(loc="best", fontsize=7.5, markerscale=4)
+        legend = legend_beside(lower, fontsize=7.5, markerscale=4)
         for handle in legend.legend_handles:
             handle.set_alpha(1.0)
         top.tick_params(labelbottom=False)
@@ -181,7 +182,7 @@ def plot_continuation(result: ContinuationResult, *,
         figure.text(0.09, table_in / height, _event_table(result.parameter, events, listed),
                     family="monospace", fontsize=7.5, va="top", ha="left")
     if path is not None:
-        figure.savefig(Path(path), format="png")
+        save_figure(figure, path)
     return figure
 
 

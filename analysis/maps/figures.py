@@ -10,6 +10,7 @@ import numpy as np
 
 from analysis.dynamics.basins import Attractor, BasinMap, plot_basins
 from analysis.dynamics.regime import KINDS, Regime
+from analysis.figure_style import legend_beside, save_figure
 from analysis.maps.overlay import RecordedSweep
 from analysis.maps.plan import ROLE_DOWN, ROLE_RANDOM, ROLE_UP
 from analysis.maps.summary import NO_REGIME
@@ -36,8 +37,7 @@ def draw_map(
         figure = _bifurcation(data, overlay)
     else:
         figure = {"regimes": _regimes, "basins": _basins}[data["kind"]](data)
-    figure.savefig(Path(path), format="png")
-    return Path(path)
+    return save_figure(figure, path)
 
 
 def _figure(size: tuple[float, float], rows: int = 1, heights: tuple[int, ...] = (1,)):
@@ -79,7 +79,7 @@ def _bifurcation(data: dict[str, Any], overlay: RecordedSweep | None):
                         linewidths=0.6, label=f"recorded sweep, {direction}")
     top.set_ylabel("theta at drive phase 0 [rad]")
     top.set_title(_title(data))
-    legend = top.legend(loc="best", fontsize="small")
+    legend = legend_beside(top, fontsize="small")
     for handle in legend.legend_handles:  # the map's dots are tiny: legible marks instead
         handle.set_alpha(1.0)
         handle.set_sizes([30.0])
@@ -143,8 +143,7 @@ def _regimes(data: dict[str, Any]):
     axes.set_xlabel(first["name"])
     axes.set_ylabel(second["name"])
     axes.set_title(_title(data))
-    axes.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.01, 1.0),
-                fontsize="small", title="dominant attractor")
+    legend_beside(axes, handles=handles, fontsize="small", title="dominant attractor")
     return figure
 
 

@@ -19,8 +19,9 @@ from analysis.discrepancy.fitting import predict
 from analysis.discrepancy.outcome import Analysis
 from analysis.estimate_text import interval_text
 from analysis.extensions import NONE, causes_in
+from analysis.figure_style import legend_beside, save_figure
 from analysis.json_output import json_ready, write_json
-from analysis.provenance import markdown_provenance, png_metadata, provenance
+from analysis.provenance import markdown_provenance, provenance
 
 
 def report_json(analysis: Analysis) -> dict[str, Any]:
@@ -51,7 +52,7 @@ def _curves(analysis: Analysis) -> tuple[np.ndarray, np.ndarray | None]:
     return base, ext
 
 
-def figure_fit(analysis: Analysis, path: Path, dpi: int = 80) -> Path:
+def figure_fit(analysis: Analysis, path: Path) -> Path:
     """Record, baseline and extended model (top); residuals before and after (bottom)."""
     data = analysis.data
     base, ext = _curves(analysis)
@@ -65,7 +66,7 @@ def figure_fit(analysis: Analysis, path: Path, dpi: int = 80) -> Path:
     if ext is not None:
         ax.plot(t, ext, lw=0.8, ls="--", color="tab:blue", label=f"+ {label}")
     ax.set_ylabel("angle [rad]")
-    ax.legend(loc="upper right", fontsize=8)
+    legend_beside(ax, fontsize=8)
     if analysis.n_train < t.size:
         for a in axes:
             a.axvline(t[analysis.n_train], color="0.6", lw=0.6, ls=":")
@@ -80,14 +81,14 @@ def figure_fit(analysis: Analysis, path: Path, dpi: int = 80) -> Path:
     ax.axhline(0, color="0.5", lw=0.5)
     ax.set_xlabel("time [s]  (dotted: end of the fitted part for the held-out test)")
     ax.set_ylabel("model - data [rad]")
-    ax.legend(loc="upper right", fontsize=8)
+    legend_beside(ax, fontsize=8)
     fig.tight_layout()
-    fig.savefig(path, dpi=dpi, metadata=png_metadata())
+    save_figure(fig, path)
     plt.close(fig)
     return path
 
 
-def figure_restitution(analysis: Analysis, path: Path, dpi: int = 80) -> Path:
+def figure_restitution(analysis: Analysis, path: Path) -> Path:
     """Constant-restitution and Hunt-Crossley fits of an impact decay."""
     data = analysis.data
     base, _ = predict(data, NONE, analysis.baseline.values)
@@ -98,14 +99,14 @@ def figure_restitution(analysis: Analysis, path: Path, dpi: int = 80) -> Path:
     axes[0].plot(data.t, rest["curve"], lw=0.8, ls="--", color="tab:green",
                  label="constant restitution e")
     axes[0].set_ylabel("angle [rad]")
-    axes[0].legend(loc="upper right", fontsize=8)
+    legend_beside(axes[0], fontsize=8)
     axes[1].plot(data.t, base - data.y, lw=0.6, color="tab:red", label="Hunt-Crossley")
     axes[1].plot(data.t, rest["residual"], lw=0.6, color="tab:green", label="restitution")
     axes[1].set_ylabel("model - data [rad]")
     axes[1].set_xlabel("time [s]")
-    axes[1].legend(loc="upper right", fontsize=8)
+    legend_beside(axes[1], fontsize=8)
     fig.tight_layout()
-    fig.savefig(path, dpi=dpi, metadata=png_metadata())
+    save_figure(fig, path)
     plt.close(fig)
     return path
 

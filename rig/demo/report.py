@@ -14,8 +14,9 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from analysis.estimate_text import estimate_text, interval_determined, interval_text
+from analysis.figure_style import save_figure
 from analysis.json_output import write_json
-from analysis.provenance import markdown_provenance, png_metadata, provenance
+from analysis.provenance import markdown_provenance, provenance
 from rig.demo.settings import ANALYSIS, FIGURES, RECORDINGS, DemoSettings, HiddenCause
 
 if TYPE_CHECKING:  # the analysis's result types, for the hints only (imported when run)
@@ -91,7 +92,7 @@ def write_figures(folder: Path, diagrams, settings) -> dict[str, str]:
     for collection, diagram in zip(figure.axes[0].collections, diagrams, strict=False):
         # few simulated points at the demo's resolution: make them show, the measured more so
         collection.set_sizes([30.0 if diagram.direction == "recorded" else 4.0])
-    figure.savefig(folder / path, format="png", metadata=png_metadata())
+    save_figure(figure, folder / path)
     return {"bifurcation": str(path)}
 
 
