@@ -79,6 +79,10 @@ SEED_RMS = 1.2  # a full fit this close to the noise lends its segment states
 # once a refined cause leaves white noise, a candidate whose screening gained this much
 # less cannot rival it (nor be told apart from it, INDISTINCT_BIC): it is not refined
 RIVAL_SCREENED = 0.1
+# a cause whose fit over the record stopped unconverged within this fraction of the best
+# gain is a rival still moving: it is fitted on, up to RIVAL_ROUNDS more iteration caps
+RIVAL_BIC = 0.5
+RIVAL_ROUNDS = 3
 MAX_CAUSES = 3  # the forward selection stops at this many causes
 ADDED = 2  # causes fitted over the record as the next step, best screened first
 STEP_SCREEN_ITERATIONS = 6  # a step's screening: each cause added to the current model
@@ -230,10 +234,32 @@ def _fit_over_record(
         if complete is None and bic[name] > BIC_MARGIN and not implausibility(
                 name, fits[name].values) and not _structured(data, fits[name], period):
             complete = name
+    _finish_rivals(data, fits, bic, base_full, lay, threads, say)
     for name in names:
         if name not in fits:  # judged on its screening: it did not come close
             bic[name] = min(bic[name], BIC_MARGIN)
     return fits
+
+
+def _finish_rivals(
+    data: ForcedData, fits: dict[str, ShootingFit], bic: dict[str, float],
+    base_full: ShootingFit, lay: Layouts, threads: int | None, say: Progress,
+) -> None:
+    """Fits stopped at their iteration cap while within RIVAL_BIC of the best cause go on
+    until they converge (at most RIVAL_ROUNDS more caps): the judges compare finished fits.
+    A wrong cause's crawl changes nothing, but the right one can crawl too: a contact
+    exponent, whose stiffness must follow it over decades, stood at 0.72 of a barrier
+    offset's gain after 12 iterations and at 1.04 of it after 40."""
+    for _ in range(RIVAL_ROUNDS):
+        best = max((bic[n] for n in fits), default=0.0)
+        unfinished = [n for n, fit in fits.items() if not fit.success
+                      and bic[n] > BIC_MARGIN and bic[n] >= RIVAL_BIC * best]
+        if not unfinished:
+            return
+        for name in unfinished:
+            fits[name] = refit(data, name, fits[name], lay, threads)
+            bic[name] = _bic(data, ModelFits(NONE, base_full), fits[name])
+            say(f"  {name} fitted on (it had not converged): BIC gain {bic[name]:.3g}")
 
 
 def _fit_cause_over_record(
