@@ -36,3 +36,25 @@ def run_events(app: QApplication, seconds: float) -> None:
     while time.monotonic() < deadline:
         app.processEvents()
         time.sleep(0.01)
+
+
+@pytest.fixture
+def open_window(qapp, tmp_path):
+    """Open the main window at a given size (its settings in this test's own file); every
+    window opened is shut down after the test."""
+    from gui.app import MainWindow
+    from gui.settings import AppSettings
+
+    opened = []
+
+    def open_at(width: int, height: int):
+        window = MainWindow(AppSettings(str(tmp_path / "gui.ini")))
+        window.resize(width, height)
+        window.show()
+        opened.append(window)
+        return window
+
+    yield open_at
+    for window in opened:
+        window.shutdown()
+        window.close()

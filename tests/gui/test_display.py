@@ -14,9 +14,7 @@ from PySide6.QtWidgets import QScrollArea
 from analysis.estimate_text import NOT_DETERMINED
 from analysis.model import Drive, Model, RigParameters
 from analysis.simulate import SimulationSettings, simulate
-from gui.app import MainWindow
 from gui.model_overlay import explanation_lines
-from gui.settings import AppSettings
 from gui.units import DISPLAY, axis_range, parameter_unit
 from rig.events import DriveSetting, StepMark
 from tests.gui.conftest import run_events, wait_until
@@ -30,13 +28,8 @@ DEG = 180.0 / math.pi
 
 
 @pytest.fixture
-def window(qapp, tmp_path):
-    win = MainWindow(AppSettings(str(tmp_path / "gui.ini")))
-    win.resize(1280, 800)
-    win.show()
-    yield win
-    win.shutdown()
-    win.close()
+def window(open_window):
+    return open_window(1280, 800)
 
 
 def test_every_panel_shows_at_1280_by_800_without_scrolling(qapp, window):

@@ -9,8 +9,6 @@ import numpy as np
 import pytest
 
 from analysis.identify.free_decay import simulated_free_decay
-from gui.app import MainWindow
-from gui.settings import AppSettings
 from gui.worker import ReplaySession
 from rig.events import DriveSetting
 from tests.gui.conftest import run_events, wait_until
@@ -22,13 +20,8 @@ AMPLITUDE = 0.1
 
 
 @pytest.fixture
-def window(qapp, tmp_path):
-    win = MainWindow(AppSettings(str(tmp_path / "gui.ini")))
-    win.resize(900, 600)
-    win.show()
-    yield win
-    win.shutdown()
-    win.close()
+def window(open_window):
+    return open_window(900, 600)
 
 
 @pytest.fixture(scope="module")
