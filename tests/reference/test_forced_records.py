@@ -68,7 +68,8 @@ def test_files_reveal_nothing_of_the_truth(tmp_path):
     case = draw_forced_case(24, "excitation_distortion", laser=True, **SHORT)
     csv_path = write_forced_case(case, tmp_path)
     meta = json.loads(csv_path.with_suffix(".json").read_text())
-    assert set(meta) == {"experiment", "rig", "drive", "notes"}
+    assert set(meta) == {"format_version", "experiment", "rig", "drive", "notes"}
+    assert meta["format_version"] == 1  # the layout, nothing of the record
     assert meta["rig"] == {"m_kg": case.rig.m_kg, "l_m": case.rig.l_m, "R_m": case.rig.R_m,
                            "g": 9.81}
     assert meta["drive"] == {"frequency_hz": case.drive.stated_frequency_hz,
