@@ -10,6 +10,7 @@ from __future__ import annotations
 import csv
 import json
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -74,6 +75,13 @@ class ExchangeRecord:
         if self.tach is None:
             return np.zeros(0, dtype=np.int64)
         return np.flatnonzero(self.tach > 0.5)
+
+
+def rig_constants(rig: Mapping[str, Any]) -> dict[str, Any]:
+    """The sidecar's rig constants from a fuller mapping (a recording's rig, a record's): every
+    exchange key (None where unknown) and the optional ones that are known."""
+    return {key: rig.get(key) for key in RIG_KEYS} | {
+        key: rig[key] for key in OPTIONAL_RIG_KEYS if rig.get(key)}
 
 
 def sidecar_path(csv_path: str | Path) -> Path:

@@ -18,7 +18,7 @@ from typing import Any
 import h5py
 import numpy as np
 
-from analysis.exchange import OPTIONAL_RIG_KEYS, RIG_KEYS, meta_from_json
+from analysis.exchange import meta_from_json, rig_constants
 from analysis.recording_file import RecordingFormatError, open_recording
 from analysis.records import Record, RecordFormatError
 
@@ -76,8 +76,7 @@ def read_recording_arrays(path: str | Path) -> RecordingArrays:
             table_m=table,
             tach_edges=edges,
             experiment=info.experiment,
-            rig={key: info.rig.get(key) for key in RIG_KEYS}
-            | {key: info.rig[key] for key in OPTIONAL_RIG_KEYS if info.rig.get(key)},
+            rig=rig_constants(info.rig),
             drive=info.drive,
             notes=info.notes,
             steps=recording.sweep_steps(),

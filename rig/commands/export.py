@@ -57,7 +57,7 @@ def to_exchange(record):
     """An analysis ``Record`` as an ``ExchangeRecord`` (tach as a 0/1 column)."""
     import numpy as np
 
-    from analysis.exchange import OPTIONAL_RIG_KEYS, RIG_KEYS, ExchangeMeta, ExchangeRecord
+    from analysis.exchange import ExchangeMeta, ExchangeRecord, rig_constants
     from analysis.provenance import provenance
 
     tach = None
@@ -66,8 +66,7 @@ def to_exchange(record):
         tach[record.tach_indices] = 1
     meta = ExchangeMeta(
         experiment=record.experiment,
-        rig={key: record.rig.get(key) for key in RIG_KEYS}
-        | {key: record.rig[key] for key in OPTIONAL_RIG_KEYS if record.rig.get(key)},
+        rig=rig_constants(record.rig),
         drive=None if record.drive is None else dict(record.drive),
         notes=record.notes,
         # the calibrations, the recording's format version, a whole sweep's steps
