@@ -160,6 +160,9 @@ class Recorder:
         self.path = check_destination(path, overwrite=overwrite, min_free_bytes=min_free_bytes)
         self.flush_interval_s = flush_interval_s
         self._buffers = {spec.name: _ChannelBuffer(spec) for spec in channels}
+        self._records_samples = any(spec.kind == "samples" for spec in channels)
+        self._first_sample_index: int | None = None
+        self._pulses_before_samples: list[tuple[PulseBlock, float]] = []
         self._drive: list[tuple] = []
         self._steps: list[tuple] = []
         self._last_host_time_s = 0.0
@@ -259,15 +262,15 @@ class Recorder:
                 )
             )
             buffer.stored += n
+            if self._first_sample_index is None:
+                self._first_sample_index = event.first_index
+                self._release_waiting_pulses()
         elif isinstance(event, PulseBlock):
-            buffer = self._channel(event.channel, "pulses")
-            edges = np.asarray(event.edge_indices, dtype="<i8")
-            buffer.edges.append(edges)
-            buffer.edge_times.append(np.asarray(event.edge_times_s, dtype="<f8"))
-            buffer.blocks.append(
-                (event.first_index, event.end_index, host_time_s, event.lost_before, edges.size)
-            )
-            buffer.stored += edges.size
+            self._channel(event.channel, "pulses")
+            if self._records_samples and self._first_sample_index is None:
+                self._pulses_before_samples.append((event, host_time_s))
+            else:
+                self._add_pulses(event, host_time_s)
         elif isinstance(event, Gap):
             buffer = self._channel(event.channel, None)
             buffer.gaps.append((event.start_index, event.length))
@@ -276,6 +279,41 @@ class Recorder:
             self._add_annotation(event)
         else:
             raise TypeError(f"cannot record {type(event).__name__}")
+
+    def _add_pulses(self, event: PulseBlock, host_time_s: float) -> None:
+        """Queue a block of edges, less any edge before the recording's first sample.
+
+        A recorder attached to a running engine gets each stream from that stream's next
+        block, so a pulse block can begin before the first sample recorded; its earlier
+        edges belong to no recorded sample and are dropped, so that every channel of the
+        file starts at one sample index.
+        """
+        start = self._first_sample_index
+        if start is not None and event.first_index < start:
+            if event.end_index <= start:
+                return
+            kept = np.asarray(event.edge_indices) >= start
+            event = replace(
+                event,
+                first_index=start,
+                edge_indices=np.asarray(event.edge_indices)[kept],
+                edge_times_s=np.asarray(event.edge_times_s)[kept],
+                lost_before=0,
+            )
+        buffer = self._channel(event.channel, "pulses")
+        edges = np.asarray(event.edge_indices, dtype="<i8")
+        buffer.edges.append(edges)
+        buffer.edge_times.append(np.asarray(event.edge_times_s, dtype="<f8"))
+        buffer.blocks.append(
+            (event.first_index, event.end_index, host_time_s, event.lost_before, edges.size)
+        )
+        buffer.stored += edges.size
+
+    def _release_waiting_pulses(self) -> None:
+        """Queue the pulse blocks held until the first sample's index was known."""
+        waiting, self._pulses_before_samples = self._pulses_before_samples, []
+        for event, host_time_s in waiting:
+            self._add_pulses(event, host_time_s)
 
     def _add_annotation(self, event: DriveSetting | StepMark) -> None:
         if isinstance(event, DriveSetting):
@@ -399,6 +437,7 @@ class Recorder:
         if self._failed is not None:
             self._abandon()
             return
+        self._release_waiting_pulses()  # no sample ever came: the edges are all there is
         try:
             self.flush()
             self._write_status(closed=True, reason=stop_reason)

@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from analysis.recording_file import open_recording
-from drivers.interfaces import SampleBlock
+from drivers.interfaces import PulseBlock, SampleBlock
 from rig.engine import AcquisitionEngine
 from rig.events import DriveSetting, StepMark
 from rig.recorder import (
@@ -278,6 +278,46 @@ def test_a_full_disk_stops_acquisition_with_a_clear_error_and_keeps_what_was_flu
         np.testing.assert_array_equal(data.indices, np.arange(len(data)))
         status = rec.status()
         assert status.closed and "disk almost full" in status.stop_reason
+
+
+def _samples(channel: str, first: int, n: int) -> SampleBlock:
+    values = np.arange(first, first + n, dtype="f4") * 1e-3
+    return SampleBlock(channel, first, first / 10_000.0, 10_000.0, values * 1e3, values)
+
+
+def _edges(first: int, end: int, edges: list[int]) -> PulseBlock:
+    at = np.array(edges, "i8")
+    return PulseBlock("tach", first, end, at, at / 10_000.0)
+
+
+def test_a_recording_joined_mid_stream_starts_every_channel_at_its_first_sample(tmp_path):
+    # attached to a running engine, the tach's first block began before the angle's
+    # first recorded block (a GUI test once saw edge 13079 before sample 13080)
+    path = tmp_path / "joined.h5"
+    recorder = Recorder(path, SPECS, META)
+    recorder.add(_edges(12_900, 13_300, [13_079, 13_279]), 0.0)
+    recorder.add(_edges(13_300, 13_700, [13_479]), 0.0)
+    recorder.add(_samples("angle", 13_080, 400), 0.0)
+    recorder.add(_samples("table", 13_080, 400), 0.0)
+    recorder.add(_edges(13_700, 14_100, [13_879]), 0.0)
+    recorder.add(_samples("angle", 13_480, 400), 0.0)
+    recorder.close()
+    with open_recording(path) as rec:
+        angle = rec.channel("angle")
+        tach = rec.pulses("tach")
+        assert angle.indices[0] == 13_080
+        assert tach.edge_indices.tolist() == [13_279, 13_479, 13_879]
+        assert tach.covered["first_index"][0] == 13_080
+        assert np.allclose(tach.edge_times_s, tach.edge_indices / 10_000.0)
+
+
+def test_pulses_of_a_recording_without_samples_are_all_kept(tmp_path):
+    path = tmp_path / "pulses_only.h5"
+    recorder = Recorder(path, SPECS[2:], META)
+    recorder.add(_edges(12_900, 13_300, [13_079, 13_279]), 0.0)
+    recorder.close()
+    with open_recording(path) as rec:
+        assert rec.pulses("tach").edge_indices.tolist() == [13_079, 13_279]
 
 
 def test_recorder_refuses_blocks_of_an_undeclared_channel(tmp_path):
