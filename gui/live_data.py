@@ -14,7 +14,7 @@ import numpy as np
 
 from drivers.interfaces import PulseBlock, SampleBlock
 from gui.units import DISPLAY
-from rig.events import DriveSetting, Gap, StepMark
+from rig.events import DriveSetting, Gap, StepBegun, StepMark
 
 DEFAULT_KEEP_S = 30.0
 MAX_TACH_EDGES = 100_000
@@ -115,6 +115,7 @@ class LiveData:
         self.tach_edges_seen = 0  # all edges ever added (views track their own progress)
         self.drive: DriveSetting | None = None
         self.steps: list[StepMark] = list(self.recorded_steps)
+        self.steps_begun: list[StepBegun] = []  # live sweeps: steps under way have no mark yet
         self.gaps = 0
         self.samples_in = 0
         self.generation = 0  # bumped by clear(): views drop what they accumulated
@@ -139,6 +140,8 @@ class LiveData:
                 self.drive = event
             elif isinstance(event, StepMark) and event not in self.recorded_steps:
                 self.steps.append(event)
+            elif isinstance(event, StepBegun):
+                self.steps_begun.append(event)
             elif isinstance(event, Gap):
                 self.gaps += 1
 
@@ -146,13 +149,22 @@ class LiveData:
         """Sample indices as seconds from the start of the source (not device time)."""
         return (np.asarray(indices) - (self.origin_index or 0)) / self.sample_rate_hz
 
-    def current_step(self) -> StepMark | None:
-        """The newest sweep step that began before the newest sample (None: no sweep)."""
+    def current_step(self) -> StepMark | StepBegun | None:
+        """The newest sweep step that began before the newest sample (None: no sweep): its
+        mark once it ended, else the news that it began."""
         end = self.angle.end_index
         if end is None:
             return None
-        begun = [mark for mark in self.steps if mark.settle_start_index < end]
-        return max(begun, key=lambda mark: mark.settle_start_index, default=None)
+        begun = [mark for mark in [*self.steps_begun, *self.steps] if mark.settle_start_index < end]
+        return max(
+            begun,
+            key=lambda mark: (mark.settle_start_index, isinstance(mark, StepMark)),
+            default=None,
+        )
+
+    def step_starts(self) -> dict[int, int]:
+        """Where each sweep step began (sample index -> step number), ended or under way."""
+        return {m.settle_start_index: m.step for m in [*self.steps_begun, *self.steps]}
 
     def drive_frequency_hz(self) -> float | None:
         """The drive frequency: from the tach when it ticks, else the last drive setting.
@@ -183,6 +195,7 @@ class LiveData:
         self.tach_edges.clear()
         self.tach_edges_seen = 0
         self.steps = list(self.recorded_steps)
+        self.steps_begun.clear()
         self.gaps = 0
         self.generation += 1
 
@@ -204,7 +217,9 @@ def drive_description(data: LiveData) -> str:
             text += f", β = A/L = {drive.amplitude_m / data.equivalent_length_m:.4f}"
     step = data.current_step()
     if step is not None:
-        where = "in" if (data.angle.end_index or 0) <= step.dwell_end_index else "after"
-        total = f" of {len(data.recorded_steps)}" if data.recorded_steps else ""
+        ended = isinstance(step, StepMark) and (data.angle.end_index or 0) > step.dwell_end_index
+        where = "after" if ended else "in"
+        steps_in_plan = step.of_steps if isinstance(step, StepBegun) else len(data.recorded_steps)
+        total = f" of {steps_in_plan}" if steps_in_plan else ""
         text += f"   |   {where} sweep step {step.step + 1}{total}"
     return text

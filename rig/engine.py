@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 from datetime import UTC, datetime
 
 from drivers.interfaces import InputStream, SampleBlock
-from rig.events import COMMANDED, DriveSetting, Event, Gap, StepMark
+from rig.events import COMMANDED, DriveSetting, Event, Gap, StepBegun, StepMark
 
 Delivery = tuple[float, Event]  # (host time since the engine started, event)
 
@@ -403,8 +403,8 @@ class AcquisitionEngine:
         self._publish(setting.host_time_s, setting)
         return setting
 
-    def mark_step(self, mark: StepMark) -> None:
-        """Publish a sweep step mark."""
+    def mark_step(self, mark: StepMark | StepBegun) -> None:
+        """Publish a sweep step mark (when the step ends) or the news that one has begun."""
         self._publish(self.host_time_s(), mark)
 
     def publish(self, event: DriveSetting | StepMark) -> None:

@@ -1,7 +1,8 @@
 """What flows from the acquisition engine to its subscribers besides sample and pulse blocks.
 
 Blocks come straight from the drivers (``drivers.interfaces``); these records carry
-what the engine and the procedures add: gaps, drive settings, sweep step marks.
+what the engine and the procedures add: gaps, drive settings, sweep step marks (and, for
+live views only, the news that a step has begun).
 """
 
 from __future__ import annotations
@@ -49,4 +50,17 @@ class StepMark:
     complete: bool = True
 
 
-Event = SampleBlock | PulseBlock | Gap | DriveSetting | StepMark
+@dataclass(frozen=True)
+class StepBegun:
+    """A sweep step has begun: news for live views, not recorded (the step's ``StepMark``,
+    published when the step ends, holds all of it)."""
+
+    step: int
+    of_steps: int
+    direction: int
+    frequency_hz: float
+    amplitude_m: float
+    settle_start_index: int
+
+
+Event = SampleBlock | PulseBlock | Gap | DriveSetting | StepMark | StepBegun

@@ -35,7 +35,7 @@ from rig.engine import (
     SubscriberOverrunError,
     Subscription,
 )
-from rig.events import COMMANDED, DriveSetting, StepMark
+from rig.events import COMMANDED, DriveSetting, StepBegun, StepMark
 from rig.recorder import Recorder, RecorderThread, RecordingError, RecordingMetadata
 
 Progress = Callable[[str], None]
@@ -618,6 +618,9 @@ def run_sweep(
             session.set_drive(frequency_hz, amplitude_m)
             settle_start = session.engine.latest_index or 0
             arrow = "up" if direction > 0 else "down"
+            session.engine.mark_step(
+                StepBegun(number, len(steps), direction, frequency_hz, amplitude_m, settle_start)
+            )
             progress(
                 f"step {number + 1}/{len(steps)} {arrow}: {frequency_hz:g} Hz, "
                 f"{amplitude_m * 1e3:g} mm, settling {plan.settle_s:g} s"

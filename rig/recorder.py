@@ -35,7 +35,7 @@ from analysis.recording_file import (
 )
 from drivers.interfaces import PulseBlock, SampleBlock
 from drivers.sensors import FLAG_NOT_FINITE
-from rig.events import DriveSetting, Event, Gap, StepMark
+from rig.events import DriveSetting, Event, Gap, StepBegun, StepMark
 
 __all__ = [
     "FORMAT_NAME",
@@ -277,7 +277,7 @@ class Recorder:
             buffer.lost += event.length
         elif isinstance(event, DriveSetting | StepMark):
             self._add_annotation(event)
-        else:
+        elif not isinstance(event, StepBegun):  # the step's StepMark, at its end, says it all
             raise TypeError(f"cannot record {type(event).__name__}")
 
     def _add_pulses(self, event: PulseBlock, host_time_s: float) -> None:

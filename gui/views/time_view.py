@@ -108,10 +108,10 @@ class TimeTraceView(QWidget):
 
     def _draw_steps(self, data: LiveData, first: int, last: int) -> None:
         """A dashed line where each sweep step inside the window began, labelled with it."""
-        shown = [m for m in data.steps if first <= m.settle_start_index <= last]
-        for marker, mark in zip(self.step_markers, shown[-MAX_STEP_MARKERS:], strict=False):
-            marker.setValue(float(data.seconds(mark.settle_start_index)))
-            marker.label.setFormat(f"step {mark.step + 1}")
+        shown = sorted((at, step) for at, step in data.step_starts().items() if first <= at <= last)
+        for marker, (at, step) in zip(self.step_markers, shown[-MAX_STEP_MARKERS:], strict=False):
+            marker.setValue(float(data.seconds(at)))
+            marker.label.setFormat(f"step {step + 1}")
             marker.setVisible(True)
         for marker in self.step_markers[len(shown[-MAX_STEP_MARKERS:]) :]:
             marker.setVisible(False)

@@ -268,6 +268,8 @@ def test_cancelling_a_gui_sweep_stops_the_procedure_and_keeps_what_it_recorded(
     panel.sweep_run.click()
     wait_until(qapp, lambda: "dwell" in panel.sweep_text.text(), 10, "the first step's dwell")
     run_events(qapp, 0.3)
+    # the toolbar shows the step under way, not the last one ended (there is none yet)
+    assert window.drive_label.text().endswith("in sweep step 1 of 3")
     asked = time.monotonic()
     # the sweep button reads "Cancel sweep" while a sweep runs; STOP cancels it as well
     (panel.sweep_run if button == "sweep_run" else window.stop_button).click()
