@@ -258,7 +258,7 @@ def centre_estimate(angle: np.ndarray) -> float:
         raise IdentificationError("too few finite samples to locate the rest angle")
     low, high = np.percentile(clean, [1, 99])
     rough = 0.5 * (low + high)
-    crossings = _crossings(clean - rough)
+    crossings = side_crossings(clean - rough)
     if crossings.size < 3:
         return float(np.median(clean))
     midpoints = []
@@ -269,7 +269,7 @@ def centre_estimate(angle: np.ndarray) -> float:
     return float(np.median(0.5 * (extremes[:-1] + extremes[1:])))
 
 
-def _crossings(centred: np.ndarray, hysteresis: float | None = None) -> np.ndarray:
+def side_crossings(centred: np.ndarray, hysteresis: float | None = None) -> np.ndarray:
     """Indices where the signal changes side, counting only full passages across +-hysteresis."""
     if hysteresis is None:
         hysteresis = 3.0 * noise_and_quantum(centred)[0]
@@ -410,7 +410,7 @@ def _release_index(filled: np.ndarray, noise: float, quantum: float) -> tuple[in
 
 
 def _rough_period_samples(centred: np.ndarray) -> int:
-    crossings = _crossings(centred)
+    crossings = side_crossings(centred)
     if crossings.size < 3:
         return max(4, centred.size // 2)
     return int(max(4, 2 * np.median(np.diff(crossings))))

@@ -7,7 +7,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from analysis.identify.preprocess import PreparedSignal, centre_estimate, turning_points
+from analysis.identify.preprocess import (
+    PreparedSignal,
+    centre_estimate,
+    side_crossings,
+    turning_points,
+)
 from analysis.identify.result import IdentificationError
 
 MIN_SAMPLES_PER_PERIOD = 8
@@ -25,6 +30,32 @@ class DecayGuess:
     offset_rad: float
     turning_times_s: np.ndarray
     turning_amplitudes_rad: np.ndarray
+
+
+def _require_periods(signal: PreparedSignal, centred: np.ndarray) -> None:
+    """Refuse a record shorter than MIN_PERIODS periods, naming its period as its zero
+    crossings give it: over a period or two the spectrum's peak is too broad to tell it.
+
+    Crossings two apart span one period whatever the error of the centre, so a period is
+    only named when the record holds one."""
+    t = signal.time_s
+    duration = t[-1] - t[0]
+    used = f"{duration:.4g} s"
+    trimmed = signal.trim_start_s + signal.trim_end_s
+    if trimmed > 0:
+        used += f" (left after trimming {trimmed:.3g} s before the release or at rest)"
+    crossings = side_crossings(centred)
+    if crossings.size < 3:
+        raise IdentificationError(
+            f"record too short: {used} holds less than one period of the swing (it crosses "
+            f"its centre {crossings.size} time(s)); need at least {MIN_PERIODS} periods"
+        )
+    period = float(np.median(t[crossings[2:]] - t[crossings[:-2]]))
+    if duration < MIN_PERIODS * period:
+        raise IdentificationError(
+            f"record too short: {used} is {duration / period:.2g} periods of "
+            f"{period:.4g} s (from its zero crossings); need at least {MIN_PERIODS}"
+        )
 
 
 def guess_decay(signal: PreparedSignal) -> DecayGuess:
@@ -54,10 +85,7 @@ def guess_decay(signal: PreparedSignal) -> DecayGuess:
         )
     duration = t[-1] - t[0]
     if duration < MIN_PERIODS * period:
-        raise IdentificationError(
-            f"record too short: {duration:.4g} s is {duration / period:.2g} periods of "
-            f"{period:.4g} s; need at least {MIN_PERIODS}"
-        )
+        _require_periods(signal, centred)
     turns = turning_points(filled, centre, signal.noise_rad, max(2, int(samples_per_period / 4)))
     if turns.size < 3:
         raise IdentificationError(

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import re
 
 import numpy as np
 import pytest
@@ -148,6 +149,27 @@ def test_unfittable_records_raise_a_clear_error(duration_s, fs_hz, amplitude, me
     t, theta = free_decay(amplitude, 0.01, 0.3, duration_s=duration_s, fs_hz=fs_hz)
     measured = theta + rng.normal(0.0, 1e-3, t.size)
     with pytest.raises(IdentificationError, match=message):
+        fit_free_decay(Record(t, measured, "free_decay"))
+
+
+@pytest.mark.parametrize("periods", [1.3, 1.45])
+def test_a_record_too_short_is_refused_naming_its_true_period(periods):
+    # over a period or so the spectrum's peak is broad: the error once named 0.68 s for 1 s
+    rng = np.random.default_rng(3)
+    period = 2.0 * math.pi * math.sqrt(0.3 / 9.81)  # the 1.1 s pendulum
+    t, theta = free_decay(0.1, 0.01, 0.3, duration_s=periods * period, fs_hz=400.0)
+    measured = theta + rng.normal(0.0, 1e-3, t.size)
+    with pytest.raises(IdentificationError, match="too short") as refused:
+        fit_free_decay(Record(t, measured, "free_decay"))
+    named = re.search(r"periods of ([0-9.]+) s", str(refused.value))
+    assert named is not None, str(refused.value)
+    assert float(named.group(1)) == pytest.approx(period, rel=0.03)
+
+
+def test_a_record_of_less_than_a_period_says_so_rather_than_guess_one():
+    t, theta = free_decay(0.1, 0.01, 0.3, duration_s=0.8, fs_hz=400.0)
+    measured = theta + np.random.default_rng(4).normal(0.0, 1e-3, t.size)
+    with pytest.raises(IdentificationError, match="less than one period of the swing"):
         fit_free_decay(Record(t, measured, "free_decay"))
 
 
