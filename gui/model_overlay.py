@@ -17,6 +17,7 @@ import numpy as np
 
 from analysis.estimate_text import estimate_text
 from analysis.experiments import FREE_DECAY
+from analysis.extensions import causes_in
 from analysis.identify import IdentificationResult, fit_drive, fit_free_decay, fit_impact_decay
 from analysis.identify.free_decay import averaging_solution, simulated_free_decay
 from analysis.model import Drive, Model
@@ -58,19 +59,44 @@ def _load(path: str | Path, experiment: str | None) -> Record:
     return record
 
 
+@dataclass(frozen=True)
+class Explanation:
+    """What ``analyze`` found (its JSON report) and the curves to draw: the angle fitted, the
+    baseline's response and the extended model's (None when no cause was tried)."""
+
+    report: dict[str, Any]
+    time_s: np.ndarray
+    measured_rad: np.ndarray
+    baseline_rad: np.ndarray
+    extended_rad: np.ndarray | None
+    extended_label: str
+
+
 def explain_recording(
     path: str | Path,
     experiment: str | None = None,
     progress: Callable[[str], None] | None = None,
-) -> dict[str, Any]:
-    """Run ``analyze`` on a recording; returns its JSON report (analysis.report).
+) -> Explanation:
+    """Run ``analyze`` on a recording: its JSON report (analysis.report) and model curves.
 
     One worker, in this thread: a process pool forked from the GUI's threads is unsafe.
     """
     from analysis.discrepancy import analyze_record
     from analysis.report.discrepancy import report_json
 
-    return report_json(analyze_record(_load(path, experiment), workers=1, progress=progress))
+    analysis = analyze_record(_load(path, experiment), workers=1, progress=progress)
+    baseline, extended = analysis.model_curves()
+    shown = analysis.shown_model
+    adopted = analysis.final_outcome is not None
+    label = "" if shown is None else " + ".join(causes_in(shown.cause))
+    return Explanation(
+        report=report_json(analysis),
+        time_s=np.asarray(analysis.data.t, dtype=float),
+        measured_rad=np.where(analysis.data.valid, analysis.data.y, np.nan),
+        baseline_rad=np.asarray(baseline, dtype=float),
+        extended_rad=None if extended is None else np.asarray(extended, dtype=float),
+        extended_label=f"baseline + {label}" + ("" if adopted else " (not adopted)"),
+    )
 
 
 def _parameter_line(name: str, estimate: dict[str, Any]) -> str:

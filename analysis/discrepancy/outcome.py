@@ -9,7 +9,7 @@ from typing import Any
 
 import numpy as np
 
-from analysis.discrepancy.fitting import FitData, FitResult
+from analysis.discrepancy.fitting import FitData, FitResult, predict
 from analysis.discrepancy.localize import Localization
 from analysis.discrepancy.residual_reading import Finding, ResidualReading, read_residual
 from analysis.discrepancy.selection import BIC_MARGIN, Verdict, heldout_rms
@@ -144,6 +144,24 @@ class Analysis:
                            f"{c.verdict.information_criterion_delta:.3g}) but is no explanation: "
                            f"{c.verdict.implausible}")
         return out
+
+    @property
+    def shown_model(self) -> CandidateOutcome | None:
+        """The extended model figures draw: the one adopted, else the best-ranked candidate
+        (so a reader sees what the best one could not explain)."""
+        if self.final_outcome is not None:
+            return self.final_outcome
+        ranked = self.ranked()
+        return ranked[0] if ranked else None
+
+    def model_curves(self) -> tuple[np.ndarray, np.ndarray | None]:
+        """The baseline's and the shown model's responses over the record (None: no model)."""
+        if self.curves is not None:
+            return self.curves
+        base, _ = predict(self.data, NONE, self.baseline.values)
+        shown = self.shown_model
+        extended = predict(self.data, shown.cause, shown.full.values)[0] if shown else None
+        return base, extended
 
     def ranked(self) -> list[CandidateOutcome]:
         """Candidates by score (information-criterion gain), best first."""

@@ -13,7 +13,6 @@ import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
-import numpy as np
 
 from analysis.discrepancy.fitting import predict
 from analysis.discrepancy.outcome import Analysis
@@ -39,24 +38,11 @@ def write_analysis_json(analysis: Analysis, path: str | Path, *, overwrite: bool
                       overwrite=overwrite)
 
 
-def _curves(analysis: Analysis) -> tuple[np.ndarray, np.ndarray | None]:
-    if analysis.curves is not None:
-        return analysis.curves
-    data = analysis.data
-    base, _ = predict(data, NONE, analysis.baseline.values)
-    best = analysis.final_outcome
-    if best is None:
-        ranked = analysis.ranked()
-        best = ranked[0] if ranked else None
-    ext = predict(data, best.cause, best.full.values)[0] if best is not None else None
-    return base, ext
-
-
 def figure_fit(analysis: Analysis, path: Path) -> Path:
     """Record, baseline and extended model (top); residuals before and after (bottom)."""
     data = analysis.data
-    base, ext = _curves(analysis)
-    best = analysis.final_outcome or (analysis.ranked()[0] if analysis.candidates else None)
+    base, ext = analysis.model_curves()
+    best = analysis.shown_model
     label = " + ".join(causes_in(best.cause)) if best is not None else "none"
     fig, axes = plt.subplots(2, 1, figsize=(8, 5.2), sharex=True)
     t = data.t

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
+import numpy as np
 import pyqtgraph as pg
 from PySide6.QtCore import Qt, Signal
 from PySide6.QtWidgets import (
@@ -24,10 +25,10 @@ from PySide6.QtWidgets import (
 from analysis.experiments import NAMES
 from gui.decimate import min_max_decimate
 from gui.plot_axes import label_axis
-from gui.units import DISPLAY
+from gui.units import DISPLAY, DisplayUnit
 
 if TYPE_CHECKING:
-    from gui.model_overlay import ModelOverlay
+    from gui.model_overlay import Explanation, ModelOverlay
 
 EXPERIMENTS = ("as recorded", *NAMES)
 
@@ -66,6 +67,11 @@ class AnalysisPanel(QWidget):
         self.plot.showGrid(x=True, y=True, alpha=0.2)
         self.measured_curve = self.plot.plot(pen=pg.mkPen("#1f4e9c"), name="measured")
         self.model_curve = self.plot.plot(pen=pg.mkPen("#d06000", width=2), name="model")
+        self.extended_curve = self.plot.plot(
+            pen=pg.mkPen("#1a8a3a", width=2, style=Qt.PenStyle.DashLine), name="extended model"
+        )
+        self.plot.getPlotItem().legend.removeItem(self.extended_curve)  # shown by Explain
+        self.extended_curve.setVisible(False)
         row = QHBoxLayout()
         row.addWidget(self.path, 1)
         row.addWidget(self.use_current)
@@ -128,31 +134,51 @@ class AnalysisPanel(QWidget):
         self.stages.append(text)
         self.state.setText(text)
 
+    def _draw(self, curve: pg.PlotDataItem, name: str, t: np.ndarray, y: np.ndarray | None,
+              unit: DisplayUnit) -> None:
+        """One curve in display units, decimated to the plot's width; None hides it."""
+        legend = self.plot.getPlotItem().legend
+        legend.removeItem(curve)
+        if y is None:
+            curve.setData([], [])
+            curve.setVisible(False)
+            return
+        shown = np.isfinite(y)
+        curve.setData(*min_max_decimate(t[shown], unit.show(y[shown]),
+                                        max(200, self.plot.width())))
+        curve.setVisible(True)
+        legend.addItem(curve, name)
+
     def show_result(self, overlay: ModelOverlay) -> None:
         """Draw the data and the model's response; show the report."""
         self.overlay = overlay
         self._show_busy(False)
         unit = DISPLAY["angle" if overlay.quantity == "angle" else "displacement"]
         label_axis(self.plot, "left", overlay.quantity, unit)
-        columns = max(200, self.plot.width())
-        self.measured_curve.setData(
-            *min_max_decimate(overlay.time_s, unit.show(overlay.measured), columns)
-        )
-        self.model_curve.setData(
-            *min_max_decimate(overlay.model_time_s, unit.show(overlay.model), columns)
-        )
+        self._draw(self.measured_curve, "measured", overlay.time_s, overlay.measured, unit)
+        self._draw(self.model_curve, "identified model", overlay.model_time_s, overlay.model,
+                   unit)
+        self._draw(self.extended_curve, "", overlay.time_s, None, unit)
         self.state.setText(
             f"{overlay.result.method}: rms difference data - model "
             f"{unit.show(overlay.rms_difference):.3g} {unit.unit}"
         )
         self.report.setPlainText(overlay.result.summary())
 
-    def show_explanation(self, report: dict) -> None:
-        """Show what the discrepancy analysis found (its JSON report)."""
+    def show_explanation(self, explanation: Explanation) -> None:
+        """Show what the discrepancy analysis found, and draw the angle it fitted with the
+        baseline's and the extended model's responses."""
         from gui.model_overlay import explanation_lines
 
-        self.explained = report
+        report = self.explained = explanation.report
         self._show_busy(False)
+        unit = DISPLAY["angle"]
+        label_axis(self.plot, "left", "angle", unit)
+        t = explanation.time_s
+        self._draw(self.measured_curve, "measured", t, explanation.measured_rad, unit)
+        self._draw(self.model_curve, "baseline model", t, explanation.baseline_rad, unit)
+        self._draw(self.extended_curve, explanation.extended_label, t,
+                   explanation.extended_rad, unit)
         lines = explanation_lines(report)
         self.explanation.setPlainText("\n".join([*lines, "", "how the analysis went:",
                                                  *self.stages]))

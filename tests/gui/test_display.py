@@ -202,5 +202,18 @@ def test_analysis_tab_explains_a_decay_with_dry_friction(qapp, window, tmp_path)
         f"{before / noise:.3g} x the noise" in text
     assert f"residual after (with coulomb_friction): {after * DEG:.3g} deg rms = " \
         f"{after / noise:.3g} x the noise" in text
+    # the plot draws the angle fitted with the baseline's and the extended model's responses
+    legend = [label.text for _, label in panel.plot.getPlotItem().legend.items]
+    assert legend == ["measured", "baseline model", "baseline + coulomb_friction"]
+    curves = {name: getattr(panel, f"{name}_curve").getData()
+              for name in ("measured", "model", "extended")}
+    assert all(curve[0].size > 100 for curve in curves.values())
+    assert panel.plot.getAxis("left").labelText == "angle (deg)"
+
+    def rms_from_measured(name):
+        on_data = np.interp(curves["measured"][0], *curves[name])
+        return np.sqrt(np.mean((on_data - curves["measured"][1]) ** 2))
+
+    assert rms_from_measured("extended") < 0.5 * rms_from_measured("model")  # as shown, in deg
     # the stages it went through were shown as it ran, and stay below the explanation
     assert "fitting the baseline model" in text[text.index("how the analysis went:"):]
