@@ -155,6 +155,7 @@ class AnalysisPanel(QWidget):
         self._show_busy(False)
         unit = DISPLAY["angle" if overlay.quantity == "angle" else "displacement"]
         label_axis(self.plot, "left", overlay.quantity, unit)
+        self.plot.enableAutoRange()  # a new result is shown whole, whatever the last zoom
         self._draw(self.measured_curve, "measured", overlay.time_s, overlay.measured, unit)
         self._draw(self.model_curve, "identified model", overlay.model_time_s, overlay.model,
                    unit)
@@ -175,6 +176,7 @@ class AnalysisPanel(QWidget):
         unit = DISPLAY["angle"]
         label_axis(self.plot, "left", "angle", unit)
         t = explanation.time_s
+        self.plot.enableAutoRange()
         self._draw(self.measured_curve, "measured", t, explanation.measured_rad, unit)
         self._draw(self.model_curve, "baseline model", t, explanation.baseline_rad, unit)
         self._draw(self.extended_curve, explanation.extended_label, t,

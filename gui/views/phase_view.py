@@ -8,7 +8,7 @@ from PySide6.QtWidgets import QDoubleSpinBox, QHBoxLayout, QLabel, QVBoxLayout, 
 
 from analysis.dynamics.poincare import smoothed_derivative
 from gui.live_data import LiveData
-from gui.plot_axes import fit_axes, label_axis
+from gui.plot_axes import HandZoom, fit_axes, label_axis
 from gui.units import DISPLAY
 
 MAX_POINTS = 6000
@@ -25,6 +25,7 @@ class PhasePortraitView(QWidget):
         controls.addWidget(self.length_s)
         controls.addStretch(1)
         self.plot = pg.PlotWidget()
+        self.hand_zoom = HandZoom(self.plot)
         label_axis(self.plot, "bottom", "angle", DISPLAY["angle"])
         label_axis(self.plot, "left", "angular velocity", DISPLAY["angular_velocity"])
         self.curve = self.plot.plot(pen=pg.mkPen("#6a2a9c", width=1))
@@ -50,4 +51,4 @@ class PhasePortraitView(QWidget):
         angle, velocity = DISPLAY["angle"], DISPLAY["angular_velocity"]
         x, y = angle.show(theta[::step]), velocity.show(rate[::step])
         self.curve.setData(x, y)
-        fit_axes(self.plot, x, y, angle, velocity)
+        fit_axes(self.plot, x, y, angle, velocity, self.hand_zoom)

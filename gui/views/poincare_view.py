@@ -12,7 +12,7 @@ from PySide6.QtWidgets import QComboBox, QHBoxLayout, QLabel, QPushButton, QVBox
 
 from analysis.dynamics.poincare import delayed_map, poincare_from_pulses
 from gui.live_data import LiveData
-from gui.plot_axes import fit_axes, label_axis
+from gui.plot_axes import HandZoom, fit_axes, label_axis
 from gui.units import DISPLAY
 
 MODES = ("angle vs angular velocity", "angle vs delayed angle")
@@ -84,6 +84,7 @@ class PoincareView(QWidget):
         controls.addWidget(self.count)
         controls.addStretch(1)
         self.plot = pg.PlotWidget()
+        self.hand_zoom = HandZoom(self.plot)
         self.plot.showGrid(x=True, y=True, alpha=0.2)
         self.scatter = pg.ScatterPlotItem(size=4, pen=None, brush=pg.mkBrush(30, 60, 160, 160))
         self.newest = pg.ScatterPlotItem(size=9, pen=pg.mkPen("#c03030"), brush=None)
@@ -119,4 +120,4 @@ class PoincareView(QWidget):
         x, y = angle.show(x), y_unit.show(y)
         self.scatter.setData(x, y)
         self.newest.setData(x[-1:], y[-1:])
-        fit_axes(self.plot, x, y, angle, y_unit)
+        fit_axes(self.plot, x, y, angle, y_unit, self.hand_zoom)

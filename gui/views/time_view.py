@@ -10,7 +10,7 @@ from PySide6.QtWidgets import QDoubleSpinBox, QHBoxLayout, QLabel, QVBoxLayout, 
 
 from gui.decimate import min_max_decimate
 from gui.live_data import ChannelRing, LiveData
-from gui.plot_axes import label_axis
+from gui.plot_axes import HandZoom, label_axis
 from gui.units import DISPLAY, DisplayUnit, axis_range
 
 ANGLE_PEN = pg.mkPen("#1f4e9c", width=1)
@@ -39,6 +39,7 @@ class TimeTraceView(QWidget):
         label_axis(self.table_plot, "left", "table", DISPLAY["displacement"])
         label_axis(self.table_plot, "bottom", "time from the start", DISPLAY["time"])
         self.table_plot.setXLink(self.angle_plot)
+        self.hand_zoom = HandZoom(self.angle_plot, self.table_plot)
         self.angle_curve = self.angle_plot.plot(pen=ANGLE_PEN)
         self.table_curve = self.table_plot.plot(pen=TABLE_PEN)
         self.tach_marks = pg.PlotDataItem(pen=TACH_PEN, connect="pairs")
@@ -69,7 +70,8 @@ class TimeTraceView(QWidget):
         if angle_index.size:
             end_s = float(data.seconds(angle_index[-1]))
             start_s = max(0.0, end_s - self.window_s.value())
-            self.angle_plot.setXRange(start_s, start_s + self.window_s.value(), padding=0)
+            if not self.hand_zoom.active:
+                self.angle_plot.setXRange(start_s, start_s + self.window_s.value(), padding=0)
             self._draw_tach(data, int(angle_index[0]), int(angle_index[-1]))
             self._draw_steps(data, int(angle_index[0]), int(angle_index[-1]))
 
@@ -85,7 +87,7 @@ class TimeTraceView(QWidget):
         t, y = min_max_decimate(data.seconds(index), unit.show(values), columns)
         curve.setData(t, y)
         limits = axis_range(y, unit.minimum_span)
-        if limits is not None:
+        if limits is not None and not self.hand_zoom.active:
             low, high = limits
             plot.setYRange(low, high + headroom / (1.0 - headroom) * (high - low), padding=0)
         return int(t.size), index

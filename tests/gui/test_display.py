@@ -8,8 +8,9 @@ import math
 
 import numpy as np
 import pytest
-from PySide6.QtCore import QRect
-from PySide6.QtWidgets import QScrollArea
+from PySide6.QtCore import QPoint, QPointF, QRect, Qt
+from PySide6.QtGui import QWheelEvent
+from PySide6.QtWidgets import QApplication, QScrollArea
 
 from analysis.estimate_text import NOT_DETERMINED
 from analysis.model import Drive, Model, RigParameters
@@ -103,6 +104,40 @@ def test_replay_shows_the_drive_the_step_and_axes_scaled_in_seconds_degrees_and_
     )
     markers = [m for m in view.step_markers if m.isVisible()]
     assert [(m.value(), m.label.format) for m in markers] == [(pytest.approx(3.0), "step 2")]
+
+
+def wheel(plot, notches: int) -> None:
+    """Turn the mouse wheel over the middle of ``plot``, as a hand does (Qt's own event)."""
+    viewport = plot.viewport()
+    centre = QPointF(viewport.width() / 2, viewport.height() / 2)
+    event = QWheelEvent(centre, QPointF(viewport.mapToGlobal(centre.toPoint())), QPoint(),
+                        QPoint(0, 120 * notches), Qt.MouseButton.NoButton,
+                        Qt.KeyboardModifier.NoModifier, Qt.ScrollPhase.NoScrollPhase, False)
+    QApplication.sendEvent(viewport, event)
+
+
+def test_a_view_zoomed_by_hand_stays_until_its_auto_range_button(qapp, window, sweep_recording):
+    window.replay_panel.speed.setCurrentText("1x")
+    window.open_replay(str(sweep_recording))
+    view = window.time_view
+    wait_until(qapp, lambda: view.angle_curve.getData()[0] is not None
+               and view.angle_curve.getData()[0].size > 0, 10, "the first frames")
+    run_events(qapp, 0.5)
+    following = view.angle_plot.viewRange()
+    wheel(view.angle_plot, 3)  # zoom in
+    run_events(qapp, 0.6)  # frames go on drawing the replay
+    zoomed = view.angle_plot.viewRange()
+    assert zoomed[0][1] - zoomed[0][0] < 0.8 * (following[0][1] - following[0][0])
+    assert zoomed[1][1] - zoomed[1][0] < 0.8 * (following[1][1] - following[1][0])
+    run_events(qapp, 0.6)
+    held = np.ravel(view.angle_plot.viewRange())
+    assert held == pytest.approx(np.ravel(zoomed))  # where the hand put it
+    auto = view.angle_plot.getPlotItem().autoBtn
+    auto.clicked.emit(auto)  # the "A" button pyqtgraph shows on a plot zoomed by hand
+    run_events(qapp, 0.5)
+    x_low, x_high = view.angle_plot.viewRange()[0]
+    assert x_high - x_low == pytest.approx(view.window_s.value())  # following the data again
+    window.replay_panel.speed.setCurrentText("max")
 
 
 def test_a_still_trace_is_drawn_on_its_minimum_span_not_blown_up(qapp, window, tmp_path):
