@@ -15,12 +15,16 @@ from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from tempfile import TemporaryDirectory
+from typing import TYPE_CHECKING
 
 import numpy as np
 from PySide6.QtWidgets import QApplication, QWidget
 
 from analysis.provenance import png_metadata
 from gui.worker import LiveSession, ReplaySession
+
+if TYPE_CHECKING:  # the window's type, for the hints (gui.app imports the whole application)
+    from gui.app import MainWindow
 
 POLL_S = 0.01
 WAIT_FOR_VIEW_S = 30.0
@@ -73,9 +77,9 @@ def save_window(window: QWidget, path: str | Path) -> Path:
 
 
 def take_screenshots(
-    window, folder: str | Path, plan: ScreenshotPlan = README_PLAN
+    window: MainWindow, folder: str | Path, plan: ScreenshotPlan = README_PLAN
 ) -> Iterator[tuple[str, Path]]:
-    """Run ``window`` (a gui.app.MainWindow) through the stages, saving each of SHOTS into
+    """Run ``window`` through the stages, saving each of SHOTS into
     ``folder``; yields (name, path) after each, with the window still showing it."""
     with TemporaryDirectory(prefix="impact-rig-screenshots-") as scratch:
         recording = Path(scratch) / "live.h5"
@@ -92,7 +96,7 @@ def take_screenshots(
         yield "analysis", _shoot(window, folder, "analysis", plan.view_s)
 
 
-def _go_live(window, plan: ScreenshotPlan, recording: Path) -> None:
+def _go_live(window: MainWindow, plan: ScreenshotPlan, recording: Path) -> None:
     """Open the virtual rig, drive it and record from the start; run ``plan.live_s`` (the
     Poincare section cleared half way: it shows the settled response, not the ramp)."""
     window.open_virtual_rig()
@@ -116,13 +120,13 @@ def _go_live(window, plan: ScreenshotPlan, recording: Path) -> None:
     _run_events(plan.live_s / 2)
 
 
-def _stop_recording(window, plan: ScreenshotPlan, recording: Path) -> None:
+def _stop_recording(window: MainWindow, plan: ScreenshotPlan, recording: Path) -> None:
     window.recording_panel.start_stop.click()
     _wait_until(lambda: window.analysis_panel.current_recording == str(recording),
                 plan.timeout_s, "the recording to close")
 
 
-def _explain(window, plan: ScreenshotPlan, decay: Path) -> None:
+def _explain(window: MainWindow, plan: ScreenshotPlan, decay: Path) -> None:
     """Identify the decay (the model drawn over it), then explain it (analyze)."""
     window.show_view("analysis")
     panel = window.analysis_panel
@@ -134,7 +138,7 @@ def _explain(window, plan: ScreenshotPlan, decay: Path) -> None:
             raise ScreenshotError(f"{decay}: {panel.state.text()}")
 
 
-def _shoot(window, folder: str | Path, name: str, settle_s: float) -> Path:
+def _shoot(window: MainWindow, folder: str | Path, name: str, settle_s: float) -> Path:
     """Bring the picture's view to the front, let it draw ``settle_s``, save the window."""
     window.show_view(SHOTS[name])
     _run_events(settle_s)
