@@ -29,6 +29,7 @@ examples:
   impact-rig gui --identify decay.h5
   impact-rig gui --sim --drive-hz 10 --beta 0.06 --view spectrum \\
       --screenshot spectrum.png --after 12
+  impact-rig gui --screenshots docs/screenshots --overwrite   # the README's pictures
 """
 
 
@@ -45,6 +46,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     source.add_argument("--sim", action="store_true", help="connect to the virtual rig at start")
     source.add_argument("--config", metavar="FILE", help="connect to the rig this TOML file names")
     source.add_argument("--replay", metavar="FILE", help="replay this recording (.h5)")
+    source.add_argument(
+        "--screenshots",
+        metavar="DIR",
+        type=Path,
+        help="take the README's screenshots into DIR and exit: the virtual rig live in every "
+        "view, its recording replayed, a free decay explained (about a minute)",
+    )
     parser.add_argument("--fs", type=float, metavar="HZ", help="DAQ sample rate for a live rig")
     parser.add_argument(
         "--drive-hz", type=float, metavar="HZ", help="start the drive at this frequency (live)"
@@ -68,24 +76,23 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         metavar="SECONDS",
         help="with --screenshot: seconds to run after connecting, then save (default 5)",
     )
+    parser.add_argument(
+        "--overwrite", action="store_true", help="replace existing screenshot files"
+    )
     parser.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
     """Start the Qt application and the main window; optionally save a screenshot and exit."""
-    if args.screenshot is not None and not args.after >= 0:
-        raise CommandError(f"--after {args.after}: expected a number of seconds >= 0")
-    for name in (args.config, args.replay, args.identify):
-        if name and not Path(name).is_file():
-            raise CommandError(f"{name}: file not found")
+    if args.screenshots is not None:
+        return take_readme_screenshots(args)
+    _check_arguments(args)
     from PySide6.QtCore import QTimer
-    from PySide6.QtWidgets import QApplication
 
-    from gui.app import GIL_SWITCH_INTERVAL_S, MainWindow, open_source
+    from gui.app import MainWindow, open_source
+    from gui.screenshots import ScreenshotError, save_window
 
-    sys.setswitchinterval(GIL_SWITCH_INTERVAL_S)  # keep the GUI thread responsive (see app.py)
-    app = QApplication.instance() or QApplication(sys.argv[:1])
-    app.setApplicationName("impact-rig")
+    app = _application()
     window = MainWindow(sample_rate_hz=args.fs)
     if args.view:
         window.show_view(args.view)
@@ -101,8 +108,10 @@ def run(args: argparse.Namespace) -> int:
     if args.screenshot is not None:
 
         def save() -> None:
-            if not window.grab().save(str(args.screenshot)):
-                print(f"impact-rig gui: cannot write {args.screenshot}", file=sys.stderr)
+            try:
+                save_window(window, args.screenshot)
+            except ScreenshotError as error:
+                print(f"impact-rig gui: {error}", file=sys.stderr)
                 status["code"] = 2
             else:
                 print(f"saved {args.screenshot}")
@@ -123,6 +132,65 @@ def run(args: argparse.Namespace) -> int:
     if window.last_error and window.session is None and args.screenshot is None:
         raise CommandError(window.last_error)
     return status["code"]
+
+
+def _check_arguments(args: argparse.Namespace) -> None:
+    """Refuse a bad --after, a screenshot in the way or a missing file, before Qt starts."""
+    from analysis.output_paths import check_outputs
+
+    if args.screenshot is not None:
+        if not args.after >= 0:
+            raise CommandError(f"--after {args.after}: expected a number of seconds >= 0")
+        check_outputs([args.screenshot], overwrite=args.overwrite)
+    for name in (args.config, args.replay, args.identify):
+        if name and not Path(name).is_file():
+            raise CommandError(f"{name}: file not found")
+
+
+def _application():
+    """The Qt application (made once), with the GUI thread kept responsive (see app.py)."""
+    from PySide6.QtWidgets import QApplication
+
+    from gui.app import GIL_SWITCH_INTERVAL_S
+
+    sys.setswitchinterval(GIL_SWITCH_INTERVAL_S)
+    app = QApplication.instance() or QApplication(sys.argv[:1])
+    app.setApplicationName("impact-rig")
+    return app
+
+
+def take_readme_screenshots(args: argparse.Namespace) -> int:
+    """--screenshots DIR: every README picture, taken in a window of 1280 x 800 whose
+    settings live in a scratch file (the user's are neither used nor changed)."""
+    from tempfile import TemporaryDirectory
+
+    from analysis.output_paths import check_outputs
+    from gui.app import MainWindow
+    from gui.screenshots import ScreenshotError, screenshot_files, take_screenshots
+    from gui.settings import AppSettings
+
+    if any(option is not None for option in (args.screenshot, args.identify, args.view,
+                                             args.drive_hz)):
+        raise CommandError(
+            "--screenshots runs every stage itself: give it alone (with --fs, --overwrite)"
+        )
+    check_outputs(screenshot_files(args.screenshots), overwrite=args.overwrite)
+    app = _application()
+    with TemporaryDirectory(prefix="impact-rig-gui-") as scratch:
+        window = MainWindow(AppSettings(str(Path(scratch) / "gui.ini")),
+                            sample_rate_hz=args.fs)
+        window.resize(1280, 800)
+        window.show()
+        try:
+            for _, path in take_screenshots(window, args.screenshots):
+                print(f"saved {path}")
+        except ScreenshotError as error:
+            raise CommandError(str(error)) from None
+        finally:
+            window.shutdown()
+            window.close()
+            app.processEvents()
+    return 0
 
 
 def _start_drive_when_connected(window, frequency_hz: float, beta: float) -> None:

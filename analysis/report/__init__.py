@@ -1,5 +1,5 @@
-"""Reports of the discrepancy analysis: the JSON of docs/MODEL.md section 6 and a Markdown page
-with figures (matplotlib, Agg backend)."""
+"""Reports of the discrepancy analysis: the JSON of docs/MODEL.md section 6 and a page
+(Markdown and its HTML twin, analysis.report.pages) with figures (matplotlib, Agg backend)."""
 
 from analysis.report.discrepancy import write_analysis_json, write_report
 

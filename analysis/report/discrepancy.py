@@ -1,4 +1,4 @@
-"""Write a discrepancy analysis as JSON and as a Markdown page with PNG figures.
+"""Write a discrepancy analysis as JSON and as a page (Markdown and HTML) with PNG figures.
 
 Figures: the record with the baseline and the extended model, the residuals of
 both, and for impact decays the constant-restitution model against Hunt-Crossley.
@@ -21,6 +21,7 @@ from analysis.extensions import NONE, causes_in
 from analysis.figure_style import legend_beside, save_figure
 from analysis.json_output import json_ready, write_json
 from analysis.provenance import markdown_provenance, provenance
+from analysis.report.pages import write_page
 
 
 def report_json(analysis: Analysis) -> dict[str, Any]:
@@ -127,7 +128,8 @@ def _parameters_story(js: dict[str, Any]) -> str:
 def write_report(
     analysis: Analysis, directory: str | Path, name: str = "report", *, overwrite: bool = False
 ) -> Path:
-    """Write NAME.md, NAME.json and the PNG figures into ``directory``; returns the .md path.
+    """Write NAME.md, NAME.html, NAME.json and the PNG figures into ``directory``; returns
+    the .md path.
     An existing NAME.json is refused unless ``overwrite`` (checked first, before the rest)."""
     directory = Path(directory)
     directory.mkdir(parents=True, exist_ok=True)
@@ -215,6 +217,4 @@ def write_report(
     if js.get("notes"):
         lines += ["", "## Notes", ""] + [f"- {n}" for n in js["notes"]]
     lines += markdown_provenance()
-    md = directory / f"{name}.md"
-    md.write_text("\n".join(lines) + "\n")
-    return md
+    return write_page(lines, directory / f"{name}.md")

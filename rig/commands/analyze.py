@@ -61,7 +61,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--json", type=Path, dest="json_out", metavar="FILE",
         help="write the full JSON report to FILE ('-': to stdout instead of the summary)",
     )
-    parser.add_argument("--report", type=Path, help="write a Markdown report with figures here")
+    parser.add_argument("--report", type=Path,
+                        help="write the report page (Markdown and HTML) with figures here")
     parser.add_argument(
         "--overwrite", action="store_true", help="replace existing --json and report files"
     )
@@ -189,7 +190,7 @@ STDOUT = Path("-")  # --json -: the report to standard output
 
 def report_files(folder: Path, name: str) -> list[Path]:
     """The files ``analysis.report.write_report`` writes into ``folder`` for record ``name``."""
-    return [folder / f"{name}{suffix}" for suffix in (".md", ".json", "_fit.png",
+    return [folder / f"{name}{suffix}" for suffix in (".md", ".html", ".json", "_fit.png",
                                                        "_restitution.png")]
 
 
@@ -203,7 +204,7 @@ def _write_json(report: dict, path: Path, *, overwrite: bool) -> None:
 
 
 def _write_report(analysis, args: argparse.Namespace) -> Path:
-    """The Markdown page, its JSON and figures in --report; returns the page's path."""
+    """The page (Markdown and HTML), its JSON and figures in --report; returns the .md path."""
     from analysis.report import write_report
 
     try:

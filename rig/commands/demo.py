@@ -23,7 +23,7 @@ physical effect switched on that the baseline model lacks:
   4. judge the regime of every sweep step from its points sampled once per drive
      period on the tachometer (aware of the noise), and draw the measured bifurcation
      diagram against the one simulated with the identified model
-  5. write a report folder: report.md with figures, the JSON reports
+  5. write a report folder: report.md and report.html with figures, the JSON reports
      (docs/MODEL.md sections 6 and 7) and the recordings; the effect is revealed there
 
 Takes a few minutes on two cores (--quick: under a minute, smaller records).

@@ -1,6 +1,6 @@
 """What the demo tells: its result and the terminal summary, the report folder's figures
-(matplotlib, Agg), the Markdown report that ties the recordings, the identified parameters,
-the discrepancy findings and the regimes together, and the JSON files.
+(matplotlib, Agg), the report page (Markdown and HTML) that ties the recordings, the
+identified parameters, the discrepancy findings and the regimes together, and the JSON files.
 
 The report is the demo's edge: the stages hand it the analysis's own results, and only
 here are they written out (every JSON file through analysis.json_output)."""
@@ -17,6 +17,7 @@ from analysis.estimate_text import estimate_text, interval_determined, interval_
 from analysis.figure_style import save_figure
 from analysis.json_output import write_json
 from analysis.provenance import markdown_provenance, provenance
+from analysis.report.pages import write_page
 from rig.demo.settings import ANALYSIS, FIGURES, RECORDINGS, DemoSettings, HiddenCause
 
 if TYPE_CHECKING:  # the analysis's result types, for the hints only (imported when run)
@@ -47,7 +48,8 @@ class DemoResult:
 
     def summary(self) -> str:
         """A few lines for the terminal."""
-        lines = [f"impact-rig demo: report in {self.report}"]
+        lines = [f"impact-rig demo: report in {self.report} (for a browser: "
+                 f"{self.report.with_suffix('.html').name})"]
         for key in ("L_m", "zeta", "K_N_per_m1.5", "mu0_s_per_m", *self._cause_keys()):
             if key in self.parameters:
                 lines.append("  " + _estimate_text(key, self.parameters[key], self.truth.get(key)))
@@ -96,12 +98,12 @@ def write_figures(folder: Path, diagrams, settings) -> dict[str, str]:
     return {"bifurcation": str(path)}
 
 
-# -- the Markdown report ----------------------------------------------------------------------
+# -- the report page -------------------------------------------------------------------------
 
 
 def write_report(result, settings, recordings, analyses, pages, figures, config) -> Path:
-    """report.md in the folder: what was done, found, and how it compares with the truth
-    (``analyses`` the discrepancy analyses, ``pages`` their pages, by record)."""
+    """report.md and report.html in the folder: what was done, found, and how it compares
+    with the truth (``analyses`` the discrepancy analyses, ``pages`` their pages, by record)."""
     from analysis.report.discrepancy import report_json
 
     lines: list[str] = []
@@ -182,7 +184,8 @@ def write_report(result, settings, recordings, analyses, pages, figures, config)
                 f"{entry['cause']} (score {_num(entry.get('score'))})" for entry in ranking
             ))
         page = pages[name]
-        add(f"- full analysis: [{page}]({page}) (and `{page.with_suffix('.json')}`)")
+        add(f"- full analysis: [{page.with_suffix('')}]({page}) "
+            f"(and `{page.with_suffix('.json')}`)")
         add("")
         add(f"![{name}: baseline and extended model]({page.with_name(page.stem + '_fit.png')})")
         add("")
@@ -226,17 +229,15 @@ def write_report(result, settings, recordings, analyses, pages, figures, config)
     add("- `parameters.json`: identified parameters (docs/MODEL.md section 7 keys) and the "
         "true ones")
     add("- `identify_free_decay.json`, `identify_impact_decay.json`: the identification reports")
-    add("- `analysis/*.md`, `analysis/*.json`: discrepancy analysis of each record (docs/MODEL.md "
-        "section 6) with its figures")
+    add("- `analysis/*.md` (or `.html`), `analysis/*.json`: discrepancy analysis of each record "
+        "(docs/MODEL.md section 6) with its figures")
     add("- `sweep_regimes.json`, `bifurcation.json`: regimes and diagram data")
     add("- `demo.json`: settings, timings and a summary of all of the above")
     add("")
     timing = ", ".join(f"{k} {v:.1f} s" for k, v in result.timings_s.items())
     add(f"Timings: {timing}.")
     lines += markdown_provenance()
-    path = result.report
-    path.write_text("\n".join(lines) + "\n", encoding="utf-8")
-    return path
+    return write_page(lines, result.report)
 
 
 def _value(estimate: Mapping[str, Any] | None) -> str:

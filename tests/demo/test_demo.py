@@ -9,6 +9,7 @@ import shutil
 import subprocess
 import sys
 
+import numpy as np
 import pytest
 
 from analysis.extensions import CAUSES
@@ -16,6 +17,8 @@ from analysis.hdf5_records import load_hdf5_steps
 from analysis.recording_file import open_recording
 from rig.cli import main
 from rig.config import load_config
+from tests.browser import console_errors, external_references, headless_chromium, images
+from tests.html_page import read_page
 from tests.strict_json import strict_loads
 
 pytestmark = pytest.mark.slow
@@ -78,8 +81,10 @@ def test_every_file_of_the_demo_report_says_what_made_it(demo):
     for path in folder.rglob("*.json"):
         assert _json(path.parent, path.name)["provenance"]["command_line"][:2] == [
             "impact-rig", "demo"], path
-    for path in folder.rglob("*.md"):
+    for path in [*folder.rglob("*.md"), *folder.rglob("*.html")]:
         assert "Made by impact-rig " in path.read_text(encoding="utf-8"), path
+    for path in folder.rglob("*.html"):
+        assert read_page(path).meta["generator"].startswith("impact-rig "), path
     for path in folder.rglob("*.png"):
         with Image.open(path) as image:
             assert json.loads(image.text["Provenance"])["software"]["impact-rig"], path
@@ -98,6 +103,62 @@ def test_the_report_shows_figures_that_exist(demo):
     for figure in figures:
         data = (folder / figure).read_bytes()
         assert data[:8] == PNG_MAGIC and len(data) > 10_000
+
+
+def test_the_html_report_says_what_the_markdown_and_the_json_say(demo):
+    folder, _ = demo
+    report = read_page(folder / "report.html")
+    markdown = (folder / "report.md").read_text(encoding="utf-8")
+    assert report.title == "impact-rig demo report"
+    assert [image["src"] for image in report.images] == re.findall(
+        r"!\[[^\]]*\]\(([^)]+)\)", markdown)
+    assert all(image["alt"] and image["width"] for image in report.images)
+    # the explained model's parameters, row by row, as parameters.json holds them
+    parameters = _json(folder, "parameters.json")["parameters"]
+    rows = report.table_with("parameter")[1:]
+    assert [row[0] for row in rows] == list(parameters)
+    assert [row[3] for row in rows] == [f"{p['value']:.6g}" for p in parameters.values()]
+    for name in ("free_decay", "impact_decay"):
+        analysis = _json(folder, f"analysis/{name}.json")
+        assert f"most probable cause: {analysis['cause']}" in report.items
+        assert {"href": f"analysis/{name}.html"} in report.links
+        page = read_page(folder / "analysis" / f"{name}.html")
+        assert f"where the baseline fails: {analysis['localization']}" in page.items
+        ranked = [row[0] for row in page.table_with("cause")[1:]]
+        assert ranked == [row["cause"] for row in analysis["ranking"]]
+    assert "the analysis named coulomb_friction (matches)" in " ".join(report.items)
+    assert report.paragraphs[-1].startswith("Made by impact-rig ")
+    assert "impact-rig demo --quick" in report.paragraphs[-1]
+
+
+def test_the_html_report_opens_in_a_browser_with_every_figure(demo, tmp_path):
+    from PIL import Image
+
+    folder, _ = demo
+    pages = ["report.html", "analysis/free_decay.html", "analysis/impact_decay.html"]
+    with headless_chromium(tmp_path / "profile") as browser:
+        for name in pages:
+            browser.get((folder / name).as_uri())
+            assert browser.title == read_page(folder / name).title, name
+            shown = images(browser)
+            assert shown, name
+            for image in shown:
+                assert image["complete"] and image["naturalWidth"] >= 1000, (name, image)
+            assert console_errors(browser) == [], name
+            assert external_references(browser) == [], name
+            assert browser.execute_script("return document.scripts.length") == 0
+        # the report's link to an analysis page opens that page
+        browser.get((folder / "report.html").as_uri())
+        browser.find_element("link text", "analysis/impact_decay").click()
+        assert browser.title == "Discrepancy analysis: impact_decay.h5"
+        browser.back()
+        screenshot = tmp_path / "report.png"
+        assert browser.save_screenshot(str(screenshot))
+    with Image.open(screenshot) as image:
+        pixels = np.asarray(image.convert("RGB")).reshape(-1, 3).astype(np.uint32)
+    _, counts = np.unique(pixels[:, 0] << 16 | pixels[:, 1] << 8 | pixels[:, 2],
+                          return_counts=True)
+    assert counts.size > 20 and counts.max() < 0.97 * counts.sum()  # text, tables: not blank
 
 
 def test_the_identification_reports_carry_the_section_7_keys_with_intervals(demo):

@@ -1,5 +1,5 @@
-"""``impact-rig analyze`` end to end on files: JSON of docs/MODEL.md section 6, Markdown +
-PNG report, clear errors on bad input."""
+"""``impact-rig analyze`` end to end on files: JSON of docs/MODEL.md section 6, Markdown and
+HTML page with PNG figures, clear errors on bad input."""
 
 from __future__ import annotations
 
@@ -8,6 +8,7 @@ import subprocess
 import sys
 
 from tests.discrepancy.hidden_cause import draw_case, write_case
+from tests.html_page import read_page
 from tests.strict_json import strict_loads
 
 SECTION_6_KEYS = {"experiment", "cause", "ranking", "baseline", "extended", "gain", "localization"}
@@ -51,6 +52,20 @@ def test_analyze_writes_section_6_json_and_report(tmp_path):
     assert "No cause was found" in story  # seed 11 hides none
     png = tmp_path / "rep" / "run_fit.png"
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    # the HTML page beside it says what the Markdown and the JSON say
+    page = read_page(tmp_path / "rep" / "run.html")
+    assert page.title == "Discrepancy analysis: run.csv"
+    assert f"cause: {case.cause}" in page.items
+    assert f"where the baseline fails: {report['localization']}" in page.items
+    ranked = [row[0] for row in page.table_with("cause")[1:]]
+    assert ranked == [row["cause"] for row in report["ranking"]]
+    keys = [row[0] for row in page.table_with("key")[1:]]
+    assert keys == list(dict.fromkeys([*report["baseline"]["parameters"],
+                                       *report["extended"]["parameters"]]))
+    assert " ".join(story.replace("`", "").split()) in page.paragraphs
+    assert page.images == [{"src": "run_fit.png", "alt": "fit and residuals", "width": "800"}]
+    made_by = page.paragraphs[-1]
+    assert made_by.startswith("Made by impact-rig ") and " analyze " in made_by
     # the console gets a short human summary (the report is in the files): the cause, its
     # size with an interval, the fits against the noise
     lines = result.stdout.splitlines()

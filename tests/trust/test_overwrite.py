@@ -42,6 +42,19 @@ def test_analyze_never_writes_its_report_over_its_input(tmp_path, capsys):
     assert csv.read_bytes() == before
 
 
+def test_analyze_refuses_an_existing_page_of_its_report_before_analysing(tmp_path, capsys):
+    record = tmp_path / "decay.h5"
+    record.write_bytes(b"read only after the outputs were checked")
+    folder = tmp_path / "report"
+    folder.mkdir()
+    page = folder / "decay.html"
+    page.write_text("an earlier page")
+    done = _in_process(capsys, "analyze", str(record), "--report", str(folder))
+    _refused(done, page, "already exists")
+    assert page.read_text() == "an earlier page"
+    assert sorted(folder.iterdir()) == [page]
+
+
 def test_identify_never_writes_over_the_sidecar_it_reads(tmp_path):
     csv = _decay_csv(tmp_path)
     sidecar = csv.with_suffix(".json")
