@@ -3,6 +3,7 @@ the residual before and after, the regime), on a worker thread; overlay the mode
 
 from __future__ import annotations
 
+import html
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -31,6 +32,7 @@ if TYPE_CHECKING:
     from gui.model_overlay import Explanation, ModelOverlay
 
 EXPERIMENTS = ("as recorded", *NAMES)
+CURVE_COLOURS = ("#1f4e9c", "#d06000", "#1a8a3a")  # measured, model, extended model
 
 
 class AnalysisPanel(QWidget):
@@ -62,16 +64,15 @@ class AnalysisPanel(QWidget):
         self.report = QPlainTextEdit()
         self.report.setReadOnly(True)
         self.plot = pg.PlotWidget()
-        self.plot.addLegend()
         label_axis(self.plot, "bottom", "time from the start", DISPLAY["time"])
         self.plot.showGrid(x=True, y=True, alpha=0.2)
-        self.measured_curve = self.plot.plot(pen=pg.mkPen("#1f4e9c"), name="measured")
-        self.model_curve = self.plot.plot(pen=pg.mkPen("#d06000", width=2), name="model")
+        self.measured_curve = self.plot.plot(pen=pg.mkPen(CURVE_COLOURS[0]))
+        self.model_curve = self.plot.plot(pen=pg.mkPen(CURVE_COLOURS[1], width=2))
         self.extended_curve = self.plot.plot(
-            pen=pg.mkPen("#1a8a3a", width=2, style=Qt.PenStyle.DashLine), name="extended model"
+            pen=pg.mkPen(CURVE_COLOURS[2], width=2, style=Qt.PenStyle.DashLine)
         )
-        self.plot.getPlotItem().legend.removeItem(self.extended_curve)  # shown by Explain
         self.extended_curve.setVisible(False)
+        self.key: list[str] = []  # the curves drawn, named in colour above the plot
         row = QHBoxLayout()
         row.addWidget(self.path, 1)
         row.addWidget(self.use_current)
@@ -134,20 +135,28 @@ class AnalysisPanel(QWidget):
         self.stages.append(text)
         self.state.setText(text)
 
-    def _draw(self, curve: pg.PlotDataItem, name: str, t: np.ndarray, y: np.ndarray | None,
+    def _draw(self, *curves: tuple[str, np.ndarray, np.ndarray | None],
               unit: DisplayUnit) -> None:
-        """One curve in display units, decimated to the plot's width; None hides it."""
-        legend = self.plot.getPlotItem().legend
-        legend.removeItem(curve)
-        if y is None:
-            curve.setData([], [])
-            curve.setVisible(False)
-            return
-        shown = np.isfinite(y)
-        curve.setData(*min_max_decimate(t[shown], unit.show(y[shown]),
-                                        max(200, self.plot.width())))
-        curve.setVisible(True)
-        legend.addItem(curve, name)
+        """The measured, model and extended curves (name, time, values; None hides one) in
+        display units, decimated to the plot's width, named in their colours above the plot
+        (a legend inside would sit on the data)."""
+        self.plot.enableAutoRange()  # a new result is shown whole, whatever the last zoom
+        self.key = []
+        key_html = []
+        items = (self.measured_curve, self.model_curve, self.extended_curve)
+        for item, colour, (name, t, y) in zip(items, CURVE_COLOURS, curves, strict=True):
+            if y is None:
+                item.setData([], [])
+                item.setVisible(False)
+                continue
+            shown = np.isfinite(y)
+            item.setData(*min_max_decimate(t[shown], unit.show(y[shown]),
+                                           max(200, self.plot.width())))
+            item.setVisible(True)
+            self.key.append(name)
+            key_html.append(f'<span style="color:{colour}">&#9472;&#9472; {html.escape(name)}'
+                            "</span>")
+        self.plot.setTitle("&nbsp;&nbsp;&nbsp;".join(key_html), size="9pt")
 
     def show_result(self, overlay: ModelOverlay) -> None:
         """Draw the data and the model's response; show the report."""
@@ -155,11 +164,9 @@ class AnalysisPanel(QWidget):
         self._show_busy(False)
         unit = DISPLAY["angle" if overlay.quantity == "angle" else "displacement"]
         label_axis(self.plot, "left", overlay.quantity, unit)
-        self.plot.enableAutoRange()  # a new result is shown whole, whatever the last zoom
-        self._draw(self.measured_curve, "measured", overlay.time_s, overlay.measured, unit)
-        self._draw(self.model_curve, "identified model", overlay.model_time_s, overlay.model,
-                   unit)
-        self._draw(self.extended_curve, "", overlay.time_s, None, unit)
+        self._draw(("measured", overlay.time_s, overlay.measured),
+                   ("identified model", overlay.model_time_s, overlay.model),
+                   ("", overlay.time_s, None), unit=unit)
         self.state.setText(
             f"{overlay.result.method}: rms difference data - model "
             f"{unit.show(overlay.rms_difference):.3g} {unit.unit}"
@@ -176,11 +183,9 @@ class AnalysisPanel(QWidget):
         unit = DISPLAY["angle"]
         label_axis(self.plot, "left", "angle", unit)
         t = explanation.time_s
-        self.plot.enableAutoRange()
-        self._draw(self.measured_curve, "measured", t, explanation.measured_rad, unit)
-        self._draw(self.model_curve, "baseline model", t, explanation.baseline_rad, unit)
-        self._draw(self.extended_curve, explanation.extended_label, t,
-                   explanation.extended_rad, unit)
+        self._draw(("measured", t, explanation.measured_rad),
+                   ("baseline model", t, explanation.baseline_rad),
+                   (explanation.extended_label, t, explanation.extended_rad), unit=unit)
         lines = explanation_lines(report)
         self.explanation.setPlainText("\n".join([*lines, "", "how the analysis went:",
                                                  *self.stages]))

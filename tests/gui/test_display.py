@@ -238,8 +238,9 @@ def test_analysis_tab_explains_a_decay_with_dry_friction(qapp, window, tmp_path)
     assert f"residual after (with coulomb_friction): {after * DEG:.3g} deg rms = " \
         f"{after / noise:.3g} x the noise" in text
     # the plot draws the angle fitted with the baseline's and the extended model's responses
-    legend = [label.text for _, label in panel.plot.getPlotItem().legend.items]
-    assert legend == ["measured", "baseline model", "baseline + coulomb_friction"]
+    assert panel.key == ["measured", "baseline model", "baseline + coulomb_friction"]
+    title = panel.plot.getPlotItem().titleLabel.text  # the key, above the data
+    assert all(name in title for name in panel.key)
     curves = {name: getattr(panel, f"{name}_curve").getData()
               for name in ("measured", "model", "extended")}
     assert all(curve[0].size > 100 for curve in curves.values())
