@@ -59,6 +59,9 @@ MIN_STRUCTURE = 0.2
 SCATTER_LIMIT = 1.75
 LJUNG_BOX_LAGS = 20
 MAX_LINES = 5
+# lines fitted to find the MAX_LINES largest: a few times more, as a few may prove too small
+# (a residual far from white shows hundreds, and fitting them all costs seconds)
+MAX_FITTED_LINES = 4 * MAX_LINES
 PHASE_HARMONICS = 8  # spikes locked to any of these harmonics of the drive are a misfit
 # Backbone: a mismatch of the frequency's change across the swing's amplitudes this large
 # (a pendulum's own backbone, A^2 / 16, moves it 0.1 % at 0.13 rad) is worth naming.
@@ -394,7 +397,7 @@ def _lines(t, r, ok, floor_rad, base_hz, drive_hz) -> list[Finding]:
     """Spectral lines off the drive's harmonics (:func:`analysis.dynamics.lines.find_lines`)
     big enough to matter, as findings, largest first."""
     out = []
-    for frequency, amplitude in find_lines(t, r, ok, base_hz):
+    for frequency, amplitude in find_lines(t, r, ok, base_hz, max_lines=MAX_FITTED_LINES):
         if amplitude / math.sqrt(2.0) < MIN_STRUCTURE * floor_rad:
             continue
         numbers = {"frequency_hz": frequency, "amplitude_rad": amplitude,
