@@ -129,11 +129,10 @@ def run(args: argparse.Namespace) -> int:
     import logging
 
     from analysis.maps import MapRunner, SchedulerError, finish_map
-    from analysis.output_paths import check_outputs
+    from analysis.output_paths import HDF5_SUFFIXES, check_outputs, check_suffix
 
     plan = plan_from_args(args)  # every user error is found here, before anything runs
-    if args.out.suffix.lower() not in (".h5", ".hdf5"):
-        raise CommandError(f"--out {args.out}: expected a .h5 file name")
+    check_suffix(args.out, HDF5_SUFFIXES, "a map (HDF5)")
     figure = args.out.with_suffix(".png")
     overlay = _overlay(args, plan)
     resume = args.out.exists() and not args.overwrite

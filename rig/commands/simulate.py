@@ -347,13 +347,12 @@ def run(args: argparse.Namespace) -> int:
 
     from analysis.exchange import ExchangeRecord, write_exchange
     from analysis.measurement import MeasurementModel, has_measurement_causes
-    from analysis.output_paths import check_outputs
+    from analysis.output_paths import HDF5_SUFFIXES, check_outputs, check_suffix
     from analysis.packed import P, ParameterError
     from analysis.simulate import SimulationSettings, simulate
 
-    suffix = args.out.suffix.lower()
-    if suffix not in (".csv", ".h5", ".hdf5"):
-        raise CommandError(f"--out {args.out}: expected a .csv or .h5 file name")
+    suffix = check_suffix(args.out, (".csv", *HDF5_SUFFIXES),
+                          "a simulated record (CSV or HDF5)").suffix.lower()
     if not args.out.parent.exists():
         raise CommandError(f"--out {args.out}: folder {args.out.parent} does not exist")
     outputs = [args.out] + ([args.out.with_suffix(".json")] if suffix == ".csv" else [])

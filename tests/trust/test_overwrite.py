@@ -107,6 +107,9 @@ def test_a_file_is_never_written_under_another_formats_extension(recording, tmp_
         ("replay", str(recording), "--fast", "--record", str(csv)),
         ("repair", str(recording), "--out", str(csv)),
         ("export", str(recording), "--out", str(tmp_path / "run.h5")),
+        ("map", "basins", "--f-drive-hz", "10", "--beta", "0.05", "--vary", "theta0=0:0.1:2",
+         "--vary", "omega0=0:0.1:2", "--out", str(csv)),
+        ("simulate", "--out", str(tmp_path / "run.txt")),
     ]
     for args in refusals:
         _refused(_in_process(capsys, *args), Path(args[-1]), "is written as")
