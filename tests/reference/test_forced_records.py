@@ -30,20 +30,26 @@ def clean_case() -> ForcedCase:
                             sample_rate_hz=1000.0)
 
 
-def test_same_seed_gives_the_same_bytes(tmp_path):
+@pytest.fixture(scope="module")
+def case_23() -> ForcedCase:
+    """A short draw two tests share (each draw integrates a transient: seconds)."""
+    return draw_forced_case(23, **SHORT)
+
+
+def test_same_seed_gives_the_same_bytes(tmp_path, case_23):
     paths = []
     for name in ("a", "b"):
         (tmp_path / name).mkdir()
         paths.append(write_forced_case(draw_forced_case(21, **SHORT), tmp_path / name))
-    other = write_forced_case(draw_forced_case(22, **SHORT), tmp_path)
+    other = write_forced_case(case_23, tmp_path)
     for suffix in (".csv", ".json"):
         first, second = (path.with_suffix(suffix).read_bytes() for path in paths)
         assert first == second
     assert other.read_bytes() != paths[0].read_bytes()
 
 
-def test_given_choices_fix_their_draws_and_leave_the_rest():
-    case = draw_forced_case(23, **SHORT)
+def test_given_choices_fix_their_draws_and_leave_the_rest(case_23):
+    case = case_23
     again = draw_forced_case(23, case.cause, frequency_hz=case.drive.stated_frequency_hz,
                              laser=case.measurement.laser, **SHORT)
     assert again == case
