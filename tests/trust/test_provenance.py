@@ -64,16 +64,21 @@ def test_every_file_of_an_analysis_report_carries_provenance(tmp_path):
     assert done.returncode == 0, done.stderr
     _check(json.loads(report.read_text())["provenance"], operator="C. Analyst")
     written = sorted(folder.iterdir())
-    assert {path.suffix for path in written} == {".md", ".json", ".png"}
+    assert {path.suffix for path in written} == {".md", ".html", ".json", ".png"}
     for path in written:
         if path.suffix == ".json":
             _check(json.loads(path.read_text())["provenance"], operator="C. Analyst")
         elif path.suffix == ".png":
             _check(_png_provenance(path), operator="C. Analyst")
-        else:
+        elif path.suffix == ".md":
             closing = path.read_text().rstrip().splitlines()[-1]
             assert closing.startswith("Made by impact-rig ") and "by C. Analyst" in closing
             assert "`impact-rig analyze " in closing
+        else:  # the HTML twin: the same closing line, and the software in its head
+            page = path.read_text()
+            assert '<meta name="generator" content="impact-rig ' in page
+            assert "Made by impact-rig " in page and "by C. Analyst" in page
+            assert "<code>impact-rig analyze " in page
 
 
 def test_version_is_printed():
