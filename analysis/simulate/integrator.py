@@ -1260,6 +1260,10 @@ def integrate_segments(p, t0, theta0, theta_dot0, out_t, bounds, rtol, atol, max
     It lives beside ``integrate`` so that numba's cache, which tracks only a kernel's own
     file, is renewed whenever the integrator changes."""
     no_dense = np.empty((0, 3))
+    # typed, not literal, so that this call shares the compiled ``integrate`` the Python
+    # callers use (literal 0 and False arguments compile a second copy: 28 s cold)
+    none_yet = np.int64(0)
+    no_dense_wanted = np.bool_(False)
     for k in range(t0.shape[0]):
         a = bounds[k]
         b = bounds[k + 1]
@@ -1267,6 +1271,6 @@ def integrate_segments(p, t0, theta0, theta_dot0, out_t, bounds, rtol, atol, max
         integrate(
             p, state, out_t[a:b], out_th[a:b], out_om[a:b], 0.0, 1.0,
             np.empty(0), np.empty(0), out_t[b - 1], rtol, atol, np.inf, max_steps,
-            np.empty((16, EV_SIZE)), 0, False, no_dense, 0,
+            np.empty((16, EV_SIZE)), none_yet, no_dense_wanted, no_dense, none_yet,
         )
         status[k] = state[S_STATUS]
