@@ -24,6 +24,7 @@ from tests.reference.cause_sizes import CAUSES, CHOICES, ResponseScale, draw_cau
 from tests.reference.regime_truth import (
     RegimeTruth,
     attractor_extent,
+    find_period,
     judge_regime,
     strobe_times,
 )
@@ -53,10 +54,20 @@ PILOT_S = 10.0  # baseline run that sizes a cause to the response it acts on
 # Sizes tried for a cause before the record is given up: the whole plausible range, then
 # its largest quarter (the quantile the draw starts from).
 SIZE_QUANTILES = (0.0, 0.75)
+# A draw asked to be chaotic is first run without its causes over the transient and this
+# many drive periods (a third of a 30 s record at 10 Hz); one already periodic there is
+# redrawn before the record's full run, its causes' sizing and the twin exponent (at
+# 10 Hz most draws settle on an orbit: seed 5202 met chaos at its 8th draw).
+PROBE_PERIODS = 96
+PROBE_SAMPLES_PER_PERIOD = 50  # for the motion's extent, the scale of "agree"
 
 
 class CauseHiddenError(RuntimeError):
     """No plausible size of the cause shows in the record: the baseline absorbs it."""
+
+
+class SettledError(RuntimeError):
+    """A draw asked to be chaotic settled on an orbit before the probe's end."""
 
 
 @dataclass(frozen=True)
@@ -272,13 +283,16 @@ def draw_forced_case(
         rng = np.random.default_rng(seed if attempt == 0 else [seed, attempt])
         try:
             case = _draw_once(rng, seed, attempt, cause, frequency_hz, duration_s,
-                              sample_rate_hz, laser)
+                              sample_rate_hz, laser, probe=regime == "chaotic")
         except OverTheTopError:
             seen["over the top"] = seen.get("over the top", 0) + 1
             continue
         except CauseHiddenError as hidden:
             seen["cause hidden"] = seen.get("cause hidden", 0) + 1
             last_hidden = str(hidden)
+            continue
+        except SettledError:
+            seen["periodic at the probe"] = seen.get("periodic at the probe", 0) + 1
             continue
         if regime is None or _regime_matches(case.regime_truth, regime):
             return case
@@ -346,8 +360,10 @@ def _draw_once(
     duration_s: float,
     sample_rate_hz: float,
     laser: bool | None,
+    probe: bool = False,
 ) -> ForcedCase:
-    """One draw; the given choices replace their draws so that the rest stays the same."""
+    """One draw; the given choices replace their draws so that the rest stays the same.
+    ``probe``: raise SettledError when the draw's baseline settles on an orbit early."""
     drawn_cause = str(CHOICES[rng.integers(len(CHOICES))])
     drawn_frequency = float(FREQUENCIES_HZ[rng.integers(len(FREQUENCIES_HZ))])
     drawn_laser = bool(rng.random() < 0.5)
@@ -394,6 +410,8 @@ def _draw_once(
         transient_s=transient, duration_s=float(duration_s), sample_rate_hz=float(sample_rate_hz),
         regime_truth=RegimeTruth("unsettled", None, None, None),
     )
+    if probe and _settles_early(case):
+        raise SettledError(f"seed {seed}, draw {attempt}: periodic at the probe")
     if cause == "none":
         motion = simulate_true_motion(case)
     else:
@@ -403,6 +421,22 @@ def _draw_once(
     truth = judge_regime(case.pendulum(), case.table(), motion.strobe_s, motion.strobe_states,
                          extent)
     return replace(case, regime_truth=truth, motion=motion)
+
+
+def _settles_early(case: ForcedCase) -> bool:
+    """Whether the case's motion without causes repeats with a period <= 32 over the second
+    half of its first PROBE_PERIODS drive periods (the truth's own test, regime_truth)."""
+    table = true_table(case.drive, {})
+    end_s = min(case.duration_s, PROBE_PERIODS / case.drive.frequency_hz)
+    strobe_s = strobe_times(table, 0.0, end_s)
+    grid_s = np.linspace(0.0, end_s, round(PROBE_PERIODS * PROBE_SAMPLES_PER_PERIOD) + 1)
+    times = np.union1d(grid_s, strobe_s)
+    run = simulate_reference(true_pendulum(case.rig, {}), table, case.theta0_rad,
+                             case.theta_dot0_rad_s, times, t_start_s=-case.transient_s,
+                             rtol=1e-9, atol=1e-11)
+    at_strobe = np.searchsorted(times, strobe_s)
+    points = np.column_stack([run.theta_rad[at_strobe], run.theta_dot_rad_s[at_strobe]])
+    return find_period(points, attractor_extent(run.theta_rad, run.theta_dot_rad_s)) is not None
 
 
 def _with_visible_causes(
