@@ -330,7 +330,12 @@ class ShootingProblem:
             split: bool = True) -> tuple[np.ndarray, ...]:
         """Measured angle at every segment sample, and every segment's end state (``split``:
         see ``_integrate``; a Jacobian's columns, already in threads, run whole)."""
-        th, om = self._integrate(values, states, split)
+        return self.read(values, *self._integrate(values, states, split))
+
+    def read(self, values: Mapping[str, float], th: np.ndarray, om: np.ndarray
+             ) -> tuple[np.ndarray, np.ndarray]:
+        """``run``'s output from the model's motion at every segment time (``_integrate``):
+        what the sensor reports with ``values`` at the samples, and the end states."""
         ends = np.column_stack([th[self.is_end], om[self.is_end]])
         theta = th[~self.is_end]
         if self.measure is not None and not self.measure_has_memory:
@@ -477,13 +482,14 @@ class ShootingProblem:
 
         def evaluate(u_, s_):
             values = self.values_of(u_)
-            theta, ends = self.run(values, s_)
-            return self.residuals(theta, ends, s_), theta, ends
+            motion = self._integrate(values, s_, True)
+            theta, ends = self.read(values, *motion)
+            return self.residuals(theta, ends, s_), theta, ends, motion
 
         repaired = self._continued_states(self.values_of(u), s)  # states from elsewhere
         if repaired is not None:
             s = repaired
-        r, theta, ends = evaluate(u, s)
+        r, theta, ends, motion = evaluate(u, s)
         cost = 0.5 * float(r @ r)
         noise_cost = 0.5 * float(np.count_nonzero(self.fitted))  # a perfect model's, expected
         if self.robust:
@@ -498,7 +504,7 @@ class ShootingProblem:
             small_before = False
             for _ in range(budget):
                 iterations += 1
-                jac = self._jacobian(u, s, r, theta, ends, hs)
+                jac = self._jacobian(u, s, r, theta, ends, hs, motion)
                 a = (jac.T @ jac).tocsc()
                 grad = jac.T @ r
                 diag = a.diagonal()
@@ -518,7 +524,7 @@ class ShootingProblem:
                     u_new = np.clip(u + np.clip(step[:g], -max_move, max_move), lower, upper)
                     s_new = s + step[g:].reshape(n_seg, 2) * hs
                     try:
-                        r_new, theta_new, ends_new = evaluate(u_new, s_new)
+                        r_new, theta_new, ends_new, motion_new = evaluate(u_new, s_new)
                         cost_new = 0.5 * float(r_new @ r_new)
                     except (ValueError, OverflowError, ZeroDivisionError):
                         cost_new = math.inf  # a trial outside the model's domain: rejected
@@ -527,6 +533,7 @@ class ShootingProblem:
                     if cost_new < cost:
                         gain = cost - cost_new
                         u, s, r, theta, ends = u_new, s_new, r_new, theta_new, ends_new
+                        motion = motion_new
                         cost = cost_new
                         lam *= max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3)
                         nu = 2.0
@@ -550,7 +557,7 @@ class ShootingProblem:
             if repaired is None:
                 break
             s = repaired
-            r, theta, ends = evaluate(u, s)
+            r, theta, ends, motion = evaluate(u, s)
             cost = 0.5 * float(r @ r)
             lam, nu = 1e-3, 2.0
             budget = REPAIR_ITERATIONS
@@ -620,24 +627,34 @@ class ShootingProblem:
         return (np.array([_to_u(p, p.lower) for p in self.free]),
                 np.array([_to_u(p, p.upper) for p in self.free]))
 
-    def _jacobian(self, u, s, r, theta, ends, hs) -> sparse.csr_matrix:
+    def _jacobian(self, u, s, r, theta, ends, hs, motion=None) -> sparse.csr_matrix:
         """Forward-difference Jacobian in step units (sparse: a data row sees the shared
         parameters and its own segment's state).  The shared columns difference
         ``residuals`` itself; a data row's state columns come from the change of the model
-        alone, times the robust loss's slope there when the problem is robust."""
+        alone, times the robust loss's slope there when the problem is robust.
+
+        ``motion``, the model's motion at (u, s) (``_integrate``), spares the run of every
+        column whose parameter leaves the integrator's model as it is (a sensor's zero,
+        cubic term or lag): the same motion is read with the moved value, which gives the
+        very numbers a run would."""
         g = len(self.free)
         n_seg = self.segments.count
         rows_data = int(np.count_nonzero(self.fitted))
         n_links = self.links.size
 
         _lower, upper = self._bounds()
+        packed = self.packed_of(self.values_of(u)) if motion is not None else None
 
         def shared_column(i: int) -> np.ndarray:
             h = 1.0 if u[i] + 1.0 <= upper[i] else -1.0  # stay inside the bounds
             du = u.copy()
             du[i] += h
             values = self.values_of(du)
-            th, en = self.run(values, s, split=False)
+            if packed is not None and np.array_equal(self.packed_of(values), packed,
+                                                     equal_nan=True):
+                th, en = self.read(values, *motion)
+            else:
+                th, en = self.run(values, s, split=False)
             return (self.residuals(th, en, s) - r) / h
 
         def state_run(k: int) -> tuple[np.ndarray, np.ndarray]:
