@@ -44,6 +44,12 @@ class ExperimentKind:
         """True when the table moves."""
         return DRIVE in self.provides
 
+    @property
+    def shows_backbone(self) -> bool:
+        """True when the swing is one damped sinusoid, so that the record shows its
+        frequency against its amplitude (the backbone) cycle by cycle."""
+        return HARMONICS not in self.provides
+
     def hidden_reason(self, needs: frozenset[str]) -> str | None:
         """Why a cause with these needs cannot show in this kind (None when it can)."""
         missing = sorted(needs - self.provides)

@@ -14,6 +14,7 @@ from analysis.discrepancy.localize import Localization
 from analysis.discrepancy.residual_reading import Finding, ResidualReading, read_residual
 from analysis.discrepancy.selection import BIC_MARGIN, Verdict, heldout_rms
 from analysis.discrepancy.term_proposal import ProposedTerm
+from analysis.experiments import KINDS
 from analysis.extensions import NONE, cause, causes_in
 from analysis.identify.result import Estimate
 from analysis.records import Record
@@ -113,11 +114,14 @@ class Analysis:
         curve = None
         if self.curves is not None:  # forced records: the baseline's and the final model's
             curve = self.curves[0] if best is None else self.curves[1]
+        backbone = KINDS[self.data.experiment].shows_backbone
+        if backbone:  # a free decay: the final model's curve, for its backbone
+            curve = predict(self.data, final.cause, final.values)[0]
         period = (self.regime or {}).get("period") or 1
         self.reading = read_residual(
             self.data.t, final.residual, self.data.valid, self.data.noise_rad,
             drive_frequency_hz=(self.drive or {}).get("frequency_hz"), subharmonic=period,
-            model_rad=curve)
+            model_rad=curve, backbone=backbone)
         return self
 
     def warnings(self) -> list[str]:

@@ -67,6 +67,11 @@ PHASE_HARMONICS = 8  # spikes locked to any of these harmonics of the drive are 
 # (a pendulum's own backbone, A^2 / 16, moves it 0.1 % at 0.13 rad) is worth naming.
 BACKBONE_MIN = 1e-3
 BACKBONE_PERIODS = 9  # whole periods a slope of frequency against amplitude needs
+# Periods whose swing is below this fraction of the largest are left out: A^2 there holds
+# 1 % of the backbone's lever, while what else times a crossing grows as the swing dies (a
+# Coulomb model's alternating centre, a sensor zero: z fell from 14 to 3.7 on a hairspring
+# decay read against a fitted friction model).
+BACKBONE_SMALLEST = 0.1
 # Drive clocks: the generator's and the data logger's quartz each hold tens of ppm.
 DRIVE_TOLERANCE_PPM = 100.0
 # A tach pulse is marked on the first sample at or after it and taken half a sample
@@ -135,23 +140,27 @@ class ResidualReading:
 def read_residual(
     t_s: np.ndarray, residual_rad: np.ndarray, valid: np.ndarray | None, noise_rad: float, *,
     drive_frequency_hz: float | None = None, subharmonic: int = 1,
-    model_rad: np.ndarray | None = None,
+    model_rad: np.ndarray | None = None, backbone: bool = False,
 ) -> ResidualReading:
     """Judge a residual (``model - data`` on uniform times ``t_s``) against white noise.
 
     ``noise_rad`` is the record's white-noise level (from the raw angle, good to ~10 %).
     ``drive_frequency_hz`` (with ``subharmonic`` n for a period-n response) names the
     frequencies whose harmonics are the drive's and never reported as lines;
-    ``model_rad`` (the fitted curve) lets the trend tell a gain drift from an offset one.
+    ``model_rad`` (the fitted curve) lets the trend tell a gain drift from an offset one,
+    and with ``backbone`` (a decay's record) compares the record's backbone with the
+    model's (:func:`backbone_finding`).
 
     The verdict: structure remains when the residual is not white (a Ljung-Box test over
     LJUNG_BOX_LAGS lags of valid pairs, p < FALSE_ALARM) and the power above its own
     white floor is significant and at least MIN_STRUCTURE^2 of it; or when its
     sample-to-sample scatter exceeds the record's noise by SCATTER_LIMIT (broadband
     structure, which no floor measured from the residual itself can show); or when a
-    line or a trend is found (each as significant, and as big, on its own).
+    line, a trend or a backbone is found (each as significant, and as big, on its own).
     """
     t, r, ok = _checked(t_s, residual_rad, valid)
+    if backbone and model_rad is None:
+        raise ValueError("backbone=True needs model_rad, the fitted curve")
     if not (math.isfinite(noise_rad) and noise_rad > 0):
         raise ValueError(f"noise_rad = {noise_rad!r}: must be a positive number")
     if drive_frequency_hz is not None and not drive_frequency_hz > 0:
@@ -178,13 +187,18 @@ def read_residual(
     base = None if drive_frequency_hz is None else drive_frequency_hz / subharmonic
     findings += _lines(t, r, ok, floor, base, drive_frequency_hz)
     findings += _trends(t, r, ok, floor, model_rad)
+    if backbone:
+        model = np.asarray(model_rad, dtype=float)
+        found = backbone_finding(t, model - np.where(ok, r, 0.0), model, ok, noise_rad)
+        findings += [found] if found is not None else []
     outliers = _outliers(t, r, ok, base)
     if outliers is not None:
         findings.append(outliers)
     nonwhite = p < FALSE_ALARM and excess > Z_FINDING * excess_se \
         and structured_rms >= MIN_STRUCTURE * floor
     broadband = scatter > SCATTER_LIMIT
-    named = any(f.kind in ("line", "trend") for f in findings)  # each as significant and big
+    # each as significant and big
+    named = any(f.kind in ("line", "trend", "backbone") for f in findings)
     structured = nonwhite or broadband or named
     why = _why(structured, nonwhite, broadband, structured_rms, floor, noise_rad, p, scatter,
                findings, math.sqrt(mean_square))
@@ -321,7 +335,8 @@ def backbone_finding(
     model_period = np.diff(model_cross)
     data_period = np.diff(data_cross)
     # a window that slid to a neighbouring crossing times no period
-    good = np.isfinite(data_period) & (np.abs(data_period / model_period - 1.0) < 0.25)
+    good = np.isfinite(data_period) & (np.abs(data_period / model_period - 1.0) < 0.25) \
+        & (amplitude >= BACKBONE_SMALLEST * amplitude.max())
     if np.count_nonzero(good) < BACKBONE_PERIODS:
         return None
     a2 = amplitude[good] ** 2
