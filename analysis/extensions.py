@@ -115,6 +115,10 @@ class Cause:
     plan: PlanMaker | None = None
     # baseline parameters it makes redundant: its own parameters play their part
     replaces: tuple[str, ...] = ()
+    # where a measurement acts along the sensor chain (0: the channel's filter of the angle,
+    # 1: the transducer's linearity, 2: its zero): several compose in this order, whatever
+    # order they entered a model in (docs/MODEL.md section 6)
+    measurement_stage: int = 0
 
     def implausibility(self, values: Mapping[str, float]) -> str | None:
         """Why these fitted values are no explanation a real rig can have, or None."""
@@ -430,6 +434,7 @@ register(
         "Angle sensor zero not at the hanging position: measured = theta + offset.",
         measurement=_offset,
         plan=_plan_offset,
+        measurement_stage=2,
     )
 )
 register(
@@ -440,6 +445,7 @@ register(
         "Angle sensor linearity error: measured = theta + k3 theta^3.",
         measurement=_nonlinearity,
         plan=_plan_nonlinearity,
+        measurement_stage=1,
     )
 )
 register(

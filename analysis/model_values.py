@@ -55,13 +55,13 @@ def measured_angle(
     theta_dot0: float | None = None,
 ) -> np.ndarray:
     """The angle the sensor reports for the true angle ``theta`` at uniform times ``t``:
-    every measurement cause of ``causes``, in order (``theta_dot0``, the rate at the first
-    sample, settles a filter's memory there)."""
+    every measurement cause of ``causes``, along the sensor chain (``Cause.measurement_stage``:
+    filter, linearity, zero) whatever their order in ``causes`` (``theta_dot0``, the rate at
+    the first sample, settles a filter's memory there)."""
     out = np.asarray(theta, dtype=float)
-    for name in causes:
-        if name == NONE:
-            continue
-        c = cause(name)
+    chain = sorted((cause(name) for name in causes if name != NONE),
+                   key=lambda c: c.measurement_stage)
+    for c in chain:
         if c.measurement is not None:
             own = {s.name: values[s.name] for s in c.parameters if s.name in values}
             out = c.measurement(np.asarray(t, dtype=float), out, c.values(own), theta_dot0)
