@@ -28,12 +28,13 @@ from analysis.discrepancy.localize import localize, motion_of
 from analysis.discrepancy.outcome import Analysis, AnalysisError, CandidateOutcome
 from analysis.discrepancy.restitution import fit_restitution, restitution_from_hunt_crossley
 from analysis.discrepancy.selection import (
+    MAX_CAUSES,
     Verdict,
     choose,
     heldout_rms,
     information_criterion_delta,
 )
-from analysis.extensions import NONE, RecordScale, cause
+from analysis.extensions import NONE, RecordScale, cause, causes_in, implausibility, model_name
 from analysis.identify import IdentificationError, fit_free_decay, fit_impact_decay
 from analysis.identify.impact_decay import impact_events
 from analysis.identify.preprocess import prepare
@@ -182,9 +183,11 @@ def assess_candidate(
     baseline: FitResult, baseline_heldout: float, scale: RecordScale,
     hints: dict[str, float] | None = None, identified: dict[str, float] | None = None,
 ) -> CandidateOutcome:
-    """Fit one cause on the training part and on the whole record; judge it."""
+    """Fit one model on the training part and on the whole record; judge it against
+    ``baseline`` (the baseline, or in a forward step the model it extends by one cause:
+    ``cause_name`` then joins their causes)."""
     head = data.head(n_train / data.t.size)
-    own = {s.name for s in cause(cause_name).parameters}
+    own = {s.name for c in causes_in(cause_name) for s in cause(c).parameters}
     hinted = {k: v for k, v in (hints or {}).items() if k in own}
     train = fit(head, cause_name, baseline_train.values, scale)
     if identified is not None and hinted:
@@ -205,14 +208,15 @@ def assess_candidate(
         rms_extended=full.rms,
         noise_rad=data.noise_rad,
         n_heldout=int(np.count_nonzero(data.valid[n_train:])),
-        implausible=cause(cause_name).implausibility(full.values),
+        implausible=implausibility(cause_name, full.values),
     )
     rival = None
     if verdict.earns_keep:
         # Is the gain the cause's, or did its fit only find a better basin of the baseline's
         # own parameters?  Refit the baseline from the candidate's solution to find out.
         keys = set(baseline_train.values)
-        rival_train = fit(head, NONE, {k: v for k, v in train.values.items() if k in keys}, scale)
+        rival_train = fit(head, baseline_train.cause,
+                          {k: v for k, v in train.values.items() if k in keys}, scale)
         if rival_train.rms < baseline_train.rms * (1.0 - 1e-3):
             rival = rival_train
     return CandidateOutcome(cause_name, train, full, verdict, prediction, rival)
@@ -323,14 +327,18 @@ def analyze_decay(
         outcomes = [rejudge(o, baseline, baseline_heldout, data) for o in outcomes]
         _, full_sim = predict(data, NONE, baseline.values)
         localization = localize(data, baseline, *motion_of(data, full_sim))
-    timings["candidates"] = time.perf_counter() - clock - timings["baseline"]
     verdict = choose([o.verdict for o in outcomes])
     chosen = verdict.cause if verdict is not None else NONE
+    final, steps = None, []
+    if verdict is not None:
+        first = next(o for o in outcomes if o.cause == chosen)
+        final, steps = _add_causes(first, outcomes, data, n_train, scale, hints, workers, say)
+    timings["candidates"] = time.perf_counter() - clock - timings["baseline"]
     analysis = Analysis(
         record=record, data=data, n_train=n_train, baseline_train=baseline_train,
         baseline=baseline, baseline_prediction=baseline_prediction, candidates=outcomes,
         excluded=excluded_for(data.experiment), chosen=chosen, localization=localization,
-        timings=timings, notes=notes,
+        timings=timings, notes=notes, steps=steps, final=final,
     )
     if data.barrier:
         say("constant coefficient of restitution against Hunt-Crossley")
@@ -340,6 +348,39 @@ def analyze_decay(
     timings["total"] = time.perf_counter() - clock
     say(f"cause: {chosen} ({timings['total']:.1f} s)")
     return analysis
+
+
+def _add_causes(
+    first: CandidateOutcome, outcomes: list[CandidateOutcome], data: FitData, n_train: int,
+    scale: RecordScale, hints: dict[str, float], workers: int, say: Progress,
+) -> tuple[CandidateOutcome | None, list[tuple[str, Verdict]]]:
+    """Forward selection from the chosen cause: each step fits every other candidate added to
+    the current model (from its solution) and keeps the best that both judges accept
+    against it (information criterion, held-out prediction), up to MAX_CAUSES.  Returns
+    the final model when a step added a cause (None otherwise) and the steps taken."""
+    current, steps = first, [(first.cause, first.verdict)]
+    names = [o.cause for o in outcomes]
+    while len(steps) < MAX_CAUSES:
+        inside = causes_in(current.cause)
+        jobs = [(model_name((*inside, n)), data, n_train, current.train, current.full,
+                 current.verdict.heldout_rms_extended, scale, hints)
+                for n in names if n not in inside]
+        if not jobs:
+            break
+        if workers > 1 and len(jobs) > 1:
+            with ProcessPoolExecutor(max_workers=workers) as pool:
+                tried = list(pool.map(_assess_job, jobs))
+        else:
+            tried = [_assess_job(job) for job in jobs]
+        verdict = choose([o.verdict for o in tried])
+        if verdict is None:
+            say(f"beside {' and '.join(inside)}: no further cause earns its place")
+            break
+        current = next(o for o in tried if o.cause == verdict.cause)
+        added = causes_in(current.cause)[-1]
+        say(f"  {added} added to {' and '.join(inside)}: {verdict.why}")
+        steps.append((added, verdict))
+    return (current if len(steps) > 1 else None), steps
 
 
 def compare_restitution(

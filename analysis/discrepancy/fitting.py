@@ -19,7 +19,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from analysis.discrepancy.candidates import plan_for
-from analysis.extensions import NONE, ParameterPlan, RecordScale, cause
+from analysis.extensions import ParameterPlan, RecordScale, cause, causes_in
 from analysis.identify.intervals import Z95, sandwich_covariance
 from analysis.identify.result import Estimate, Residuals, SampledRecord
 from analysis.model import Drive, Model, RigParameters
@@ -81,7 +81,7 @@ class FitResult(Residuals):
 
 def build_model(data: FitData, cause_name: str, values: Mapping[str, float]) -> Model:
     """The model of the given baseline values, extended by the cause (``none``: baseline)."""
-    return model_from_values(data.rig, data.drive, data.barrier, values, (cause_name,))
+    return model_from_values(data.rig, data.drive, data.barrier, values, causes_in(cause_name))
 
 
 def predict(
@@ -89,7 +89,7 @@ def predict(
 ) -> tuple[np.ndarray, SimulationResult]:
     """The angle the sensor would report under the model, at the record's sample times."""
     n = data.t.size if n is None else n
-    p = packed_from_values(data.rig, data.drive, data.barrier, values, (cause_name,),
+    p = packed_from_values(data.rig, data.drive, data.barrier, values, causes_in(cause_name),
                            data.phase0_rad)
     sim = simulate_packed(
         p, values["theta0_rad"], values["theta_dot0_rad_s"],
@@ -103,14 +103,15 @@ def predict(
         # a large residual and steps back instead of failing.
         last = theta[-1] if theta.size else values["theta0_rad"]
         theta = np.concatenate([theta, np.full(n - theta.size, last)])
-    return measured_angle((cause_name,), values, np.arange(n) * data.dt, theta), sim
+    return measured_angle(causes_in(cause_name), values, np.arange(n) * data.dt, theta), sim
 
 
 def free_parameters(
     data: FitData, cause_name: str, scale: RecordScale, start: Mapping[str, float]
 ) -> dict[str, tuple[float, ParameterPlan, float, float]]:
     """name -> (start value, plan, lower, upper) of every parameter the fit adjusts."""
-    replaced = () if cause_name == NONE else cause(cause_name).replaces
+    causes = [cause(name) for name in causes_in(cause_name)]
+    replaced = {name for c in causes for name in c.replaces}
     out: dict[str, tuple[float, ParameterPlan, float, float]] = {}
     for name in SWING_PARAMETERS + (CONTACT_PARAMETERS if data.barrier else ()):
         if name in replaced:
@@ -118,8 +119,7 @@ def free_parameters(
         value = start[name]
         log = name in POSITIVE
         out[name] = (value, ParameterPlan(value, _baseline_step(name, scale), log), *BOUNDS[name])
-    if cause_name != NONE:
-        c = cause(cause_name)
+    for c in causes:
         plans = plan_for(c, scale)
         for spec in c.parameters:
             plan = plans[spec.name]
@@ -149,7 +149,8 @@ def fit(
     *,
     max_iterations: int = MAX_ITERATIONS,
 ) -> FitResult:
-    """Least-squares fit of the baseline (``none``) or the baseline extended by one cause."""
+    """Least-squares fit of the baseline (``none``) or the baseline extended by a cause, or
+    by several (their names joined: ``extensions.model_name``)."""
     free = free_parameters(data, cause_name, scale, start)
     names = list(free)
     fixed = {k: v for k, v in start.items() if k not in free}

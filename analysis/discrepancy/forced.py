@@ -54,6 +54,7 @@ from analysis.discrepancy.residual_reading import (
 )
 from analysis.discrepancy.selection import (
     BIC_MARGIN,
+    MAX_CAUSES,
     Verdict,
     choose,
     information_criterion_delta,
@@ -83,7 +84,6 @@ RIVAL_SCREENED = 0.1
 # gain is a rival still moving: it is fitted on, up to RIVAL_ROUNDS more iteration caps
 RIVAL_BIC = 0.5
 RIVAL_ROUNDS = 3
-MAX_CAUSES = 3  # the forward selection stops at this many causes
 ADDED = 2  # causes fitted over the record as the next step, best screened first
 STEP_SCREEN_ITERATIONS = 6  # a step's screening: each cause added to the current model
 # two causes whose effects on the record correlate this much, and which explain it nearly

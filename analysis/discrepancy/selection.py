@@ -20,6 +20,7 @@ from analysis.discrepancy.fitting import FitResult
 from analysis.identify.intervals import correlation_time
 
 BIC_MARGIN = 10.0  # "very strong" evidence on the Kass-Raftery scale
+MAX_CAUSES = 3  # a forward selection stops at this many causes
 HELDOUT_RATIO = 0.95  # the extension must predict the unseen part at least 5 % better
 HELDOUT_EXCESS_RATIO = 0.9  # ... or shrink the error above the noise by 10 %, significantly
 HELDOUT_SIGMAS = 3.0
