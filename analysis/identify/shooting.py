@@ -401,6 +401,9 @@ class ShootingProblem:
             self.bounds[:-1] - np.arange(n_seg), self.segments.stop - self.segments.start)
         length = (self.segments.fit_stop - self.segments.start)[seg_rows]
         y = self.y[self.sample_of]
+        # without a sensor memory linking segments, the readings of a mix of two runs' states
+        # are those runs' readings, segment by segment: no run is needed to combine them
+        independent = self.measure is None or not self.measure_has_memory
 
         def segment_costs(theta: np.ndarray, use: np.ndarray) -> np.ndarray:
             r = np.where(use, (theta - y) / self.sigma, 0.0)
@@ -438,7 +441,10 @@ class ShootingProblem:
                     s[better] = trial[better]
                     lam = np.where(better, lam / 3.0, lam * 4.0)
                     if better.any():
-                        theta, _ = self.run(values, s)
+                        if independent:  # each segment's reading is its own run's
+                            theta = np.where(better[seg_rows], th, theta)
+                        else:
+                            theta, _ = self.run(values, s)
                         cost, r = segment_costs(theta, use)
                         break
         return s
