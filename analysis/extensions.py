@@ -9,7 +9,7 @@ Adding a cause means registering one more ``Cause``; the equations stay as they 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Literal
 
@@ -204,13 +204,20 @@ def apply_dynamics(model: Model, packed: np.ndarray) -> None:
             c.dynamics(model, c.values(given), packed)
 
 
+def measurement_chain(names: Iterable[str]) -> list[Cause]:
+    """The measurement causes among ``names`` in the order the sensor chain applies them
+    (``Cause.measurement_stage``: filter, linearity, zero), whatever order they came in."""
+    chain = [cause(name) for name in names if name != NONE]
+    return sorted((c for c in chain if c.measurement is not None),
+                  key=lambda c: c.measurement_stage)
+
+
 def apply_measurement(model: Model, t: np.ndarray, theta: np.ndarray) -> np.ndarray:
     """The angle a sensor reports for true angle ``theta`` sampled at times ``t``."""
     measured = np.asarray(theta, dtype=float)
-    for name, given in model.extensions.items():
-        c = cause(name)
-        if c.measurement is not None:
-            measured = c.measurement(np.asarray(t, dtype=float), measured, c.values(given))
+    for c in measurement_chain(model.extensions):
+        given = model.extensions[c.name]
+        measured = c.measurement(np.asarray(t, dtype=float), measured, c.values(given))
     return measured
 
 

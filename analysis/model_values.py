@@ -12,7 +12,7 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
-from analysis.extensions import NONE, cause
+from analysis.extensions import NONE, cause, measurement_chain
 from analysis.model import Drive, Model, RigParameters
 from analysis.packed import P
 
@@ -59,12 +59,9 @@ def measured_angle(
     filter, linearity, zero) whatever their order in ``causes`` (``theta_dot0``, the rate at
     the first sample, settles a filter's memory there)."""
     out = np.asarray(theta, dtype=float)
-    chain = sorted((cause(name) for name in causes if name != NONE),
-                   key=lambda c: c.measurement_stage)
-    for c in chain:
-        if c.measurement is not None:
-            own = {s.name: values[s.name] for s in c.parameters if s.name in values}
-            out = c.measurement(np.asarray(t, dtype=float), out, c.values(own), theta_dot0)
+    for c in measurement_chain(causes):
+        own = {s.name: values[s.name] for s in c.parameters if s.name in values}
+        out = c.measurement(np.asarray(t, dtype=float), out, c.values(own), theta_dot0)
     return out
 
 

@@ -101,3 +101,41 @@ def test_a_sensor_without_memory_reads_every_sample_at_once_to_the_same_bit(
     np.testing.assert_array_equal(at_once, per_chain)
     plain, _ = problem.run(values, true_states)
     assert np.max(np.abs(at_once - plain)) > 1e-4  # the sensor does act
+
+
+def test_a_column_that_moves_only_the_sensor_is_read_from_the_motion_to_the_bit(
+        thrown_off, chaotic_case, monkeypatch):
+    """The Jacobian's column of a sensor's own parameter re-reads the current motion instead
+    of running the model again: the same numbers as the run, and one run fewer."""
+    problem, true_states, _states, _noise = thrown_off
+    model = ForcedModel(chaotic_case[1], ("sensor_nonlinearity",))
+    free = [*problem.free, shooting.FreeParameter("k3", -0.3, 1e-3, False, -10.0, 10.0)]
+    sensed = model.problem(problem.segments, free, {}, threads=2)
+    u = np.zeros(len(sensed.free))
+    values = sensed.values_of(u)
+    motion = sensed._integrate(values, true_states, True)
+    theta, ends = sensed.read(values, *motion)
+    r = sensed.residuals(theta, ends, true_states)
+    hs = np.array([1e-6, 1e-6])
+    runs = []
+    integrate = sensed._integrate
+    monkeypatch.setattr(sensed, "_integrate", lambda *a: runs.append(1) or integrate(*a))
+    reread = sensed._jacobian(u, true_states, r, theta, ends, hs, motion)
+    with_motion = len(runs)
+    rerun = sensed._jacobian(u, true_states, r, theta, ends, hs)
+    assert len(runs) - with_motion == with_motion + 1  # k3's column ran only without it
+    np.testing.assert_array_equal(reread.toarray(), rerun.toarray())
+    assert np.any(reread.toarray()[:, len(free) - 1] != 0.0)  # the column is k3's own
+
+
+def test_states_fitted_alone_combine_trial_readings_to_the_bit(thrown_off, chaotic_case):
+    """Fitting each segment's state alone takes an improved segment's reading from its trial
+    run when no sensor memory links segments: the same states as running all again."""
+    problem, _true_states, states, _noise = thrown_off
+    model = ForcedModel(chaotic_case[1], ("sensor_offset",))
+    sensed = model.problem(problem.segments, problem.free, {"offset_rad": 0.0}, threads=2)
+    combined = sensed.fit_states(states, iterations=3)
+    sensed.measure_has_memory = True  # per chain: the same readings, run again each time
+    rerun = sensed.fit_states(states, iterations=3)
+    np.testing.assert_array_equal(combined, rerun)
+    assert np.max(np.abs(combined - states)) > 0.0  # the fit moved the states

@@ -174,3 +174,29 @@ def test_measurement_causes_act_on_the_signal_only():
 def test_nondimensional_validation():
     with pytest.raises(ParameterError, match="eta"):
         Nondimensional(eta=0.0, beta=0.1, mu=1.0, gamma=10.0)
+
+
+def test_sensor_causes_compose_along_the_chain_whatever_their_order():
+    """A lag, a linearity error and a zero read the angle in the sensor chain's order, so a
+    model that added the zero first reads theta + k3 theta^3 + offset, not (theta + c)^3."""
+    from analysis.model_values import measured_angle
+
+    t = np.arange(2000) / 1000.0
+    theta = 0.3 * np.sin(2 * np.pi * 2.0 * t)
+    values = {"k3": 0.7, "offset_rad": 0.02, "tau_s": 0.004}
+    expected = theta + 0.7 * theta**3 + 0.02
+    for causes in (("sensor_offset", "sensor_nonlinearity"),
+                   ("sensor_nonlinearity", "sensor_offset")):
+        np.testing.assert_allclose(measured_angle(causes, values, t, theta), expected,
+                                   rtol=0, atol=1e-15)
+    lagged = measured_angle(("sensor_lag",), values, t, theta, 0.3 * 2 * np.pi * 2.0)
+    for causes in (("sensor_offset", "sensor_lag", "sensor_nonlinearity"),
+                   ("sensor_nonlinearity", "sensor_offset", "sensor_lag")):
+        np.testing.assert_allclose(measured_angle(causes, values, t, theta,
+                                                  0.3 * 2 * np.pi * 2.0),
+                                   lagged + 0.7 * lagged**3 + 0.02, rtol=0, atol=1e-15)
+    # a model's own extensions, added zero first, read the same way
+    model = Model().with_extension("sensor_offset", offset_rad=0.02).with_extension(
+        "sensor_nonlinearity", k3=0.7)
+    np.testing.assert_allclose(apply_measurement(model, t, theta), expected, rtol=0,
+                               atol=1e-15)
