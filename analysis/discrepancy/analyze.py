@@ -14,8 +14,9 @@ from __future__ import annotations
 import math
 import os
 import time
-from collections.abc import Callable, Mapping
-from concurrent.futures import ProcessPoolExecutor
+from collections.abc import Callable, Iterator, Mapping
+from concurrent.futures import Executor, ProcessPoolExecutor
+from contextlib import nullcontext
 from dataclasses import replace
 from typing import Any
 
@@ -241,6 +242,14 @@ def _assess_job(args: tuple) -> CandidateOutcome:
     return assess_candidate(*args)
 
 
+def _assessed(jobs: list[tuple], pool: Executor | None) -> Iterator[CandidateOutcome]:
+    """Each job's outcome, in order: in ``pool``'s processes when there is a pool and more
+    than one job."""
+    if pool is not None and len(jobs) > 1:
+        return pool.map(_assess_job, jobs)
+    return map(_assess_job, jobs)
+
+
 def analyze_record(
     record: Record, *, workers: int | None = None, progress: Progress | None = None,
     causes: list[str] | None = None, priors: Mapping[str, float] | None = None,
@@ -303,36 +312,32 @@ def analyze_decay(
         (n, data, n_train, baseline_train, baseline, baseline_heldout, scale, hints, start)
         for n in names
     ]
-    outcomes: list[CandidateOutcome] = []
-    if workers > 1 and len(jobs) > 1:
-        with ProcessPoolExecutor(max_workers=workers) as pool:
-            for outcome in pool.map(_assess_job, jobs):
-                say(f"  {outcome.cause}: {outcome.verdict.why}")
-                outcomes.append(outcome)
-    else:
-        for job in jobs:
-            outcome = _assess_job(job)
+    # one pool of processes for the candidates and the forward selection's steps (none
+    # with one worker): its processes start once per record
+    with ProcessPoolExecutor(max_workers=workers) if workers > 1 else nullcontext() as pool:
+        outcomes: list[CandidateOutcome] = []
+        for outcome in _assessed(jobs, pool):
             say(f"  {outcome.cause}: {outcome.verdict.why}")
             outcomes.append(outcome)
-    rivals = [o.rival for o in outcomes if o.rival is not None]
-    if rivals:
-        better = min(rivals, key=lambda r: r.rms)
-        say(f"a candidate's solution led the baseline to a better fit (training rms "
-            f"{better.rms:.3g} rad against {baseline_train.rms:.3g}): judging again")
-        notes.append("the baseline was refitted from a candidate's solution (better basin)")
-        baseline_train = better
-        baseline = fit(data, NONE, baseline_train.values, neutral)
-        baseline_prediction, base_sim = predict(data, NONE, baseline_train.values)
-        baseline_heldout = heldout_rms(baseline_prediction, data.y, data.valid, n_train)
-        outcomes = [rejudge(o, baseline, baseline_heldout, data) for o in outcomes]
-        _, full_sim = predict(data, NONE, baseline.values)
-        localization = localize(data, baseline, *motion_of(data, full_sim))
-    verdict = choose([o.verdict for o in outcomes])
-    chosen = verdict.cause if verdict is not None else NONE
-    final, steps = None, []
-    if verdict is not None:
-        first = next(o for o in outcomes if o.cause == chosen)
-        final, steps = _add_causes(first, outcomes, data, n_train, scale, hints, workers, say)
+        rivals = [o.rival for o in outcomes if o.rival is not None]
+        if rivals:
+            better = min(rivals, key=lambda r: r.rms)
+            say(f"a candidate's solution led the baseline to a better fit (training rms "
+                f"{better.rms:.3g} rad against {baseline_train.rms:.3g}): judging again")
+            notes.append("the baseline was refitted from a candidate's solution (better basin)")
+            baseline_train = better
+            baseline = fit(data, NONE, baseline_train.values, neutral)
+            baseline_prediction, base_sim = predict(data, NONE, baseline_train.values)
+            baseline_heldout = heldout_rms(baseline_prediction, data.y, data.valid, n_train)
+            outcomes = [rejudge(o, baseline, baseline_heldout, data) for o in outcomes]
+            _, full_sim = predict(data, NONE, baseline.values)
+            localization = localize(data, baseline, *motion_of(data, full_sim))
+        verdict = choose([o.verdict for o in outcomes])
+        chosen = verdict.cause if verdict is not None else NONE
+        final, steps = None, []
+        if verdict is not None:
+            first = next(o for o in outcomes if o.cause == chosen)
+            final, steps = _add_causes(first, outcomes, data, n_train, scale, hints, pool, say)
     timings["candidates"] = time.perf_counter() - clock - timings["baseline"]
     analysis = Analysis(
         record=record, data=data, n_train=n_train, baseline_train=baseline_train,
@@ -352,7 +357,7 @@ def analyze_decay(
 
 def _add_causes(
     first: CandidateOutcome, outcomes: list[CandidateOutcome], data: FitData, n_train: int,
-    scale: RecordScale, hints: dict[str, float], workers: int, say: Progress,
+    scale: RecordScale, hints: dict[str, float], pool: Executor | None, say: Progress,
 ) -> tuple[CandidateOutcome | None, list[tuple[str, Verdict]]]:
     """Forward selection from the chosen cause: each step fits every other candidate added to
     the current model (from its solution) and keeps the best that both judges accept
@@ -367,11 +372,7 @@ def _add_causes(
                 for n in names if n not in inside]
         if not jobs:
             break
-        if workers > 1 and len(jobs) > 1:
-            with ProcessPoolExecutor(max_workers=workers) as pool:
-                tried = list(pool.map(_assess_job, jobs))
-        else:
-            tried = [_assess_job(job) for job in jobs]
+        tried = list(_assessed(jobs, pool))
         verdict = choose([o.verdict for o in tried])
         if verdict is None:
             say(f"beside {' and '.join(inside)}: no further cause earns its place")
