@@ -257,6 +257,16 @@ class _DaskClient:
                     dashboard_address=":0", silence_logs=logging.ERROR,
                 )
                 self.client = Client(self.cluster)
+                # a busy machine may still be registering the processes: count (and check)
+                # them all, not the ones that happened to be up
+                try:
+                    self.client.wait_for_workers(self.workers, timeout=WORKERS_TIMEOUT_S)
+                except TimeoutError:
+                    raise SchedulerError(
+                        f"{len(self.client.nthreads())} of the {self.workers} local worker "
+                        f"processes started within {WORKERS_TIMEOUT_S:g} s; ask for fewer "
+                        "with --workers, or free the machine"
+                    ) from None
             else:
                 self.client = _connect(self.address)
             _check_workers(self.client, local)
