@@ -11,13 +11,48 @@ import numpy as np
 from analysis.discrepancy.forced_models import Layouts, ModelFits, as_fit_result
 from analysis.discrepancy.invariants import Invariants, invariant_distance, invariants
 from analysis.discrepancy.selection import Verdict, information_criterion_delta
-from analysis.extensions import NONE, causes_in, implausibility
+from analysis.extensions import NONE, cause, causes_in, implausibility
 from analysis.identify.forced import ForcedData
+from analysis.identify.intervals import Z95
 from analysis.identify.shooting import Segments, ShootingFit
 from analysis.model_values import measured_angle, packed_from_values
 from analysis.simulate import SimulationSettings, simulate_packed
 
 MODEL_INVARIANT_SPAN = 4  # a model's invariants come from a run this many records long
+# A drive cause's size fitted from the angle contradicts the table channel's measurement of
+# it when the two differ by TABLE_Z standard errors of their difference and by
+# TABLE_TOLERANCE of the larger (a model's compromise may move a size a little, not more).
+TABLE_Z = 4.0
+TABLE_TOLERANCE = 0.25
+
+
+def disqualification(data: ForcedData, model: str, fit: ShootingFit) -> str | None:
+    """Why a fitted model explains nothing, whatever it gains, or None: values no real rig
+    can have (:func:`analysis.extensions.implausibility`), or a drive the table channel
+    measured otherwise."""
+    return implausibility(model, fit.values) or table_contradiction(data, model, fit)
+
+
+def table_contradiction(data: ForcedData, model: str, fit: ShootingFit) -> str | None:
+    """Why the drive causes' sizes fitted from the angle contradict what the table channel
+    measured of them (the laser watches the table itself), or None.  A table amplitude or
+    harmonic that only the angle's fit wants is another effect's stand-in: a second
+    harmonic of 4e-4 was fitted beside a sensor lag where the laser measured 2e-6 +- 6e-6."""
+    measured = data.drive.measured_sizes()
+    reasons = []
+    for name in causes_in(model):
+        for spec in cause(name).parameters:
+            laser, fitted = measured.get(spec.name), fit.estimates.get(spec.name)
+            if laser is None or fitted is None:
+                continue
+            gap = abs(fitted.value - laser.value)
+            sigma = math.hypot(*(e.half_width / Z95 if math.isfinite(e.half_width) else 0.0
+                                 for e in (fitted, laser)))
+            if gap > TABLE_Z * sigma and \
+                    gap > TABLE_TOLERANCE * max(abs(fitted.value), abs(laser.value)):
+                reasons.append(f"{spec.name} = {fitted.value:.3g} where the table channel "
+                               f"measured {laser.value:.3g} +- {laser.half_width:.2g}")
+    return "; ".join(reasons) or None
 
 
 def model_invariants_distance(
@@ -88,5 +123,5 @@ def verdict_of(
         if base.train is not None else 0,
         forecast_z=forecast_z(base.train, candidate.train, lay.train) if judged else None,
         not_judged=not_judged,
-        implausible=implausibility(candidate.cause, candidate.full.values),
+        implausible=disqualification(data, candidate.cause, candidate.full),
     )

@@ -117,6 +117,23 @@ def cause_hints(ident: ForcedIdentification) -> dict[str, float]:
     return hints
 
 
+def level_hints(name: str, hints: Mapping[str, float]) -> dict[str, float]:
+    """The hints for model ``name``: where it holds only one of the barrier and the sensor
+    zero, that one takes the whole measured stop level (the identified barrier plus zero),
+    since a swing's stops are what the record fixes most sharply; the identification's
+    split between the two can be far off when a cause it lacks bends it (a barrier 0.158
+    and a zero -0.175 rad for a true barrier -0.025 and zero 0 under a sensor cubic)."""
+    out = dict(hints)
+    present = set(causes_in(name))
+    if "theta_b_rad" in hints and "offset_rad" in hints:
+        level = hints["theta_b_rad"] + hints["offset_rad"]
+        if "barrier_offset" in present and "sensor_offset" not in present:
+            out["theta_b_rad"] = level
+        elif "sensor_offset" in present and "barrier_offset" not in present:
+            out["offset_rad"] = level
+    return out
+
+
 def baseline_names(data: ForcedData, name: str) -> list[str]:
     """The baseline parameters a fit of model ``name`` adjusts (a cause may take over one's
     role)."""
@@ -182,7 +199,8 @@ def screen_cause(
     model = ForcedModel(data, causes_in(cause_name))
     timing = ("drive_phase_rad", "drive_frequency_hz") if not data.drive.timing_known else ()
     start = {k: v for k, v in ident.start.items() if k in BASELINE_PLANS or k in timing}
-    free = candidate_parameters(data, cause_name, start, record_scale(data, start), hints)
+    free = candidate_parameters(data, cause_name, start, record_scale(data, start),
+                                level_hints(cause_name, hints))
     fit, _ = fit_model(model, ident.short, free, {},
                        smoothed_states(data, ident.short.start, 0.0), threads=threads,
                        max_iterations=SCREEN_ITERATIONS)

@@ -121,6 +121,16 @@ class MeasuredDrive:
         than a quiet sensor's noise, so the fits refine both from the angle itself."""
         return self.table is not None
 
+    def measured_sizes(self) -> dict[str, Estimate]:
+        """What the table channel measured of the drive causes' sizes: the amplitude's
+        error against the stated one (``eps``) and the second harmonic (``h2``), with 95 %
+        intervals; empty without a table channel."""
+        if self.table is None:
+            return {}
+        a, stated = self.table.amplitude_m, self.stated_amplitude_m
+        ci = None if a.ci95 is None else (a.ci95[0] / stated - 1.0, a.ci95[1] / stated - 1.0)
+        return {"eps": Estimate(a.value / stated - 1.0, ci), "h2": self.table.h2}
+
     def model_drive(self, frequency_hz: float | None = None) -> Drive:
         """The baseline model's drive: the stated amplitude, a pure sine, at the measured
         frequency (or the one given; its phase goes into the packed vector as PHASE0)."""

@@ -5,14 +5,20 @@ from __future__ import annotations
 
 import math
 from dataclasses import replace
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
+from analysis.discrepancy.forced_judges import table_contradiction
 from analysis.discrepancy.selection import Verdict, choose
 from analysis.extensions import CAUSES, cause
+from analysis.identify.forced import forced_data
+from analysis.identify.result import Estimate
+from analysis.record_loaders import load_record
 from tests.discrepancy.hidden_cause import SHOWS_IN, draw_case
 from tests.reference.cause_sizes import ResponseScale, draw_cause_values
+from tests.reference.forced_records import draw_forced_case, write_forced_case
 
 
 def test_every_plausible_range_lies_inside_the_fits_bounds_around_the_neutral_value():
@@ -74,3 +80,29 @@ def test_the_sizes_the_reference_draws_are_plausible(seed):
         for name in (n for n in names if n != "none"):
             case = draw_case(seed, experiment, name)
             assert cause(name).implausibility(case.values) is None, (experiment, name, case)
+
+
+def test_a_drive_size_the_table_channel_measured_otherwise_is_no_explanation(tmp_path):
+    case = draw_forced_case(7333, "excitation_distortion", frequency_hz=10.0, laser=True,
+                            duration_s=10.0)
+    data = forced_data(load_record(write_forced_case(case, tmp_path)))
+    measured = data.drive.measured_sizes()
+    h2 = case.causes["excitation_distortion"]["h2"]
+    assert measured["h2"].value == pytest.approx(h2, rel=0.01)
+    assert measured["eps"].value == pytest.approx(0.0, abs=0.01)  # the stated amplitude
+
+    def fit(**sizes: tuple[float, float]) -> SimpleNamespace:  # value, 95 % half-width
+        return SimpleNamespace(estimates={k: Estimate(v, (v - w, v + w))
+                                          for k, (v, w) in sizes.items()})
+
+    model = "excitation_distortion"
+    assert table_contradiction(data, model, fit(h2=(1.05 * h2, 1e-4))) is None
+    assert table_contradiction(data, model, fit(h2=(0.0, 1.0))) is None  # not known
+    why = table_contradiction(data, model, fit(h2=(0.5 * h2, 1e-4)))
+    assert "h2 = " in why and "table channel measured" in why
+    assert "eps = 0.1" in table_contradiction(data, "excitation_amplitude",
+                                              fit(eps=(0.1, 0.01)))
+    # causes the table does not measure, and a record without a table channel: no verdict
+    assert table_contradiction(data, "sensor_offset", fit(offset_rad=(0.1, 0.01))) is None
+    no_laser = replace(data, drive=replace(data.drive, table=None))
+    assert table_contradiction(no_laser, model, fit(h2=(0.5 * h2, 1e-4))) is None
