@@ -274,7 +274,10 @@ def test_a_full_disk_stops_acquisition_with_a_clear_error_and_keeps_what_was_flu
     assert recorder.error is engine.error
     with open_recording(path) as rec:
         data = rec.channel("angle")
-        assert len(data) > 100_000
+        # the stop leaves room for twice what is pending, which grows when a busy machine
+        # delays the flushes: how much fits before it varies with the load (86 000 and
+        # over 100 000 samples seen); a quarter second of the 200 kHz stream always does
+        assert len(data) > 50_000
         np.testing.assert_array_equal(data.indices, np.arange(len(data)))
         status = rec.status()
         assert status.closed and "disk almost full" in status.stop_reason
