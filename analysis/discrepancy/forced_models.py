@@ -29,7 +29,7 @@ from analysis.identify.forced import (
     smoothed_states,
 )
 from analysis.identify.shooting import FreeParameter, Segments, ShootingFit
-from analysis.model_values import measured_angle
+from analysis.model_values import has_measurement, measured_angle, measurement_has_memory
 
 SCREEN_ITERATIONS = 20  # every candidate, over short segments, from the cold start
 # Over the record every model starts from its screening solution: a right one converges in
@@ -166,20 +166,30 @@ def candidate_parameters(
 
 
 def true_angle_states(
-    states: np.ndarray, name: str, values: Mapping[str, float]
+    states: np.ndarray, name: str, values: Mapping[str, float], dt_s: float
 ) -> np.ndarray:
     """Segment states of model ``name``, whose sensor reads through its causes, from states
     whose first column is the measured angle: the measured angle is kept (a few fixed-point
-    steps through the measurement), the rate is not changed."""
+    steps through the measurement), the rate is not changed.  A sensor with memory (a lag)
+    reads a segment's first sample as the model does, settled on the ramp of the state's
+    rate over a sample period ``dt_s``; read as one series, it would carry every segment's
+    state into the next."""
     out = states.copy()
     causes = causes_in(name)
-    if not any(cause(c).measurement is not None for c in causes):
+    if not has_measurement(causes):
         return out
-    measured = states[:, 0]
+    measured, rate = states[:, 0], states[:, 1]
+
+    def first_sample(theta: np.ndarray) -> np.ndarray:
+        if not measurement_has_memory(causes):
+            return measured_angle(causes, values, np.zeros(theta.size), theta)
+        t = np.array([0.0, dt_s])
+        return np.array([measured_angle(causes, values, t, np.array([x, x + v * dt_s]), v)[0]
+                         for x, v in zip(theta, rate, strict=True)])
+
     theta = measured.copy()
     for _ in range(4):
-        seen = measured_angle(causes, values, np.zeros(theta.size), theta)
-        theta = theta - (seen - measured)
+        theta = theta - (first_sample(theta) - measured)
     out[:, 0] = theta
     return out
 
@@ -223,7 +233,7 @@ def fit_cause(
     if seed is not None:
         measured = seed.prediction[lay.full.start]
         states = true_angle_states(np.column_stack([measured, seed.states[:, 1]]), cause_name,
-                                   screened.values)
+                                   screened.values, data.dt)
         start_from = (replace(seed, states=states), lay.full)
     full, _ = fit_over_record(model, free, {}, threads=threads, start_from=start_from,
                               max_iterations=REFINE_ITERATIONS)
@@ -254,7 +264,7 @@ def extend(data: ForcedData, parent: str, parent_fit: ShootingFit, cause_name: s
             for p in candidate_parameters(data, name, start, scale, neutral)]
     states = true_angle_states(
         np.column_stack([parent_fit.prediction[segments.start], parent_fit.states[:, 1]]),
-        name, start)
+        name, start, data.dt)
     out, _ = fit_model(model, segments, free, {}, states, warm_states=False, threads=threads,
                        max_iterations=max_iterations)
     return out

@@ -9,11 +9,13 @@ import numpy as np
 import pytest
 
 from analysis.discrepancy.candidates import candidates_for, excluded_for
+from analysis.discrepancy.forced_models import true_angle_states
 from analysis.discrepancy.restitution import restitution_samples
 from analysis.discrepancy.selection import Verdict, choose
 from analysis.experiments import KINDS
 from analysis.extensions import CAUSES
 from analysis.identify.intervals import correlation_time
+from analysis.model_values import measured_angle
 
 
 def test_every_cause_is_a_candidate_or_excluded_with_a_reason_in_every_kind():
@@ -168,3 +170,26 @@ def test_a_long_decay_is_thinned_and_the_note_says_how_in_plain_words(tmp_path):
     stride = math.ceil(t.size / MAX_FIT_SAMPLES)
     assert stride == 3 and data.t.size == math.ceil(t.size / stride)
     assert f"fitted on one sample in {stride} ({t.size} -> {data.t.size})" in notes
+
+
+def test_segment_states_read_back_through_a_lagging_sensor_are_the_true_angle():
+    # a swing read through a 6 ms first-order lag as one series (a record); the states at
+    # a few samples, given as (measured angle, true rate), must come back as the true angle
+    dt, tau, omega, amplitude = 1e-3, 6e-3, 12.0, 0.5
+    t = np.arange(0.0, 2.0, dt)
+    theta = amplitude * np.sin(omega * t)
+    rate = amplitude * omega * np.cos(omega * t)
+    measured = measured_angle(["sensor_lag"], {"tau_s": tau}, t, theta, float(rate[0]))
+    at = np.arange(200, t.size, 150)
+    states = np.column_stack([measured[at], rate[at]])
+    back = true_angle_states(states, "sensor_lag", {"tau_s": tau}, dt)
+    lag_effect = np.abs(measured[at] - theta[at])
+    assert np.max(lag_effect) > 0.03  # the lag shows: tens of mrad at the fastest
+    assert np.all(np.abs(back[:, 0] - theta[at]) <= 0.15 * np.max(lag_effect))
+    assert np.array_equal(back[:, 1], rate[at])
+    # a sensor without memory is inverted sample by sample (four fixed-point steps)
+    cubic = {"k3": 0.3}
+    seen = measured_angle(["sensor_nonlinearity"], cubic, t[at], theta[at])
+    back = true_angle_states(np.column_stack([seen, rate[at]]), "sensor_nonlinearity", cubic,
+                             dt)
+    assert np.all(np.abs(back[:, 0] - theta[at]) <= 0.01 * np.max(np.abs(seen - theta[at])))
