@@ -109,8 +109,7 @@ def cause_hints(ident: ForcedIdentification) -> dict[str, float]:
         if delay > 0:
             hints["tau_s"] = delay
     if drive.table is not None:
-        hints["eps"] = drive.table.amplitude_m.value / drive.stated_amplitude_m - 1.0
-        hints["h2"] = drive.table.h2.value
+        hints |= {name: size.value for name, size in drive.measured_sizes().items()}
         hints["phi2_rad"] = drive.table.phi2_rad.value
     elif "eps" in values:
         hints["eps"] = values["eps"]
