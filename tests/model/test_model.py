@@ -6,7 +6,7 @@ import math
 import numpy as np
 import pytest
 
-from analysis.extensions import CAUSES, apply_measurement
+from analysis.extensions import CAUSES, apply_measurement, cause
 from analysis.model import (
     PAPER_CASES,
     Drive,
@@ -167,6 +167,19 @@ def test_measurement_causes_act_on_the_signal_only():
     w = 2 * np.pi * 2
     steady = lagged[t > 1.0]
     assert steady.max() == pytest.approx(0.1 / math.sqrt(1 + (w * tau) ** 2), rel=2e-3)
+    # and its phase: the continuous filter's steady state to the sampling's second order
+    # (a filter holding each sample trails by tau - dt/2: 0.6 mrad off here)
+    exact = 0.1 / math.hypot(1.0, w * tau) * np.sin(w * t - math.atan(w * tau))
+    np.testing.assert_allclose(steady, exact[t > 1.0], rtol=0, atol=1e-5)
+    # a ramp, started settled, trails by tau from its first sample, and a stream cut in
+    # blocks reads the same as in one piece
+    lag = cause("sensor_lag").measurement
+    ramp = lag(t, 0.3 * t, {"tau_s": 0.004}, 0.3)
+    np.testing.assert_allclose(ramp, 0.3 * (t - 0.004), rtol=0, atol=1e-12)
+    carry: dict[str, float] = {}
+    blocks = [lag(t[a:a + 700], theta[a:a + 700], {"tau_s": tau}, None, carry)
+              for a in range(0, t.size, 700)]
+    np.testing.assert_allclose(np.concatenate(blocks), lagged, rtol=0, atol=1e-12)
     np.testing.assert_array_equal(Model().pack(), Model().with_extension(
         "sensor_offset", offset_rad=0.02).pack())
 
