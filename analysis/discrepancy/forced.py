@@ -32,6 +32,7 @@ from analysis.discrepancy.candidates import candidates_for, excluded_for
 from analysis.discrepancy.forced_judges import (
     disqualification,
     model_invariants_distance,
+    table_contradiction,
     verdict_of,
 )
 from analysis.discrepancy.forced_models import (
@@ -229,6 +230,9 @@ def _fit_over_record(
     fits: dict[str, ShootingFit] = {}
     complete = None  # the first refined cause that gains, is plausible and leaves white noise
     for name in [n for n in ranked if bic[n] > 0.0][:REFINED]:
+        if contradiction := table_contradiction(data, name, screened[name]):
+            say(f"  {name} not fitted over the record: its screening gives {contradiction}")
+            continue
         if complete is not None and screened_gain[name] < RIVAL_SCREENED * screened_gain[complete]:
             say(f"  {name} not fitted over the record: {complete} leaves white noise and "
                 f"{name} screened {screened_gain[complete] / screened_gain[name]:.3g} x lower")
@@ -366,6 +370,11 @@ def _forward_selection(
             f"{n} {g:.3g}" for n, (g, _) in sorted(gains.items(), key=lambda kv: -kv[1][0])))
         pool = sorted((n for n in gains if gains[n][0] > BIC_MARGIN),
                       key=lambda n: -gains[n][0])[:ADDED]
+        refused = {n: why for n in pool if (why := table_contradiction(
+            data, model_name([*present, n]), gains[n][1]))}
+        for name, why in refused.items():
+            say(f"  {name} not fitted over the record: its screening gives {why}")
+        pool = [n for n in pool if n not in refused]
         if not pool:
             break
         parent = refit(data, current.cause, current.full, lay, threads)

@@ -36,6 +36,7 @@ from typing import NamedTuple
 import numpy as np
 import scipy.sparse as sparse
 from scipy.sparse.linalg import splu
+from threadpoolctl import threadpool_limits
 
 from analysis.identify.intervals import Z95, correlation_time
 from analysis.identify.preprocess import sample_detail
@@ -797,6 +798,11 @@ def _pool(threads: int, role: str) -> ThreadPoolExecutor:
     """A thread pool kept for the process: a fit asks for hundreds of Jacobians, and starting
     threads for each costs more than the columns they share out.  Each role has its own, so
     that work one pool's thread hands out never waits behind that very thread."""
+    if not _POOLS:
+        # these pools share the cores out; BLAS threads of their own would spin beside them
+        # (a quarter of a screening fit's time on 2 cores), and with 2 of them a fitted
+        # value differed from 1's in the eighth digit: a machine's core count would show
+        threadpool_limits(1, user_api="blas")
     if (threads, role) not in _POOLS:
         _POOLS[threads, role] = ThreadPoolExecutor(max_workers=threads,
                                                    thread_name_prefix=role)
