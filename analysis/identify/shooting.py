@@ -227,6 +227,104 @@ class _Solution(NamedTuple):
     iterations: int
 
 
+class _Jacobian(NamedTuple):
+    """The shooting Jacobian by its structure: dense shared columns, and each segment's two
+    state columns seen by its own data rows and by the continuity rows of the links into
+    and out of it.  Its normal equations are summed from that structure: a general sparse
+    product spent more time than the runs of the columns on 2 cores."""
+
+    shared: np.ndarray  # (rows, g)
+    data_state: np.ndarray  # (2, data rows): d row / d own segment's state k
+    segment_of_row: np.ndarray  # (data rows,)
+    links: np.ndarray  # segments whose end links to the next one's start
+    link_state: np.ndarray  # (links, 2, 2): d jump c / d linked segment's state k
+    link_next: np.ndarray  # (2,): d jump c / d next segment's state c
+    n_seg: int
+
+    def normal_matrix(self, row_scale: np.ndarray | None = None) -> sparse.csc_matrix:
+        """J^T J (of diag(row_scale) J when given), sparse: shared block, border and
+        block-tridiagonal states."""
+        g, n, rows = self.shared.shape[1], self.n_seg, self.data_state.shape[1]
+        p, d, e = self.shared, self.data_state, self.link_state
+        nxt = np.broadcast_to(self.link_next, (self.links.size, 2))
+        if row_scale is not None:
+            p = p * row_scale[:, None]
+            d = d * row_scale[:rows]
+            link_scale = row_scale[rows:].reshape(-1, 2)
+            e = e * link_scale[:, :, None]
+            nxt = nxt * link_scale
+        seg, a, b = self.segment_of_row, self.links, self.links + 1
+        border = np.zeros((g, n, 2))  # shared x state
+        for k in range(2):
+            for i in range(g):
+                border[i, :, k] = np.bincount(seg, p[:rows, i] * d[k], minlength=n)
+        p_links = p[rows:].reshape(self.links.size, 2, g)  # (links, c, g)
+        border[:, a, :] += np.einsum("jcg,jck->gjk", p_links, e)
+        border[:, b, :] += np.einsum("jcg,jc->gjc", p_links, nxt)
+        diagonal = np.zeros((n, 2, 2))
+        for k, m in ((0, 0), (0, 1), (1, 1)):
+            diagonal[:, k, m] = np.bincount(seg, d[k] * d[m], minlength=n)
+        diagonal[:, 1, 0] = diagonal[:, 0, 1]
+        diagonal[a] += np.einsum("jck,jcm->jkm", e, e)
+        diagonal[b, 0, 0] += nxt[:, 0] ** 2
+        diagonal[b, 1, 1] += nxt[:, 1] ** 2
+        coupling = e * nxt[:, :, None]  # (links, c, k): state k of a with state c of b
+        state = g + 2 * np.arange(n)
+        rows_, cols_, vals_ = [], [], []
+
+        def put(r_: np.ndarray, c_: np.ndarray, v_: np.ndarray, mirror: bool) -> None:
+            rows_.append(r_.ravel())
+            cols_.append(c_.ravel())
+            vals_.append(v_.ravel())
+            if mirror:
+                rows_.append(c_.ravel())
+                cols_.append(r_.ravel())
+                vals_.append(v_.ravel())
+
+        gi = np.arange(g)
+        put(np.repeat(gi, g), np.tile(gi, g), p.T @ p, False)
+        kk = np.arange(2)
+        put(np.broadcast_to(gi[:, None, None], border.shape),
+            np.broadcast_to(state[None, :, None] + kk, border.shape), border, True)
+        put(np.broadcast_to((state[:, None] + kk)[:, :, None], diagonal.shape),
+            np.broadcast_to((state[:, None] + kk)[:, None, :], diagonal.shape), diagonal, False)
+        put(np.broadcast_to((state[a][:, None] + kk)[:, None, :], coupling.shape),
+            np.broadcast_to((state[b][:, None] + kk)[:, :, None], coupling.shape), coupling,
+            True)
+        size = g + 2 * n
+        return sparse.csc_matrix((np.concatenate(vals_), (np.concatenate(rows_),
+                                  np.concatenate(cols_))), shape=(size, size))
+
+    def toarray(self) -> np.ndarray:
+        """J itself, dense (to look at it: the fit uses only its normal equations)."""
+        g, rows = self.shared.shape[1], self.data_state.shape[1]
+        out = np.zeros((self.shared.shape[0], g + 2 * self.n_seg))
+        out[:, :g] = self.shared
+        for k in range(2):
+            out[np.arange(rows), g + 2 * self.segment_of_row + k] = self.data_state[k]
+            for c in range(2):
+                link_rows = rows + 2 * np.arange(self.links.size) + c
+                out[link_rows, g + 2 * self.links + k] = self.link_state[:, c, k]
+        for c in range(2):
+            link_rows = rows + 2 * np.arange(self.links.size) + c
+            out[link_rows, g + 2 * (self.links + 1) + c] = self.link_next[c]
+        return out
+
+    def gradient(self, r: np.ndarray) -> np.ndarray:
+        """J^T r."""
+        g, n, rows = self.shared.shape[1], self.n_seg, self.data_state.shape[1]
+        out = np.zeros(g + 2 * self.n_seg)
+        out[:g] = self.shared.T @ r
+        states = out[g:].reshape(n, 2)
+        for k in range(2):
+            states[:, k] = np.bincount(self.segment_of_row, self.data_state[k] * r[:rows],
+                                       minlength=n)
+        r_links = r[rows:].reshape(-1, 2)
+        states[self.links] += np.einsum("jck,jc->jk", self.link_state, r_links)
+        states[self.links + 1] += self.link_next * r_links
+        return out
+
+
 class ShootingProblem:
     """The record, its segments and the model (as functions of the shared values)."""
 
@@ -512,8 +610,8 @@ class ShootingProblem:
             for _ in range(budget):
                 iterations += 1
                 jac = self._jacobian(u, s, r, theta, ends, hs, motion)
-                a = (jac.T @ jac).tocsc()
-                grad = jac.T @ r
+                a = jac.normal_matrix()
+                grad = jac.gradient(r)
                 diag = a.diagonal()
                 diag = np.maximum(diag, 1e-12 * max(1.0, float(np.max(diag))))
                 improved = False
@@ -634,9 +732,9 @@ class ShootingProblem:
         return (np.array([_to_u(p, p.lower) for p in self.free]),
                 np.array([_to_u(p, p.upper) for p in self.free]))
 
-    def _jacobian(self, u, s, r, theta, ends, hs, motion=None) -> sparse.csr_matrix:
-        """Forward-difference Jacobian in step units (sparse: a data row sees the shared
-        parameters and its own segment's state).  The shared columns difference
+    def _jacobian(self, u, s, r, theta, ends, hs, motion=None) -> _Jacobian:
+        """Forward-difference Jacobian in step units (a data row sees the shared parameters
+        and its own segment's state: :class:`_Jacobian`).  The shared columns difference
         ``residuals`` itself; a data row's state columns come from the change of the model
         alone, times the robust loss's slope there when the problem is robust.
 
@@ -672,41 +770,25 @@ class ShootingProblem:
         pool = _pool(self.threads, "shooting-jacobian")
         shared = list(pool.map(shared_column, range(g)))
         perturbed = list(pool.map(state_run, range(2)))
-        blocks = [sparse.csr_matrix(np.column_stack(shared)) if g else
-                  sparse.csr_matrix((r.size, 0))]
         # data rows: d(residual)/d(own state), one column pair per segment
-        seg_rows = self.segment_of[self.fitted]
         slope = robust_slope(self._data_residuals(theta)) if self.robust else None
-        data_cols = []
+        data_state = np.empty((2, rows_data))
         for k in range(2):
             th, _ = perturbed[k]
             d = (th[self.fitted] - theta[self.fitted]) / self.sigma
             d = np.where(np.isfinite(d), d, 0.0)
-            data_cols.append(d if slope is None else d * slope)  # the chain rule
-        row_idx = np.concatenate([np.arange(rows_data), np.arange(rows_data)])
-        col_idx = np.concatenate([2 * seg_rows, 2 * seg_rows + 1])
-        vals = np.concatenate(data_cols)
+            data_state[k] = d if slope is None else d * slope  # the chain rule
         # link rows: (end_k - start_k+1) / scale; d/d s_k from the perturbed ends, d/d s_k+1 = -I
         scale = np.array([self.sigma, self.sigma * self.rate_scale])
-        link_rows, link_cols, link_vals = [], [], []
+        link_state = np.empty((n_links, 2, 2))
         for k in range(2):  # which state component was perturbed
             _, en = perturbed[k]
             d_end = (en[self.links] - ends[self.links]) / scale  # (links, 2)
-            d_end = np.where(np.isfinite(d_end), d_end, 0.0)
-            for c in range(2):  # which end component
-                link_rows.append(rows_data + 2 * np.arange(n_links) + c)
-                link_cols.append(2 * self.links + k)
-                link_vals.append(d_end[:, c])
-        for c in range(2):
-            link_rows.append(rows_data + 2 * np.arange(n_links) + c)
-            link_cols.append(2 * (self.links + 1) + c)
-            link_vals.append(np.full(n_links, -hs[c] / scale[c]))
-        row_idx = np.concatenate([row_idx, *link_rows])
-        col_idx = np.concatenate([col_idx, *link_cols])
-        vals = np.concatenate([vals, *link_vals])
-        states_block = sparse.csr_matrix((vals, (row_idx, col_idx)),
-                                         shape=(r.size, 2 * n_seg))
-        return sparse.hstack([blocks[0], states_block], format="csr")
+            link_state[:, :, k] = np.where(np.isfinite(d_end), d_end, 0.0)
+        return _Jacobian(
+            shared=np.column_stack(shared) if g else np.zeros((r.size, 0)),
+            data_state=data_state, segment_of_row=self.segment_of[self.fitted],
+            links=self.links, link_state=link_state, link_next=-hs / scale, n_seg=n_seg)
 
     def _result(self, u, s, r, theta, ends, hs, success, message, iterations) -> ShootingFit:
         values = self.values_of(u)
@@ -751,7 +833,6 @@ class ShootingProblem:
             # robust_slope, and psi' / robust_slope^2 = 2 / (s (1 + s))
             rows = np.concatenate([np.sqrt(2.0 / (spread * (1.0 + spread))),
                                    np.ones(jumps.size)])
-            jac = sparse.diags(rows) @ jac
             psi = np.concatenate([psi_of(raw), jumps])
             curvature = np.concatenate([spread ** -3.0, np.ones(jumps.size)])
             floor = ROBUST_GAUSSIAN_SCALE
@@ -761,10 +842,11 @@ class ShootingProblem:
             influence[finite] = psi_of(residual[finite] / self.sigma)
             tau = correlation_time(influence)
         else:
+            rows = None
             floor = 1.0
             variance = float(r @ r)
             tau = correlation_time(residual)
-        a = (jac.T @ jac).tocsc()
+        a = jac.normal_matrix(rows)
         dof = max(r.size - a.shape[0], 1)
         s2 = max(variance / dof, floor)
         try:

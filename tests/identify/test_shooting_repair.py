@@ -139,3 +139,28 @@ def test_states_fitted_alone_combine_trial_readings_to_the_bit(thrown_off, chaot
     rerun = sensed.fit_states(states, iterations=3)
     np.testing.assert_array_equal(combined, rerun)
     assert np.max(np.abs(combined - states)) > 0.0  # the fit moved the states
+
+
+def test_the_normal_equations_summed_by_structure_are_those_of_the_jacobian(
+        thrown_off, chaotic_case):
+    """The fit's J^T J and J^T r, summed segment by segment and link by link, equal the
+    products of the whole Jacobian (also with the rows weighted, as the robust intervals
+    weight them)."""
+    problem, _true_states, states, _noise = thrown_off
+    u = np.zeros(len(problem.free))
+    values = problem.values_of(u)
+    motion = problem._integrate(values, states, True)
+    theta, ends = problem.read(values, *motion)
+    r = problem.residuals(theta, ends, states)
+    jac = problem._jacobian(u, states, r, theta, ends, np.array([1e-6, 1e-6]), motion)
+    dense = jac.toarray()
+    assert problem.links.size > 0 and np.count_nonzero(jac.link_state) > 0
+    scale = np.abs(np.sin(np.arange(r.size))) + 0.1
+    for weights in (None, scale):
+        weighted = dense if weights is None else dense * weights[:, None]
+        expected = weighted.T @ weighted
+        np.testing.assert_allclose(jac.normal_matrix(weights).toarray(), expected, rtol=1e-9,
+                                   atol=1e-9 * np.abs(expected).max())
+    expected = dense.T @ r
+    np.testing.assert_allclose(jac.gradient(r), expected, rtol=1e-9,
+                               atol=1e-9 * np.abs(expected).max())
