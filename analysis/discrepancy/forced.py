@@ -10,7 +10,9 @@
    zero, the table channel's amplitude and harmonic, the phase a lag would shift): a
    screening in which no model inherits another's compromises.
 4. The baseline and the candidates that gained over it are fitted over the whole record in
-   linked segments (:mod:`analysis.discrepancy.forced_models`).
+   linked segments (:mod:`analysis.discrepancy.forced_models`), except a drive cause whose
+   screened size the table channel found no different from none (it could only end
+   disqualified).
 5. The judges (:mod:`analysis.discrepancy.forced_judges`), best information criterion
    first: the criterion itself, and forecasts of the stretch after each fitted one from
    the state fitted there (a paired test over the stretches); on a chaotic record the
@@ -230,7 +232,7 @@ def _fit_over_record(
     fits: dict[str, ShootingFit] = {}
     complete = None  # the first refined cause that gains, is plausible and leaves white noise
     for name in [n for n in ranked if bic[n] > 0.0][:REFINED]:
-        if contradiction := table_contradiction(data, name, screened[name]):
+        if contradiction := table_contradiction(data, name, screened[name], absent_only=True):
             say(f"  {name} not fitted over the record: its screening gives {contradiction}")
             continue
         if complete is not None and screened_gain[name] < RIVAL_SCREENED * screened_gain[complete]:
@@ -371,7 +373,7 @@ def _forward_selection(
         pool = sorted((n for n in gains if gains[n][0] > BIC_MARGIN),
                       key=lambda n: -gains[n][0])[:ADDED]
         refused = {n: why for n in pool if (why := table_contradiction(
-            data, model_name([*present, n]), gains[n][1]))}
+            data, model_name([*present, n]), gains[n][1], absent_only=True))}
         for name, why in refused.items():
             say(f"  {name} not fitted over the record: its screening gives {why}")
         pool = [n for n in pool if n not in refused]

@@ -102,6 +102,11 @@ def test_a_drive_size_the_table_channel_measured_otherwise_is_no_explanation(tmp
     assert "h2 = " in why and "table channel measured" in why
     assert "eps = 0.1" in table_contradiction(data, "excitation_amplitude",
                                               fit(eps=(0.1, 0.01)))
+    # a screening is judged only on the sizes the channel found absent: its rough harmonic
+    # may stand off the measured one, but no amplitude error is no amplitude error
+    assert table_contradiction(data, model, fit(h2=(0.5 * h2, 1e-4)), absent_only=True) is None
+    assert "eps = 0.1" in table_contradiction(data, "excitation_amplitude",
+                                              fit(eps=(0.1, 0.01)), absent_only=True)
     # causes the table does not measure, and a record without a table channel: no verdict
     assert table_contradiction(data, "sensor_offset", fit(offset_rad=(0.1, 0.01))) is None
     no_laser = replace(data, drive=replace(data.drive, table=None))
