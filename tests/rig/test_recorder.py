@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import os
 import signal
@@ -144,30 +145,37 @@ def test_a_block_whose_flags_do_not_match_its_samples_is_refused(tmp_path):
     recorder.close()
 
 
-def test_a_reader_sees_the_data_while_it_is_written(tmp_path):
-    path = tmp_path / "live.h5"
+@contextlib.contextmanager
+def _live_recording(path: Path):
+    """A counter stream recorded to ``path`` while the test reads it: the engine, its
+    recorder thread and the recorder, stopped and closed afterwards."""
     stream = CounterStream("angle", sample_rate_hz=10_000, block=200, realtime=True)
     engine = AcquisitionEngine([stream])
     recorder = Recorder(path, SPECS[:1], META, flush_interval_s=0.2)
     thread = attach_recorder(engine, recorder)
     engine.start()
     try:
-        with open_recording(path) as live:
-            seen = []
-
-            def more_data():
-                live.refresh()
-                seen.append(len(live.channel("angle")))
-                return seen[-1] >= 5_000
-
-            assert _wait_until(more_data)
-            data = live.channel("angle")
-            np.testing.assert_array_equal(data.raw, np.arange(len(data)))
-            assert not live.status().closed
+        yield engine, thread, recorder
     finally:
         engine.stop()
         thread.join(10)
         recorder.close()
+
+
+def test_a_reader_sees_the_data_while_it_is_written(tmp_path):
+    path = tmp_path / "live.h5"
+    with _live_recording(path), open_recording(path) as live:
+        seen = []
+
+        def more_data():
+            live.refresh()
+            seen.append(len(live.channel("angle")))
+            return seen[-1] >= 5_000
+
+        assert _wait_until(more_data)
+        data = live.channel("angle")
+        np.testing.assert_array_equal(data.raw, np.arange(len(data)))
+        assert not live.status().closed
 
 
 def test_a_live_table_row_whose_contents_are_not_yet_visible_is_left_for_later(tmp_path):
@@ -175,12 +183,7 @@ def test_a_live_table_row_whose_contents_are_not_yet_visible_is_left_for_later(t
     the file: the row reads as zeros.  While the writer holds the file that trailing row is
     in flight, not damage (it failed CI once as 'n_samples is not positive')."""
     path = tmp_path / "live.h5"
-    stream = CounterStream("angle", sample_rate_hz=10_000, block=200, realtime=True)
-    engine = AcquisitionEngine([stream])
-    recorder = Recorder(path, SPECS[:1], META, flush_interval_s=0.2)
-    thread = attach_recorder(engine, recorder)
-    engine.start()
-    try:
+    with _live_recording(path) as (engine, thread, recorder):
         with open_recording(path) as live:
             assert _wait_until(lambda: live.refresh() or len(live.channel("angle")) >= 2_000)
         engine.stop()
@@ -194,10 +197,6 @@ def test_a_live_table_row_whose_contents_are_not_yet_visible_is_left_for_later(t
             data = live.channel("angle")
             assert len(data) == rows * 200
             np.testing.assert_array_equal(data.raw, np.arange(len(data)))
-    finally:
-        engine.stop()
-        thread.join(10)
-        recorder.close()
 
 
 def test_a_recording_killed_with_sigkill_keeps_a_consistent_prefix(tmp_path):
