@@ -14,6 +14,7 @@ from analysis.discrepancy.selection import Verdict, information_criterion_delta
 from analysis.extensions import NONE, cause, causes_in, implausibility
 from analysis.identify.forced import ForcedData
 from analysis.identify.intervals import Z95
+from analysis.identify.result import Estimate
 from analysis.identify.shooting import Segments, ShootingFit
 from analysis.model_values import measured_angle, packed_from_values
 from analysis.simulate import SimulationSettings, simulate_packed
@@ -43,6 +44,9 @@ def table_contradiction(data: ForcedData, model: str, fit: ShootingFit, *,
     ``absent_only`` judges only the sizes the channel found no different from none (for a
     screening, whose sizes are rough: a true 0.148 amplitude error screened at 0.21 beside
     a missing sensor zero, and its fit over the record came to 0.1474)."""
+    def standard_error(e: Estimate) -> float:  # none known counts as none
+        return e.half_width / Z95 if math.isfinite(e.half_width) else 0.0
+
     measured = data.drive.measured_sizes()
     reasons = []
     for name in causes_in(model):
@@ -50,12 +54,11 @@ def table_contradiction(data: ForcedData, model: str, fit: ShootingFit, *,
             laser, fitted = measured.get(spec.name), fit.estimates.get(spec.name)
             if laser is None or fitted is None:
                 continue
-            if absent_only and abs(laser.value - spec.default) > TABLE_Z * (
-                    laser.half_width / Z95 if math.isfinite(laser.half_width) else 0.0):
+            if absent_only and \
+                    abs(laser.value - spec.default) > TABLE_Z * standard_error(laser):
                 continue
             gap = abs(fitted.value - laser.value)
-            sigma = math.hypot(*(e.half_width / Z95 if math.isfinite(e.half_width) else 0.0
-                                 for e in (fitted, laser)))
+            sigma = math.hypot(standard_error(fitted), standard_error(laser))
             if gap > TABLE_Z * sigma and \
                     gap > TABLE_TOLERANCE * max(abs(fitted.value), abs(laser.value)):
                 reasons.append(f"{spec.name} = {fitted.value:.3g} where the table channel "
