@@ -26,6 +26,7 @@ import math
 import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
+from functools import partial
 from typing import Any
 
 import numpy as np
@@ -48,6 +49,7 @@ from analysis.discrepancy.forced_models import (
     layouts,
     refit,
     screen_cause,
+    side_by_side,
 )
 from analysis.discrepancy.invariants import Invariants, invariants
 from analysis.discrepancy.localize import localize
@@ -148,15 +150,25 @@ def analyze_forced_fits(
     names = [c.name for c in candidates_for(FORCED.name)]
     if causes is not None:
         names = [n for n in names if n in causes]
-    say(f"screening every cause over {ident.short.count} short segments")
-    screened = {n: screen_cause(data, n, ident, hints, threads) for n in [NONE, *names]}
+    say(f"screening every cause over {ident.short.count} short segments, and fitting the "
+        "baseline model over the record")
+
+    def baseline(threads_: int | None) -> tuple[ShootingFit, ShootingFit]:
+        """The baseline screened, then fitted over the record from there (the longest
+        task, so it starts first)."""
+        short = screen_cause(data, NONE, ident, hints, threads_)
+        return short, fit_cause(data, NONE, short, lay, threads_)
+
+    started = side_by_side(
+        {NONE: baseline, **{n: partial(screen_cause, data, n, ident, hints) for n in names}},
+        threads)
+    screened_none, base_full = started.pop(NONE)
+    screened = {NONE: screened_none, **started}
     base_short = ModelFits(NONE, screened[NONE])
     screened |= rescreened_from_baseline(data, ident, screened, threads)
     bic = {n: _bic(data, base_short, screened[n]) for n in names}
     say("screened: " + ", ".join(f"{n} {bic[n]:.3g}" for n in sorted(bic, key=lambda n: -bic[n])))
     timings["screening"] = time.perf_counter() - clock - timings["identification"]
-    say("fitting the baseline model over the record")
-    base_full = fit_cause(data, NONE, screened[NONE], lay, threads)
     base = ModelFits(NONE, base_full)
     say(f"baseline rms {base_full.rms:.3g} rad ({base_full.rms / data.noise_rad:.3g} x noise)")
     fits = _fit_over_record(data, names, screened, bic, base_full, lay, threads, period, say)
@@ -209,14 +221,12 @@ def rescreened_from_baseline(
     without a laser screened 1000 below the baseline, and a 1 % amplitude error was named
     in its place)."""
     base = screened[NONE]
-    out = {}
-    for name, fit in screened.items():
-        if name == NONE or fit.rss <= base.rss:
-            continue
-        nested = extend(data, NONE, base, name, ident.short, threads, STEP_SCREEN_ITERATIONS)
-        if nested.rss < fit.rss:
-            out[name] = nested
-    return out
+    nested = side_by_side({
+        name: partial(extend, data, NONE, base, name, ident.short,
+                      max_iterations=STEP_SCREEN_ITERATIONS)
+        for name, fit in screened.items() if name != NONE and fit.rss > base.rss
+    }, threads)
+    return {name: fit for name, fit in nested.items() if fit.rss < screened[name].rss}
 
 
 def _fit_over_record(
@@ -361,13 +371,13 @@ def _forward_selection(
                 f"white noise's (Ljung-Box p {left.ljung_box_p:.2g}); no further cause tried")
             break
         present = causes_in(current.cause)
-        yardstick = extend(data, current.cause, short, None, ident.short, threads,
-                           STEP_SCREEN_ITERATIONS)
-        gains = {}
-        for name in (n for n in names if n not in present):
-            fit = extend(data, current.cause, short, name, ident.short, threads,
-                         STEP_SCREEN_ITERATIONS)
-            gains[name] = (_bic(data, ModelFits(current.cause, yardstick), fit), fit)
+        added = side_by_side({
+            name: partial(extend, data, current.cause, short, name, ident.short,
+                          max_iterations=STEP_SCREEN_ITERATIONS)
+            for name in [None, *(n for n in names if n not in present)]
+        }, threads)
+        yardstick = ModelFits(current.cause, added.pop(None))
+        gains = {name: (_bic(data, yardstick, fit), fit) for name, fit in added.items()}
         say(f"  screened beside {current.cause}: " + ", ".join(
             f"{n} {g:.3g}" for n, (g, _) in sorted(gains.items(), key=lambda kv: -kv[1][0])))
         pool = sorted((n for n in gains if gains[n][0] > BIC_MARGIN),
@@ -379,13 +389,19 @@ def _forward_selection(
         pool = [n for n in pool if n not in refused]
         if not pool:
             break
-        parent = refit(data, current.cause, current.full, lay, threads)
+        # the current model continued, and each candidate fitted from its optimum and afresh
+        started = side_by_side({
+            "parent": partial(refit, data, current.cause, current.full, lay),
+            **{(name, "nested"): partial(extend, data, current.cause, current.full, name,
+                                         lay.full) for name in pool},
+            **{(name, "afresh"): partial(_fit_afresh, data, model_name([*present, name]),
+                                         ident, hints, lay) for name in pool},
+        }, threads)
+        parent = started["parent"]
         tried = []
         for name in pool:
             model = model_name([*present, name])
-            fit = min(extend(data, current.cause, current.full, name, lay.full, threads),
-                      _fit_afresh(data, model, ident, hints, lay, threads),
-                      key=lambda f: f.rss)
+            fit = min(started[name, "nested"], started[name, "afresh"], key=lambda f: f.rss)
             gain = _bic(data, ModelFits(current.cause, parent), fit)
             why = disqualification(data, model, fit) or _indeterminate(fit, name)
             say(f"  {model} over the record: BIC gain {gain:.3g} over {current.cause}"

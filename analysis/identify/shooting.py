@@ -27,7 +27,7 @@ from __future__ import annotations
 import copy
 import math
 import os
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from itertools import pairwise
@@ -227,6 +227,16 @@ class _Solution(NamedTuple):
     iterations: int
 
 
+class _Times:
+    """The times a run reports, segment by segment: ``out_t[bounds[k]:bounds[k + 1]]`` for
+    segment k (its last time is where it ends), and the groups of segments run in threads."""
+
+    def __init__(self, out_t: np.ndarray, bounds: np.ndarray, threads: int) -> None:
+        self.out_t = out_t
+        self.bounds = bounds
+        self.groups = _groups(np.diff(bounds), threads)
+
+
 class _Jacobian(NamedTuple):
     """The shooting Jacobian by its structure: dense shared columns, and each segment's two
     state columns seen by its own data rows and by the continuity rows of the links into
@@ -360,7 +370,7 @@ class ShootingProblem:
         self.free = list(free)
         self.fixed = dict(fixed)
         self.rate_scale = float(rate_scale)  # theta' jumps count as theta jumps times this
-        self.threads = threads or min(4, os.cpu_count() or 1)
+        self.threads = thread_count(threads)
         self.robust = robust  # the data residuals through the soft-L1 loss
         s = segments
         # sample times of all segments back to back, each followed by its end time
@@ -374,7 +384,7 @@ class ShootingProblem:
         self.sample_of = np.concatenate([np.arange(a, b) for a, b in zip(s.start, s.stop,
                                                                           strict=True)])
         self.segment_of = np.repeat(np.arange(s.count), s.stop - s.start)
-        self.groups = _groups(np.diff(self.bounds), self.threads)
+        self.times = _Times(self.out_t, self.bounds, self.threads)
         self.is_end = np.zeros(self.out_t.size, dtype=bool)
         self.is_end[self.bounds[1:] - 1] = True
         fit = np.zeros(self.sample_of.size, dtype=bool)
@@ -403,19 +413,21 @@ class ShootingProblem:
         return out
 
     def _integrate(self, values: Mapping[str, float], states: np.ndarray,
-                   split: bool) -> tuple[np.ndarray, np.ndarray]:
-        """Angle and rate at every segment time (ends included).  ``split`` runs groups of
-        segments in threads (they are independent, so the result is the same to the bit):
-        a trial step's run is otherwise one core's work while the others wait."""
+                   split: bool, times: _Times | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Angle and rate at every segment time (ends included), or at ``times`` instead
+        (each segment's own, its last where it ends).  ``split`` runs groups of segments in
+        threads (they are independent, so the result is the same to the bit): a trial
+        step's run is otherwise one core's work while the others wait."""
         p = self.packed_of(values)
         starts = self.t[self.segments.start]
-        groups = self.groups if split else [(0, self.segments.count)]
+        at = times or self.times
+        groups = at.groups if split else [(0, self.segments.count)]
 
         def group(bounds: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
             a, b = bounds
-            lo, hi = self.bounds[a], self.bounds[b]
-            th, om, _ = integrate_segments(p, starts[a:b], states[a:b], self.out_t[lo:hi],
-                                           self.bounds[a:b + 1] - lo, rtol=RTOL, atol=ATOL,
+            lo, hi = at.bounds[a], at.bounds[b]
+            th, om, _ = integrate_segments(p, starts[a:b], states[a:b], at.out_t[lo:hi],
+                                           at.bounds[a:b + 1] - lo, rtol=RTOL, atol=ATOL,
                                            max_steps=MAX_STEPS_PER_SEGMENT)
             return th, om
 
@@ -510,16 +522,35 @@ class ShootingProblem:
             return np.bincount(seg_rows, r * r, minlength=n_seg), r
 
         for horizon in horizons:
-            use = self.fitted & (position < np.maximum(horizon * length, 8))
+            within = position < np.maximum(horizon * length, 8)
+            use = self.fitted & within
+
+            def readings(states: np.ndarray, within: np.ndarray = within) -> np.ndarray:
+                """The sensor's readings from segments started at ``states``; a sensor
+                without memory reads a sample from the motion up to it alone, so the runs
+                stop at the horizon (the same numbers: the steps do not depend on where
+                the outputs are), and the samples past it read NaN."""
+                if not independent or within.all():
+                    return self.run(values, states)[0]
+                kept = np.bincount(seg_rows[within], minlength=n_seg)
+                times = _Times(self.t[self.sample_of[within]],
+                               np.concatenate([[0], np.cumsum(kept)]), self.threads)
+                th, _ = self._integrate(values, states, True, times)
+                if self.measure is not None:
+                    th = self.measure(values, times.out_t, th, None)
+                out = np.full(self.sample_of.size, np.nan)
+                out[within] = th
+                return out
+
             lam = np.full(n_seg, 1e-3)
-            theta, _ = self.run(values, s)
+            theta = readings(s)
             cost, r = segment_costs(theta, use)
             for _ in range(iterations):
                 cols = []
                 for k in range(2):
                     ds = s.copy()
                     ds[:, k] += hs[k]
-                    th, _ = self.run(values, ds)
+                    th = readings(ds)
                     d = np.where(use, (th - theta) / self.sigma, 0.0)
                     cols.append(np.where(np.isfinite(d), d, 0.0))
                 a00 = np.bincount(seg_rows, cols[0] ** 2, minlength=n_seg)
@@ -534,7 +565,7 @@ class ShootingProblem:
                     step0 = -(d11 * g0 - a01 * g1) / det
                     step1 = -(d00 * g1 - a01 * g0) / det
                     trial = s + np.column_stack([step0, step1]) * hs
-                    th, _ = self.run(values, trial)
+                    th = readings(trial)
                     new_cost, _new_r = segment_costs(th, use)
                     better = new_cost < cost
                     s[better] = trial[better]
@@ -543,7 +574,7 @@ class ShootingProblem:
                         if independent:  # each segment's reading is its own run's
                             theta = np.where(better[seg_rows], th, theta)
                         else:
-                            theta, _ = self.run(values, s)
+                            theta = readings(s)
                         cost, r = segment_costs(theta, use)
                         break
         return s
@@ -873,18 +904,37 @@ class ShootingProblem:
         return out, correlation
 
 
+def thread_count(threads: int | None) -> int:
+    """The threads a fit uses when given ``threads`` (None: the machine's cores, up to 4)."""
+    return threads or min(4, os.cpu_count() or 1)
+
+
+class _InCaller:
+    """One thread's share of work done in the calling thread: fits run side by side with a
+    thread each (``analysis.discrepancy.forced_models.side_by_side``) would otherwise queue
+    behind one shared pool thread."""
+
+    @staticmethod
+    def map(fn: Callable, items: Iterable) -> Iterator:
+        return map(fn, items)
+
+
 _POOLS: dict[tuple[int, str], ThreadPoolExecutor] = {}
+_BLAS_LIMITED: list[bool] = []
 
 
-def _pool(threads: int, role: str) -> ThreadPoolExecutor:
+def _pool(threads: int, role: str) -> ThreadPoolExecutor | _InCaller:
     """A thread pool kept for the process: a fit asks for hundreds of Jacobians, and starting
     threads for each costs more than the columns they share out.  Each role has its own, so
     that work one pool's thread hands out never waits behind that very thread."""
-    if not _POOLS:
+    if not _BLAS_LIMITED:
         # these pools share the cores out; BLAS threads of their own would spin beside them
         # (a quarter of a screening fit's time on 2 cores), and with 2 of them a fitted
         # value differed from 1's in the eighth digit: a machine's core count would show
         threadpool_limits(1, user_api="blas")
+        _BLAS_LIMITED.append(True)
+    if threads <= 1:
+        return _InCaller()
     if (threads, role) not in _POOLS:
         _POOLS[threads, role] = ThreadPoolExecutor(max_workers=threads,
                                                    thread_name_prefix=role)

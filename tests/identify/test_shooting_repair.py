@@ -69,14 +69,14 @@ def test_runs_split_over_threads_equal_one_whole_run_to_the_bit(thrown_off):
     """A trial step's run shares its segments out to the threads; segments are independent,
     so the angles and end states must be exactly those of one run over all of them."""
     problem, true_states, _states, _noise = thrown_off
-    assert len(problem.groups) == 2  # two threads: two runs of segments
+    assert len(problem.times.groups) == 2  # two threads: two runs of segments
     values = problem.values_of(np.zeros(len(problem.free)))
     split = problem.run(values, true_states, split=True)
     whole = problem.run(values, true_states, split=False)
     for a, b in zip(split, whole, strict=True):
         np.testing.assert_array_equal(a, b)
     # and the groups cover every segment once, in order
-    edges = [g for pair in problem.groups for g in pair]
+    edges = [g for pair in problem.times.groups for g in pair]
     assert edges[0] == 0 and edges[-1] == problem.segments.count
     assert all(edges[i] == edges[i + 1] for i in range(1, len(edges) - 1, 2))
 
@@ -128,17 +128,51 @@ def test_a_column_that_moves_only_the_sensor_is_read_from_the_motion_to_the_bit(
     assert np.any(reread.toarray()[:, len(free) - 1] != 0.0)  # the column is k3's own
 
 
-def test_states_fitted_alone_combine_trial_readings_to_the_bit(thrown_off, chaotic_case):
-    """Fitting each segment's state alone takes an improved segment's reading from its trial
-    run when no sensor memory links segments: the same states as running all again."""
+def test_states_fitted_alone_run_to_the_horizon_and_combine_readings_to_the_bit(
+        thrown_off, chaotic_case, monkeypatch):
+    """Fitting each segment's state alone, with no sensor memory linking segments, runs each
+    segment only as far as the samples it fits so far reach, and takes an improved segment's
+    reading from its trial run: the same states as running every sample again each time."""
     problem, _true_states, states, _noise = thrown_off
     model = ForcedModel(chaotic_case[1], ("sensor_offset",))
     sensed = model.problem(problem.segments, problem.free, {"offset_rad": 0.0}, threads=2)
+    times_run = []
+    integrate = shooting.integrate_segments
+    monkeypatch.setattr(shooting, "integrate_segments",
+                        lambda p, t0, s0, out_t, *a, **k:
+                        times_run.append(out_t.size) or integrate(p, t0, s0, out_t, *a, **k))
     combined = sensed.fit_states(states, iterations=3)
+    short_runs = sum(times_run)
     sensed.measure_has_memory = True  # per chain: the same readings, run again each time
+    times_run.clear()
     rerun = sensed.fit_states(states, iterations=3)
     np.testing.assert_array_equal(combined, rerun)
     assert np.max(np.abs(combined - states)) > 0.0  # the fit moved the states
+    assert short_runs < 0.75 * sum(times_run)  # a quarter, then half, then all of each
+
+
+def test_fits_side_by_side_give_the_numbers_each_gives_alone(thrown_off, chaotic_case):
+    """Independent fits run at once, a thread each, end where each ends alone on two
+    threads: the results do not depend on how the cores were shared out."""
+    from functools import partial
+
+    from analysis.discrepancy.forced_models import side_by_side
+
+    problem, true_states, states, _noise = thrown_off
+
+    def fit(start: np.ndarray, threads: int | None) -> shooting.ShootingFit:
+        model = ForcedModel(chaotic_case[1], ())
+        return model.problem(problem.segments, problem.free, {}, threads=threads).fit(
+            start, max_iterations=2)
+
+    alone = {"thrown": fit(states, 2), "true": fit(true_states, 2)}
+    together = side_by_side({"thrown": partial(fit, states), "true": partial(fit, true_states)},
+                            threads=2)
+    assert list(together) == ["thrown", "true"]
+    for key, single in alone.items():
+        assert together[key].values == single.values
+        np.testing.assert_array_equal(together[key].states, single.states)
+    assert together["thrown"].rss != together["true"].rss  # two different fits
 
 
 def test_the_normal_equations_summed_by_structure_are_those_of_the_jacobian(
