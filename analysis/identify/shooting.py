@@ -25,6 +25,7 @@ noise sigmas, not like its square.  The continuity jumps stay quadratic.
 from __future__ import annotations
 
 import copy
+import functools
 import math
 import os
 from collections.abc import Callable, Iterable, Iterator, Mapping
@@ -920,19 +921,22 @@ class _InCaller:
 
 
 _POOLS: dict[tuple[int, str], ThreadPoolExecutor] = {}
-_BLAS_LIMITED: list[bool] = []
+
+
+@functools.cache
+def _blas_on_one_thread() -> None:
+    """BLAS held to one thread for the process, once: the fits share the cores out over
+    their own threads, and BLAS threads of their own would spin beside them (a quarter of a
+    screening fit's time on 2 cores); with 2 of them a fitted value differed from 1's in
+    the eighth digit, so a machine's core count would show."""
+    threadpool_limits(1, user_api="blas")
 
 
 def _pool(threads: int, role: str) -> ThreadPoolExecutor | _InCaller:
     """A thread pool kept for the process: a fit asks for hundreds of Jacobians, and starting
     threads for each costs more than the columns they share out.  Each role has its own, so
     that work one pool's thread hands out never waits behind that very thread."""
-    if not _BLAS_LIMITED:
-        # these pools share the cores out; BLAS threads of their own would spin beside them
-        # (a quarter of a screening fit's time on 2 cores), and with 2 of them a fitted
-        # value differed from 1's in the eighth digit: a machine's core count would show
-        threadpool_limits(1, user_api="blas")
-        _BLAS_LIMITED.append(True)
+    _blas_on_one_thread()
     if threads <= 1:
         return _InCaller()
     if (threads, role) not in _POOLS:
