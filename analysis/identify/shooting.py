@@ -525,17 +525,21 @@ class ShootingProblem:
         for horizon in horizons:
             within = position < np.maximum(horizon * length, 8)
             use = self.fitted & within
-
-            def readings(states: np.ndarray, within: np.ndarray = within) -> np.ndarray:
-                """The sensor's readings from segments started at ``states``; a sensor
-                without memory reads a sample from the motion up to it alone, so the runs
-                stop at the horizon (the same numbers: the steps do not depend on where
-                the outputs are), and the samples past it read NaN."""
-                if not independent or within.all():
-                    return self.run(values, states)[0]
+            # a sensor without memory reads a sample from the motion up to it alone, so the
+            # runs stop at the horizon (the same numbers: the steps do not depend on where
+            # the outputs are)
+            times = None
+            if independent and not within.all():
                 kept = np.bincount(seg_rows[within], minlength=n_seg)
                 times = _Times(self.t[self.sample_of[within]],
                                np.concatenate([[0], np.cumsum(kept)]), self.threads)
+
+            def readings(states: np.ndarray, within: np.ndarray = within,
+                         times: _Times | None = times) -> np.ndarray:
+                """The sensor's readings from segments started at ``states`` (NaN past
+                the horizon when the runs stop there)."""
+                if times is None:
+                    return self.run(values, states)[0]
                 th, _ = self._integrate(values, states, True, times)
                 if self.measure is not None:
                     th = self.measure(values, times.out_t, th, None)
