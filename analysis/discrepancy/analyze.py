@@ -27,9 +27,9 @@ from analysis.discrepancy.fitting import FitData, FitResult, fit, predict
 from analysis.discrepancy.forced import analyze_forced
 from analysis.discrepancy.localize import localize, motion_of
 from analysis.discrepancy.outcome import Analysis, AnalysisError, CandidateOutcome
+from analysis.discrepancy.policy import DEFAULT_POLICY, SelectionPolicy
 from analysis.discrepancy.restitution import fit_restitution, restitution_from_hunt_crossley
 from analysis.discrepancy.selection import (
-    MAX_CAUSES,
     Verdict,
     choose,
     heldout_rms,
@@ -42,7 +42,6 @@ from analysis.identify.preprocess import prepare
 from analysis.model import Drive
 from analysis.records import Record
 
-TRAIN_FRACTION = 0.6
 MAX_FIT_SAMPLES = 4000
 MAX_FIT_SAMPLES_WITH_CONTACT = 8000  # contacts last milliseconds: keep more samples
 
@@ -183,6 +182,7 @@ def assess_candidate(
     cause_name: str, data: FitData, n_train: int, baseline_train: FitResult,
     baseline: FitResult, baseline_heldout: float, scale: RecordScale,
     hints: dict[str, float] | None = None, identified: dict[str, float] | None = None,
+    policy: SelectionPolicy = DEFAULT_POLICY,
 ) -> CandidateOutcome:
     """Fit one model on the training part and on the whole record; judge it against
     ``baseline`` (the baseline, or in a forward step the model it extends by one cause:
@@ -210,6 +210,7 @@ def assess_candidate(
         noise_rad=data.noise_rad,
         n_heldout=int(np.count_nonzero(data.valid[n_train:])),
         implausible=implausibility(cause_name, full.values),
+        policy=policy,
     )
     rival = None
     if verdict.earns_keep:
@@ -253,23 +254,26 @@ def _assessed(jobs: list[tuple], pool: Executor | None) -> Iterator[CandidateOut
 def analyze_record(
     record: Record, *, workers: int | None = None, progress: Progress | None = None,
     causes: list[str] | None = None, priors: Mapping[str, float] | None = None,
+    policy: SelectionPolicy = DEFAULT_POLICY,
 ) -> Analysis:
     """Run the whole discrepancy analysis on one record.
 
     ``priors`` start the model values of a forced record (see :func:`priors_from_decays`);
     ``causes`` restricts the candidates (default: every cause that can show); ``workers``
-    processes fit a decay's candidates (a forced record's fits use that many threads).
+    processes fit a decay's candidates (a forced record's fits use that many threads);
+    ``policy`` holds every rule that decides what is named (the report states it).
     """
     workers = workers if workers is not None else min(2, os.cpu_count() or 1)
     if record.kind.driven:
         return analyze_forced(record, priors=priors, causes=causes, progress=progress,
-                              threads=workers)
-    return analyze_decay(record, workers=workers, progress=progress, causes=causes)
+                              threads=workers, policy=policy)
+    return analyze_decay(record, workers=workers, progress=progress, causes=causes,
+                         policy=policy)
 
 
 def analyze_decay(
     record: Record, *, workers: int = 1, progress: Progress | None = None,
-    causes: list[str] | None = None,
+    causes: list[str] | None = None, policy: SelectionPolicy = DEFAULT_POLICY,
 ) -> Analysis:
     """The discrepancy analysis of a free or impact decay, point by point."""
     say = progress or (lambda message: None)
@@ -285,7 +289,7 @@ def analyze_decay(
     except IdentificationError as error:
         raise AnalysisError(f"{record.source or 'record'}: {error}") from error
     notes.extend(start_notes)
-    n_train = round(TRAIN_FRACTION * data.t.size)
+    n_train = round(policy.train_fraction * data.t.size)
     neutral = RecordScale(
         amplitude_rad=float(np.nanmax(np.abs(data.y))), omega_rad_s=start["omega_rad_s"],
         zeta=start["zeta"], duration_s=float(data.t[-1]), dt_s=data.dt,
@@ -309,7 +313,8 @@ def analyze_decay(
     if causes is not None:
         names = [n for n in names if n in causes]
     jobs = [
-        (n, data, n_train, baseline_train, baseline, baseline_heldout, scale, hints, start)
+        (n, data, n_train, baseline_train, baseline, baseline_heldout, scale, hints, start,
+         policy)
         for n in names
     ]
     # one pool of processes for the candidates and the forward selection's steps (none
@@ -337,13 +342,14 @@ def analyze_decay(
         final, steps = None, []
         if verdict is not None:
             first = next(o for o in outcomes if o.cause == chosen)
-            final, steps = _add_causes(first, outcomes, data, n_train, scale, hints, pool, say)
+            final, steps = _add_causes(first, outcomes, data, n_train, scale, hints, pool, say,
+                                       policy)
     timings["candidates"] = time.perf_counter() - clock - timings["baseline"]
     analysis = Analysis(
         record=record, data=data, n_train=n_train, baseline_train=baseline_train,
         baseline=baseline, baseline_prediction=baseline_prediction, candidates=outcomes,
         excluded=excluded_for(data.experiment), chosen=chosen, localization=localization,
-        timings=timings, notes=notes, steps=steps, final=final,
+        timings=timings, notes=notes, steps=steps, final=final, policy=policy,
     )
     if data.barrier:
         say("constant coefficient of restitution against Hunt-Crossley")
@@ -358,17 +364,19 @@ def analyze_decay(
 def _add_causes(
     first: CandidateOutcome, outcomes: list[CandidateOutcome], data: FitData, n_train: int,
     scale: RecordScale, hints: dict[str, float], pool: Executor | None, say: Progress,
+    policy: SelectionPolicy,
 ) -> tuple[CandidateOutcome | None, list[tuple[str, Verdict]]]:
     """Forward selection from the chosen cause: each step fits every other candidate added to
     the current model (from its solution) and keeps the best that both judges accept
-    against it (information criterion, held-out prediction), up to MAX_CAUSES.  Returns
+    against it (information criterion, held-out prediction), up to the policy's
+    ``max_causes``.  Returns
     the final model when a step added a cause (None otherwise) and the steps taken."""
     current, steps = first, [(first.cause, first.verdict)]
     names = [o.cause for o in outcomes]
-    while len(steps) < MAX_CAUSES:
+    while len(steps) < policy.max_causes:
         inside = causes_in(current.cause)
         jobs = [(model_name((*inside, n)), data, n_train, current.train, current.full,
-                 current.verdict.heldout_rms_extended, scale, hints)
+                 current.verdict.heldout_rms_extended, scale, hints, None, policy)
                 for n in names if n not in inside]
         if not jobs:
             break

@@ -54,6 +54,7 @@ from analysis.discrepancy.forced_models import (
 from analysis.discrepancy.invariants import Invariants, invariants
 from analysis.discrepancy.localize import localize
 from analysis.discrepancy.outcome import Analysis, AnalysisError, CandidateOutcome
+from analysis.discrepancy.policy import DEFAULT_POLICY, SelectionPolicy
 from analysis.discrepancy.residual_reading import (
     Finding,
     ResidualReading,
@@ -62,9 +63,6 @@ from analysis.discrepancy.residual_reading import (
     timing_finding,
 )
 from analysis.discrepancy.selection import (
-    BIC_MARGIN,
-    HELDOUT_EXCESS_RATIO,
-    MAX_CAUSES,
     Verdict,
     choose,
     information_criterion_delta,
@@ -85,23 +83,6 @@ from analysis.identify.forced import (
 from analysis.identify.result import IdentificationError
 from analysis.identify.shooting import ShootingFit
 from analysis.records import Record
-
-REFINED = 4  # candidates refined beyond the screening (those that gained), best first
-SEED_RMS = 1.2  # a full fit this close to the noise lends its segment states
-# once a refined cause leaves white noise, a candidate whose screening gained this much
-# less cannot rival it (nor be told apart from it, INDISTINCT_BIC): it is not refined
-RIVAL_SCREENED = 0.1
-# a cause whose fit over the record stopped unconverged within this fraction of the best
-# gain is a rival still moving: it is fitted on, up to RIVAL_ROUNDS more iteration caps
-RIVAL_BIC = 0.5
-RIVAL_ROUNDS = 3
-ADDED = 2  # causes fitted over the record as the next step, best screened first
-STEP_SCREEN_ITERATIONS = 6  # a step's screening: each cause added to the current model
-STEP_PARENT_ITERATIONS = 40  # a step's yardstick: the current model's short fit continued
-# two causes whose effects on the record correlate this much, and which explain it nearly
-# as well as each other, cannot be told apart on it
-INDISTINCT_CORRELATION = 0.9
-INDISTINCT_BIC = 0.9
 
 Progress = Callable[[str], None]
 
@@ -129,12 +110,13 @@ def analyze_forced_fits(
     record_or_data, *, priors: Mapping[str, float] | None = None,
     causes: Sequence[str] | None = None, chaotic: bool = False, period: int = 1,
     progress: Progress | None = None, threads: int | None = None,
+    policy: SelectionPolicy = DEFAULT_POLICY,
 ) -> ForcedOutcome:
-    """Identify, fit the baseline and every candidate, judge them.
+    """Identify, fit the baseline and every candidate, judge them by ``policy``'s rules.
 
-    Every candidate is fitted for SCREEN_ITERATIONS; the REFINED best (by the information
-    criterion) are fitted to convergence, except those that screened RIVAL_SCREENED times
-    below a refined cause that already leaves white noise; the ones
+    Every candidate is fitted for SCREEN_ITERATIONS; the policy's ``refined`` best (by the
+    information criterion) are fitted to convergence, except those that screened its
+    ``rival_screened`` share or less of a refined cause that already leaves white noise; the ones
     that pass are then fitted to the training stretches for the forecast judge (or, on a
     chaotic record, run long for the invariant statistics).
     """
@@ -166,19 +148,20 @@ def analyze_forced_fits(
     screened_none, base_full = started.pop(NONE)
     screened = {NONE: screened_none, **started}
     base_short = ModelFits(NONE, screened[NONE])
-    screened |= rescreened_from_baseline(data, ident, screened, threads)
+    screened |= rescreened_from_baseline(data, ident, screened, threads, policy)
     bic = {n: _bic(data, base_short, screened[n]) for n in names}
     say("screened: " + ", ".join(f"{n} {bic[n]:.3g}" for n in sorted(bic, key=lambda n: -bic[n])))
     timings["screening"] = time.perf_counter() - clock - timings["identification"]
     base = ModelFits(NONE, base_full)
     say(f"baseline rms {base_full.rms:.3g} rad ({base_full.rms / data.noise_rad:.3g} x noise)")
-    fits = _fit_over_record(data, names, screened, bic, base_full, lay, threads, period, say)
+    fits = _fit_over_record(data, names, screened, bic, base_full, lay, threads, period, say,
+                            policy)
     # The judges, best information criterion first: forecasts over the training stretches
     # (and, on a chaotic record, the invariant statistics of the model's own long run); the
     # first cause they accept is the finding, and the rest need no training fits.
     # (a cause whose values no real rig can have explains nothing: it needs no forecasts)
-    passing = sorted((n for n in names if bic[n] > BIC_MARGIN
-                      and not (n in fits and disqualification(data, n, fits[n]))),
+    passing = sorted((n for n in names if bic[n] > policy.bic_margin
+                      and not (n in fits and disqualification(data, n, fits[n], policy))),
                      key=lambda n: -bic[n])
     measured = base_distance = None
     if passing:
@@ -189,21 +172,21 @@ def analyze_forced_fits(
                                   data.drive.phase0_rad)
             base_distance = model_invariants_distance(data, measured, NONE, base_full)
     judged, trains, accepted = _judge_in_order(
-        data, passing, fits, base, lay, threads, measured, base_distance)
+        data, passing, fits, base, lay, threads, measured, base_distance, policy)
     steps: list[tuple[str, Verdict]] = []
     final = indistinct = None
     if accepted is not None:
         steps.append((accepted, judged[accepted]))
         final, more = _forward_selection(
             data, ident, hints, ModelFits(accepted, fits[accepted], trains[accepted]),
-            screened, fits, lay, threads, measured, period, say)
+            screened, fits, lay, threads, measured, period, say, policy)
         steps += more
-        indistinct = _indistinct(data, base.full, accepted, fits, bic, final)
+        indistinct = _indistinct(data, base.full, accepted, fits, bic, final, policy)
     outcomes = []
     for name in names:
         model_fits = ModelFits(name, fits.get(name, screened[name]), trains.get(name))
         verdict = judged.get(name) or verdict_of(
-            data, model_fits, base if name in fits else base_short, lay)
+            data, model_fits, base if name in fits else base_short, lay, policy=policy)
         say(f"  {name}: {verdict.why}")
         outcomes.append((model_fits, verdict))
     timings["fits"] = time.perf_counter() - clock - sum(timings.values())
@@ -213,7 +196,7 @@ def analyze_forced_fits(
 
 def rescreened_from_baseline(
     data: ForcedData, ident: ForcedIdentification, screened: Mapping[str, ShootingFit],
-    threads: int | None,
+    threads: int | None, policy: SelectionPolicy = DEFAULT_POLICY,
 ) -> dict[str, ShootingFit]:
     """The screenings that ended worse than the baseline's, fitted again from the baseline's
     own solution with the cause neutral (the forward selection's step), where that ends
@@ -224,7 +207,7 @@ def rescreened_from_baseline(
     base = screened[NONE]
     nested = side_by_side({
         name: partial(extend, data, NONE, base, name, ident.short,
-                      max_iterations=STEP_SCREEN_ITERATIONS)
+                      max_iterations=policy.step_screen_iterations)
         for name, fit in screened.items() if name != NONE and fit.rss > base.rss
     }, threads)
     return {name: fit for name, fit in nested.items() if fit.rss < screened[name].rss}
@@ -233,50 +216,55 @@ def rescreened_from_baseline(
 def _fit_over_record(
     data: ForcedData, names: list[str], screened: Mapping[str, ShootingFit],
     bic: dict[str, float], base_full: ShootingFit, lay: Layouts, threads: int | None,
-    period: int, say: Progress,
+    period: int, say: Progress, policy: SelectionPolicy,
 ) -> dict[str, ShootingFit]:
-    """Fit the REFINED best screened causes over the whole record (see analyze_forced_fits);
-    ``bic`` is updated in place: a fitted cause's gain over the record, and an unfitted
-    one's screening gain capped at BIC_MARGIN (it did not come close)."""
+    """Fit the policy's ``refined`` best screened causes over the whole record (see
+    analyze_forced_fits); ``bic`` is updated in place: a fitted cause's gain over the
+    record, and an unfitted one's screening gain capped at the policy's ``bic_margin`` (it
+    did not come close)."""
     ranked = sorted(names, key=lambda n: -bic[n])
     screened_gain = dict(bic)
     fits: dict[str, ShootingFit] = {}
     complete = None  # the first refined cause that gains, is plausible and leaves white noise
-    for name in [n for n in ranked if bic[n] > 0.0][:REFINED]:
-        if contradiction := table_contradiction(data, name, screened[name], absent_only=True):
+    for name in [n for n in ranked if bic[n] > 0.0][:policy.refined]:
+        if contradiction := table_contradiction(data, name, screened[name], absent_only=True,
+                                                policy=policy):
             say(f"  {name} not fitted over the record: its screening gives {contradiction}")
             continue
-        if complete is not None and screened_gain[name] < RIVAL_SCREENED * screened_gain[complete]:
+        if complete is not None and \
+                screened_gain[name] < policy.rival_screened * screened_gain[complete]:
             say(f"  {name} not fitted over the record: {complete} leaves white noise and "
                 f"{name} screened {screened_gain[complete] / screened_gain[name]:.3g} x lower")
             continue
         fits[name] = _fit_cause_over_record(data, name, screened[name], base_full, fits, lay,
-                                            threads)
+                                            threads, policy)
         bic[name] = _bic(data, ModelFits(NONE, base_full), fits[name])
         say(f"  {name} over the record: BIC gain {bic[name]:.3g}")
-        if complete is None and bic[name] > BIC_MARGIN and not disqualification(
-                data, name, fits[name]) and not _structured(data, fits[name], period):
+        if complete is None and bic[name] > policy.bic_margin and not disqualification(
+                data, name, fits[name], policy) and not _structured(data, fits[name], period):
             complete = name
-    _finish_rivals(data, fits, bic, base_full, lay, threads, say)
+    _finish_rivals(data, fits, bic, base_full, lay, threads, say, policy)
     for name in names:
         if name not in fits:  # judged on its screening: it did not come close
-            bic[name] = min(bic[name], BIC_MARGIN)
+            bic[name] = min(bic[name], policy.bic_margin)
     return fits
 
 
 def _finish_rivals(
     data: ForcedData, fits: dict[str, ShootingFit], bic: dict[str, float],
     base_full: ShootingFit, lay: Layouts, threads: int | None, say: Progress,
+    policy: SelectionPolicy,
 ) -> None:
-    """Fits stopped at their iteration cap while within RIVAL_BIC of the best cause go on
-    until they converge (at most RIVAL_ROUNDS more caps): the judges compare finished fits.
+    """Fits stopped at their iteration cap while within the policy's ``rival_bic`` share of
+    the best cause's gain go on until they converge (at most ``rival_rounds`` more caps):
+    the judges compare finished fits.
     A wrong cause's crawl changes nothing, but the right one can crawl too: a contact
     exponent, whose stiffness must follow it over decades, stood at 0.72 of a barrier
     offset's gain after 12 iterations and at 1.04 of it after 40."""
-    for _ in range(RIVAL_ROUNDS):
+    for _ in range(policy.rival_rounds):
         best = max((bic[n] for n in fits), default=0.0)
         unfinished = [n for n, fit in fits.items() if not fit.success
-                      and bic[n] > BIC_MARGIN and bic[n] >= RIVAL_BIC * best]
+                      and bic[n] > policy.bic_margin and bic[n] >= policy.rival_bic * best]
         if not unfinished:
             return
         for name in unfinished:
@@ -288,12 +276,13 @@ def _finish_rivals(
 def _fit_cause_over_record(
     data: ForcedData, name: str, screened: ShootingFit, base_full: ShootingFit,
     fits: Mapping[str, ShootingFit], lay: Layouts, threads: int | None,
+    policy: SelectionPolicy,
 ) -> ShootingFit:
     """One cause's fit over the record, restarted when it ends in a worse basin than the
     baseline's."""
     # the best full fit so far lends its states when it fits the record closely
     best = min([base_full, *fits.values()], key=lambda f: f.rms)
-    seed = best if best.rms < SEED_RMS * data.noise_rad else None
+    seed = best if best.rms < policy.seed_rms * data.noise_rad else None
     fit = fit_cause(data, name, screened, lay, threads, seed)
     # a model ending worse than the baseline found a worse basin: start again from the
     # baseline's optimum, then (when the first start was another model's states) from
@@ -309,7 +298,7 @@ def _fit_cause_over_record(
 def _judge_in_order(
     data: ForcedData, passing: list[str], fits: Mapping[str, ShootingFit], base: ModelFits,
     lay: Layouts, threads: int | None, measured: Invariants | None,
-    base_distance: float | None,
+    base_distance: float | None, policy: SelectionPolicy,
 ) -> tuple[dict[str, Verdict], dict[str, ShootingFit], str | None]:
     """Judge the passing causes, best first, by forecasts (and, with ``measured``, the
     invariants) until one earns its keep: the verdicts, the training fits made, and the
@@ -321,7 +310,8 @@ def _judge_in_order(
         if accepted is not None:
             judged[name] = verdict_of(
                 data, ModelFits(name, fits[name]), base, lay,
-                not_judged=f"not judged further: {accepted} scores higher and earns its place")
+                not_judged=f"not judged further: {accepted} scores higher and earns its place",
+                policy=policy)
             continue
         distances: tuple[float | None, float | None] = (None, None)
         if measured is not None:
@@ -329,7 +319,7 @@ def _judge_in_order(
                          model_invariants_distance(data, measured, name, fits[name]))
         trains[name] = refit(data, name, fits[name], lay, threads, heldout_s=data.segment_s)
         judged[name] = verdict_of(data, ModelFits(name, fits[name], trains[name]), base, lay,
-                                  distances)
+                                  distances, policy=policy)
         if judged[name].earns_keep:
             accepted = name
     return judged, trains, accepted
@@ -340,6 +330,7 @@ def _forward_selection(
     current: ModelFits,
     screened: Mapping[str, ShootingFit], fits: Mapping[str, ShootingFit], lay: Layouts,
     threads: int | None, measured: Invariants | None, period: int, say: Progress,
+    policy: SelectionPolicy,
 ) -> tuple[ModelFits, list[tuple[str, Verdict]]]:
     """Add causes to the accepted one while a step earns its place by the same judges
     (information criterion, then forecasts, and on a chaotic record the invariants' veto).
@@ -353,7 +344,8 @@ def _forward_selection(
     known to differ from none (its first parameter's interval excludes the neutral value).
     After a step, a backward check drops an earlier cause the new one makes redundant (by
     the information criterion against the model without it, when that fit is at hand).
-    A step must also shrink the forecasts' error above the noise by HELDOUT_EXCESS_RATIO,
+    A step must also shrink the forecasts' error above the noise to the policy's
+    ``heldout_excess_ratio``,
     not only significantly: over a minute of record, a 0.46 mrad sensor zero beside a
     lag and a harmonic (none in the truth) forecast 0.3 % better, 3 standard errors clear.
     A candidate's fit over the record starts twice, from that optimum and afresh as every
@@ -366,20 +358,20 @@ def _forward_selection(
     short = screened[current.cause]
     distance = None
     names = [n for n in screened if n != NONE]
-    while len(causes_in(current.cause)) < MAX_CAUSES:
+    while len(causes_in(current.cause)) < policy.max_causes:
         left = _residual_reading(data, current.full, period)
         if not (left.structured or left.ljung_box_p < FALSE_ALARM):
             say(f"  beside {current.cause}: {left.why}, and its correlation is no more than "
                 f"white noise's (Ljung-Box p {left.ljung_box_p:.2g}); no further cause tried")
             break
         present = causes_in(current.cause)
-        gains = screened_beside(data, ident, current.cause, short, names, threads)
+        gains = screened_beside(data, ident, current.cause, short, names, threads, policy)
         say(f"  screened beside {current.cause}: " + ", ".join(
             f"{n} {g:.3g}" for n, (g, _) in sorted(gains.items(), key=lambda kv: -kv[1][0])))
-        pool = sorted((n for n in gains if gains[n][0] > BIC_MARGIN),
-                      key=lambda n: -gains[n][0])[:ADDED]
+        pool = sorted((n for n in gains if gains[n][0] > policy.bic_margin),
+                      key=lambda n: -gains[n][0])[:policy.step_added]
         refused = {n: why for n in pool if (why := table_contradiction(
-            data, model_name([*present, n]), gains[n][1], absent_only=True))}
+            data, model_name([*present, n]), gains[n][1], absent_only=True, policy=policy))}
         for name, why in refused.items():
             say(f"  {name} not fitted over the record: its screening gives {why}")
         pool = [n for n in pool if n not in refused]
@@ -399,10 +391,10 @@ def _forward_selection(
             model = model_name([*present, name])
             fit = min(started[name, "nested"], started[name, "afresh"], key=lambda f: f.rss)
             gain = _bic(data, ModelFits(current.cause, parent), fit)
-            why = disqualification(data, model, fit) or _indeterminate(fit, name)
+            why = disqualification(data, model, fit, policy) or _indeterminate(fit, name)
             say(f"  {model} over the record: BIC gain {gain:.3g} over {current.cause}"
                 + (f", but {why}" if why else ""))
-            if gain > BIC_MARGIN and not why:
+            if gain > policy.bic_margin and not why:
                 tried.append((gain, name, fit))
         if not tried:
             break
@@ -415,21 +407,23 @@ def _forward_selection(
                 distance = model_invariants_distance(data, measured, current.cause, current.full)
             distances = (distance, model_invariants_distance(data, measured, model, fit))
         verdict = verdict_of(data, ModelFits(model, fit, train),
-                             ModelFits(current.cause, parent, current.train), lay, distances)
+                             ModelFits(current.cause, parent, current.train), lay, distances,
+                             policy=policy)
         say(f"  adding {name}: {verdict.why}")
         if not verdict.earns_keep:
             break
-        if verdict.heldout_excess_ratio >= HELDOUT_EXCESS_RATIO:
+        if verdict.heldout_excess_ratio >= policy.heldout_excess_ratio:
             say(f"  {name} not added: the forecasts' error above the noise shrinks only "
                 f"x{verdict.heldout_excess_ratio:.3g} (a step needs "
-                f"x{HELDOUT_EXCESS_RATIO:g})")
+                f"x{policy.heldout_excess_ratio:g})")
             break
         current, distance = ModelFits(model, fit, train), distances[1]
         short = gains[name][1]
         steps.append((name, verdict))
         for earlier in present:
             rest = model_name([c for c in causes_in(model) if c != earlier])
-            if rest in fits and _bic(data, ModelFits(rest, fits[rest]), fit) <= BIC_MARGIN:
+            if rest in fits and \
+                    _bic(data, ModelFits(rest, fits[rest]), fit) <= policy.bic_margin:
                 say(f"  {earlier} dropped: {rest} alone explains the record as well")
                 current, short = ModelFits(rest, fits[rest]), screened[rest]
                 steps = [(n, v) for n, v in steps if n != earlier]
@@ -439,11 +433,12 @@ def _forward_selection(
 
 def screened_beside(
     data: ForcedData, ident: ForcedIdentification, current: str, short: ShootingFit,
-    names: Sequence[str], threads: int | None,
+    names: Sequence[str], threads: int | None, policy: SelectionPolicy = DEFAULT_POLICY,
 ) -> dict[str, tuple[float, ShootingFit]]:
     """A step's screening: each of ``names`` not in model ``current`` added to its short
-    fit ``short`` and fitted STEP_SCREEN_ITERATIONS, with its information-criterion gain
-    over ``current`` continued to its optimum (up to STEP_PARENT_ITERATIONS).  A screening
+    fit ``short`` and fitted the policy's ``step_screen_iterations``, with its
+    information-criterion gain over ``current`` continued to its optimum (up to
+    ``step_parent_iterations``).  A screening
     stops at its cap, and a cause added to a fit still moving gains what the fit would have
     gained by iterating on: a drive harmonic beside a sensor cubic on a chaotic record
     gained 1630 over the cubic continued as long, and over the record it did not differ
@@ -453,9 +448,9 @@ def screened_beside(
     present = causes_in(current)
     added = side_by_side({
         None: partial(extend, data, current, short, None, ident.short,
-                      max_iterations=STEP_PARENT_ITERATIONS),
+                      max_iterations=policy.step_parent_iterations),
         **{name: partial(extend, data, current, short, name, ident.short,
-                         max_iterations=STEP_SCREEN_ITERATIONS)
+                         max_iterations=policy.step_screen_iterations)
            for name in names if name not in present},
     }, threads)
     yardstick = ModelFits(current, added.pop(None))
@@ -491,24 +486,25 @@ def _indeterminate(fit: ShootingFit, name: str) -> str | None:
 
 def _indistinct(
     data: ForcedData, base: ShootingFit, accepted: str, fits: Mapping[str, ShootingFit],
-    bic: Mapping[str, float], final: ModelFits,
+    bic: Mapping[str, float], final: ModelFits, policy: SelectionPolicy,
 ) -> list[dict[str, Any]]:
     """Causes the record cannot tell from the accepted one: their effects on the model
-    curve (each fit's curve minus the baseline's) correlate by INDISTINCT_CORRELATION or
-    more, each explains the record nearly as well, and the forward selection did not keep
-    both."""
+    curve (each fit's curve minus the baseline's) correlate by the policy's
+    ``indistinct_correlation`` or more, each explains the record nearly as well (its
+    ``indistinct_bic``), and the forward selection did not keep both."""
     kept = causes_in(final.cause)
     effect = fits[accepted].prediction - base.prediction
     use = data.valid & np.isfinite(effect)
     out = []
     for name, fit in fits.items():
-        if name in kept or name == accepted or not bic[name] >= INDISTINCT_BIC * bic[accepted]:
+        if name in kept or name == accepted or \
+                not bic[name] >= policy.indistinct_bic * bic[accepted]:
             continue
         other = fit.prediction - base.prediction
         both = use & np.isfinite(other)
         a, b = effect[both], other[both]
         r = float(a @ b / math.sqrt(max((a @ a) * (b @ b), 1e-300)))
-        if abs(r) >= INDISTINCT_CORRELATION:
+        if abs(r) >= policy.indistinct_correlation:
             out.append({
                 "causes": [accepted, name], "correlation": r,
                 "why": (f"{accepted} and {name} change the model's curve alike (correlation "
@@ -546,9 +542,10 @@ def regime_summary(regime: Regime) -> dict[str, Any]:
 def analyze_forced(
     record: Record, *, priors: Mapping[str, float] | None = None,
     causes: Sequence[str] | None = None, progress: Progress | None = None,
-    threads: int | None = None,
+    threads: int | None = None, policy: SelectionPolicy = DEFAULT_POLICY,
 ) -> Analysis:
-    """The discrepancy analysis of a forced record (see the module's docstring)."""
+    """The discrepancy analysis of a forced record (see the module's docstring), decided
+    by ``policy``'s rules."""
     say = progress or (lambda message: None)
     clock = time.perf_counter()
     try:
@@ -565,7 +562,7 @@ def analyze_forced(
     try:
         out = analyze_forced_fits(data, priors=priors, causes=causes, chaotic=chaotic,
                                   period=regime.period or 1,
-                                  progress=say, threads=threads)
+                                  progress=say, threads=threads, policy=policy)
     except IdentificationError as error:
         raise AnalysisError(f"{record.source or 'record'}: {error}") from error
     verdict = choose([v for _, v in out.candidates])
@@ -589,7 +586,8 @@ def analyze_forced(
         final = CandidateOutcome(
             cause=f.cause, train=as_fit_result(f.train if f.train is not None else f.full,
                                                f.cause),
-            full=as_fit_result(f.full, f.cause), verdict=verdict_of(data, f, base, out.layouts),
+            full=as_fit_result(f.full, f.cause),
+            verdict=verdict_of(data, f, base, out.layouts, policy=policy),
             prediction=(f.train if f.train is not None else f.full).prediction)
     in_contact = base.full.true_angle > 0.0
     localization = localize(view, baseline, base.full.rate, _widened(in_contact))
@@ -615,7 +613,7 @@ def analyze_forced(
         regime=regime_summary(regime), drive=data.drive.as_json(),
         baseline_heldout_rms=base.train.forecast_rms if base.train is not None else None,
         curves=(base.full.prediction, shown.full.prediction if shown is not None else None),
-        steps=out.steps, final=final, indistinct=out.indistinct,
+        steps=out.steps, final=final, indistinct=out.indistinct, policy=policy,
         heldout_description=(
             f"forecasts over the {data.segment_s:g} s after each fitted stretch of "
             f"{data.segment_s:g} s, "

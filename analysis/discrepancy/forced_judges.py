@@ -10,6 +10,7 @@ import numpy as np
 
 from analysis.discrepancy.forced_models import Layouts, ModelFits, as_fit_result
 from analysis.discrepancy.invariants import Invariants, invariant_distance, invariants
+from analysis.discrepancy.policy import DEFAULT_POLICY, SelectionPolicy
 from analysis.discrepancy.selection import Verdict, information_criterion_delta
 from analysis.extensions import NONE, cause, causes_in, implausibility
 from analysis.identify.forced import ForcedData
@@ -20,24 +21,24 @@ from analysis.model_values import measured_angle, packed_from_values
 from analysis.simulate import SimulationSettings, simulate_packed
 
 MODEL_INVARIANT_SPAN = 4  # a model's invariants come from a run this many records long
-# A drive cause's size fitted from the angle contradicts the table channel's measurement of
-# it when the two differ by TABLE_Z standard errors of their difference and by
-# TABLE_TOLERANCE of the larger (a model's compromise may move a size a little, not more).
-TABLE_Z = 4.0
-TABLE_TOLERANCE = 0.25
 
 
-def disqualification(data: ForcedData, model: str, fit: ShootingFit) -> str | None:
+def disqualification(data: ForcedData, model: str, fit: ShootingFit,
+                     policy: SelectionPolicy = DEFAULT_POLICY) -> str | None:
     """Why a fitted model explains nothing, whatever it gains, or None: values no real rig
     can have (:func:`analysis.extensions.implausibility`), or a drive the table channel
     measured otherwise."""
-    return implausibility(model, fit.values) or table_contradiction(data, model, fit)
+    return implausibility(model, fit.values) or \
+        table_contradiction(data, model, fit, policy=policy)
 
 
 def table_contradiction(data: ForcedData, model: str, fit: ShootingFit, *,
-                        absent_only: bool = False) -> str | None:
+                        absent_only: bool = False,
+                        policy: SelectionPolicy = DEFAULT_POLICY) -> str | None:
     """Why the drive causes' sizes fitted from the angle contradict what the table channel
-    measured of them (the laser watches the table itself), or None.  A table amplitude or
+    measured of them (the laser watches the table itself), or None: the two differ by the
+    policy's ``table_z`` standard errors of their difference and by its
+    ``table_tolerance`` of the larger.  A table amplitude or
     harmonic that only the angle's fit wants is another effect's stand-in: a second
     harmonic of 4e-4 was fitted beside a sensor lag where the laser measured 2e-6 +- 6e-6.
 
@@ -55,12 +56,12 @@ def table_contradiction(data: ForcedData, model: str, fit: ShootingFit, *,
             if laser is None or fitted is None:
                 continue
             if absent_only and \
-                    abs(laser.value - spec.default) > TABLE_Z * standard_error(laser):
+                    abs(laser.value - spec.default) > policy.table_z * standard_error(laser):
                 continue
             gap = abs(fitted.value - laser.value)
             sigma = math.hypot(standard_error(fitted), standard_error(laser))
-            if gap > TABLE_Z * sigma and \
-                    gap > TABLE_TOLERANCE * max(abs(fitted.value), abs(laser.value)):
+            if gap > policy.table_z * sigma and \
+                    gap > policy.table_tolerance * max(abs(fitted.value), abs(laser.value)):
                 reasons.append(f"{spec.name} = {fitted.value:.3g} where the table channel "
                                f"measured {laser.value:.3g} +- {laser.half_width:.2g}")
     return "; ".join(reasons) or None
@@ -112,7 +113,7 @@ def forecast_z(base: ShootingFit, candidate: ShootingFit, train: Segments) -> fl
 def verdict_of(
     data: ForcedData, candidate: ModelFits, base: ModelFits, lay: Layouts,
     distances: tuple[float | None, float | None] = (None, None),
-    not_judged: str | None = None,
+    not_judged: str | None = None, policy: SelectionPolicy = DEFAULT_POLICY,
 ) -> Verdict:
     """Both judges' view of a candidate against the baseline (without training fits, when
     it did not pass the information criterion or a better cause was accepted first, it has
@@ -134,5 +135,6 @@ def verdict_of(
         if base.train is not None else 0,
         forecast_z=forecast_z(base.train, candidate.train, lay.train) if judged else None,
         not_judged=not_judged,
-        implausible=disqualification(data, candidate.cause, candidate.full),
+        implausible=disqualification(data, candidate.cause, candidate.full, policy),
+        policy=policy,
     )

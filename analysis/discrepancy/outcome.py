@@ -11,15 +11,14 @@ import numpy as np
 
 from analysis.discrepancy.fitting import FitData, FitResult, predict
 from analysis.discrepancy.localize import Localization
+from analysis.discrepancy.policy import DEFAULT_POLICY, SelectionPolicy
 from analysis.discrepancy.residual_reading import Finding, ResidualReading, read_residual
-from analysis.discrepancy.selection import BIC_MARGIN, Verdict, heldout_rms
+from analysis.discrepancy.selection import Verdict, heldout_rms
 from analysis.discrepancy.term_proposal import ProposedTerm
 from analysis.experiments import KINDS
 from analysis.extensions import NONE, cause, causes_in
 from analysis.identify.result import Estimate
 from analysis.records import Record
-
-UNEXPLAINED_RATIO = 5.0  # final rms this many times the noise: say the story is incomplete
 
 
 class AnalysisError(ValueError):
@@ -77,6 +76,8 @@ class Analysis:
     # forced records left unexplained: terms outside the named causes that the residual
     # acceleration asks for (never a cause)
     proposed_terms: list[ProposedTerm] = field(default_factory=list)
+    # the rules under which it was decided
+    policy: SelectionPolicy = DEFAULT_POLICY
 
     @property
     def chosen_outcome(self) -> CandidateOutcome | None:
@@ -93,12 +94,11 @@ class Analysis:
 
     @property
     def unexplained(self) -> bool:
-        """True when structure is left in the final model's residual beyond the noise."""
-        if self.reading is not None:
-            return self.reading.structured
-        best = self.final_outcome
-        final = best.full if best is not None else self.baseline
-        return final.rms > UNEXPLAINED_RATIO * self.data.noise_rad
+        """True when structure is left in the final model's residual beyond the noise
+        (:meth:`read` reads it)."""
+        if self.reading is None:
+            raise RuntimeError("Analysis.read() first: the residual is not read yet")
+        return self.reading.structured
 
     @property
     def residual_findings(self) -> list[Finding]:
@@ -128,20 +128,17 @@ class Analysis:
         """Caveats on the finding: what the chosen model still leaves unexplained."""
         out = []
         best = self.final_outcome
-        final = best.full if best is not None else self.baseline
-        ratio = final.rms / max(self.data.noise_rad, 1e-300)
         if self.unexplained:
             what = f"the baseline extended by {' and '.join(causes_in(best.cause))}" \
                 if best is not None else "the baseline"
-            seen = self.reading.why if self.reading is not None else \
-                f"{final.rms:.3g} rad rms is left, {ratio:.3g} x the noise"
             out.append(
-                f"the model still misses something: {seen} ({what}; structure outside the "
-                "named causes, or a fit caught in a local minimum; treat any named cause as "
-                "the best of the candidates, not the whole story)"
+                f"the model still misses something: {self.reading.why} ({what}; structure "
+                "outside the named causes, or a fit caught in a local minimum; treat any "
+                "named cause as the best of the candidates, not the whole story)"
             )
         for c in self.ranked():
-            if c.verdict.information_criterion_delta <= BIC_MARGIN or c.cause == self.chosen:
+            if c.verdict.information_criterion_delta <= self.policy.bic_margin \
+                    or c.cause == self.chosen:
                 break
             if c.verdict.implausible:
                 out.append(f"{c.cause} fits the record better (BIC gain "
@@ -264,6 +261,7 @@ class Analysis:
             "source": self.record.source,
             "notes": self.notes,
             "timings_s": self.timings,
+            "policy": self.policy.as_json(),
         }
         if self.regime is not None:
             out["regime"] = self.regime

@@ -80,6 +80,21 @@ DRIVE_TOLERANCE_PPM = 100.0
 PULSE_MARK_ERROR_SAMPLES = 0.5
 
 
+def rules_json() -> dict[str, dict[str, Any]]:
+    """The reading's fixed rules, each as ``{"value", "why"}`` (a report's ``policy``)."""
+    return {
+        "false_alarm": {"value": FALSE_ALARM, "why": "chance that a check finds structure "
+                        "in white noise, whatever the record's length"},
+        "min_structure": {"value": MIN_STRUCTURE, "why": "structure counts from this "
+                          "fraction of the noise's rms (smaller changes no fit)"},
+        "scatter_limit": {"value": SCATTER_LIMIT, "why": "the residual's sample-to-sample "
+                          "scatter may exceed the record's noise by this factor"},
+        "ljung_box_lags": {"value": LJUNG_BOX_LAGS, "why": "lags of the whiteness test"},
+        "backbone_min": {"value": BACKBONE_MIN, "why": "a decay's frequency change across "
+                         "its swing that differs from the model's by this much is named"},
+    }
+
+
 @dataclass(frozen=True)
 class Finding:
     """One thing the residual (or the drive channels) shows: a kind from KINDS, a sentence

@@ -12,20 +12,13 @@ parameter that only absorbs noise gains nothing.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from analysis.discrepancy.fitting import FitResult
+from analysis.discrepancy.policy import DEFAULT_POLICY, SelectionPolicy
 from analysis.identify.intervals import correlation_time
-
-BIC_MARGIN = 10.0  # "very strong" evidence on the Kass-Raftery scale
-MAX_CAUSES = 3  # a forward selection stops at this many causes
-HELDOUT_RATIO = 0.95  # the extension must predict the unseen part at least 5 % better
-HELDOUT_EXCESS_RATIO = 0.9  # ... or shrink the error above the noise by 10 %, significantly
-HELDOUT_SIGMAS = 3.0
-INVARIANT_RATIO = 0.7  # chaotic records: invariants at least 30 % closer to the data's
-FORECAST_Z = 3.0  # paired forecast test: the error drop in standard errors, stretch by stretch
 
 
 def information_criterion_delta(
@@ -62,6 +55,7 @@ class Verdict:
     # why the fitted values are no explanation a real rig can have (outside the cause's
     # plausible range, or on a bound of the fit): it then explains nothing, whatever it gains
     implausible: str | None = None
+    policy: SelectionPolicy = field(default=DEFAULT_POLICY, repr=False, compare=False)
 
     @property
     def heldout_ratio(self) -> float:
@@ -82,22 +76,25 @@ class Verdict:
     def heldout_helps(self) -> bool:
         """The held-out judge: a clearly smaller prediction error on the unseen part.
 
-        Either the error drops by HELDOUT_RATIO, or - when an effect is small against the
-        noise - the drop is significant: on forced records, by a paired test over the
-        held-out stretches (FORECAST_Z standard errors); on decays, whose one held-out part
-        cannot be split so, when its excess over the noise drops by HELDOUT_EXCESS_RATIO and
-        the mean-square gain is well beyond the scatter a finite held-out sample allows
-        (HELDOUT_SIGMAS standard errors of a noise variance).
+        Either the error drops to the policy's ``heldout_ratio``, or - when an effect is
+        small against the noise - the drop is significant: on forced records, by a paired
+        test over the held-out stretches (``forecast_z`` standard errors); on decays, whose
+        one held-out part cannot be split so, when its excess over the noise drops to
+        ``heldout_excess_ratio`` and the mean-square gain is well beyond the scatter a
+        finite held-out sample allows
+        (``heldout_sigmas`` standard errors of a noise variance).
         """
-        if self.heldout_ratio < HELDOUT_RATIO:
+        rules = self.policy
+        if self.heldout_ratio < rules.heldout_ratio:
             return True
         if self.forecast_z is not None:
-            return self.forecast_z > FORECAST_Z
+            return self.forecast_z > rules.forecast_z
         if self.n_heldout <= 0 or not self.noise_rad > 0:
             return False
         gain = self.heldout_rms_baseline**2 - self.heldout_rms_extended**2
         scatter = self.noise_rad**2 * math.sqrt(2.0 / self.n_heldout)
-        return gain > HELDOUT_SIGMAS * scatter and self.heldout_excess_ratio < HELDOUT_EXCESS_RATIO
+        return gain > rules.heldout_sigmas * scatter \
+            and self.heldout_excess_ratio < rules.heldout_excess_ratio
 
     @property
     def invariant_ratio(self) -> float | None:
@@ -112,16 +109,18 @@ class Verdict:
     def earns_keep(self) -> bool:
         """True when both judges say the extension helps by a clear margin.  On a chaotic
         record the invariant statistics join them: alone when there are no forecasts (a
-        ratio under INVARIANT_RATIO), or as a veto of forecasts whose model's long run is
-        no closer to the record's statistics than the baseline's.  One long run's statistics
+        ratio under the policy's ``invariant_ratio``), or as a veto of forecasts whose
+        model's long run is no closer to the record's statistics than the baseline's.  One
+        long run's statistics
         are noisy (a right cause's run came 1.4 times further away than the baseline's on
         a record whose forecasts it improved threefold): the veto needs the run further
         away by more than the factor the forecasts gain."""
-        if self.information_criterion_delta <= BIC_MARGIN or self.implausible:
+        rules = self.policy
+        if self.information_criterion_delta <= rules.bic_margin or self.implausible:
             return False
         ratio = self.invariant_ratio
         if ratio is not None and self.forecast_z is None:
-            return ratio < INVARIANT_RATIO
+            return ratio < rules.invariant_ratio
         if ratio is not None and ratio >= max(1.0, 1.0 / self.heldout_ratio):
             return False  # forecasts better, but its own long run further from the record's
         return self.heldout_helps
@@ -134,10 +133,10 @@ class Verdict:
         if self.implausible:
             return (f"BIC gain {self.information_criterion_delta:.3g}, but no explanation: "
                     f"{self.implausible}")
-        ic = self.information_criterion_delta
+        ic, margin = self.information_criterion_delta, self.policy.bic_margin
         ratio = self.heldout_ratio
         parts = [
-            f"BIC gain {ic:.3g} ({'>' if ic > BIC_MARGIN else '<='} {BIC_MARGIN:g})",
+            f"BIC gain {ic:.3g} ({'>' if ic > margin else '<='} {margin:g})",
             f"held-out error x{ratio:.3g} (above noise x{self.heldout_excess_ratio:.3g}): "
             f"{'better' if self.heldout_helps else 'no clear gain'}",
         ]
@@ -145,7 +144,8 @@ class Verdict:
         if invariant is not None and self.forecast_z is None:
             parts[1] = (
                 f"invariant-statistics distance x{invariant:.3g} "
-                f"({'<' if invariant < INVARIANT_RATIO else '>='} {INVARIANT_RATIO:g})"
+                f"({'<' if invariant < self.policy.invariant_ratio else '>='} "
+                f"{self.policy.invariant_ratio:g})"
             )
         elif invariant is not None:
             veto = max(1.0, 1.0 / ratio)
@@ -165,7 +165,7 @@ def choose(verdicts: list[Verdict]) -> Verdict | None:
         if verdict.earns_keep:
             return verdict
         if (verdict.invariant_ratio is not None and verdict.forecast_z is None
-                and verdict.information_criterion_delta > BIC_MARGIN):
+                and verdict.information_criterion_delta > verdict.policy.bic_margin):
             return None
     return None
 

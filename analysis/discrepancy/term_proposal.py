@@ -90,6 +90,16 @@ MIN_SAMPLES = 200  # a region with fewer usable samples is not regressed
 DECIMATION = 16  # low-passed flight samples kept: this many per low-pass window
 
 
+def rules_json() -> dict[str, dict[str, Any]]:
+    """The proposal's fixed rules, each as ``{"value", "why"}`` (a report's ``policy``)."""
+    return {
+        "min_gain": {"value": MIN_GAIN, "why": "a proposed term removes at least this share "
+                     "of its region's held-out residual variance"},
+        "false_alarm": {"value": FALSE_ALARM, "why": "a kept term's paired test over the "
+                        "held-out blocks, divided among the terms tried"},
+    }
+
+
 @dataclass(frozen=True)
 class Library:
     """Candidate terms of one region: names, the unit of each term, and its columns (one per

@@ -216,5 +216,6 @@ def write_report(
         ]
     if js.get("notes"):
         lines += ["", "## Notes", ""] + [f"- {n}" for n in js["notes"]]
+    lines += ["", f"Rules: {analysis.policy.summary()}."]
     lines += markdown_provenance()
     return write_page(lines, directory / f"{name}.md")

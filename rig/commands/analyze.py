@@ -43,6 +43,7 @@ examples:
   impact-rig analyze run.h5 --workers 1
   impact-rig analyze forced.csv --report out/
   impact-rig analyze forced.csv --impact-decay impacts.csv   # start from the decay's values
+  impact-rig analyze decay.csv --rule bic_margin=6            # a looser information criterion
 """
 
 
@@ -78,22 +79,31 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument(
         "--workers", type=int, default=None, help="processes fitting candidates (default: 2)"
     )
+    parser.add_argument(
+        "--rule", action="append", default=[], metavar="NAME=VALUE",
+        help="change a rule that decides what is named (repeatable), e.g. bic_margin=6 or "
+        "max_causes=2; the JSON report's `policy` lists every rule with its reason",
+    )
     parser.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
     """Analyse the record and print a short summary (the JSON report goes to --json)."""
-    from analysis.discrepancy import AnalysisError, analyze_record
+    from analysis.discrepancy import AnalysisError, SelectionPolicy, analyze_record
     from analysis.identify import IdentificationError
     from analysis.json_output import to_json_text
     from analysis.provenance import provenance
     from analysis.report.discrepancy import report_json
 
     _check_files(args)
+    try:
+        policy = SelectionPolicy.from_assignments(args.rule)
+    except ValueError as error:
+        raise CommandError(f"--rule: {error}") from error
     record, priors = _load_record_and_priors(args)
     try:
         analysis = analyze_record(record, workers=args.workers, progress=progress,
-                                  priors=priors)
+                                  priors=priors, policy=policy)
     except (AnalysisError, IdentificationError, ValueError) as error:
         raise CommandError(f"{args.file}: cannot analyse: {error}") from error
     js = report_json(analysis)

@@ -3,10 +3,12 @@ HTML page with PNG figures, clear errors on bad input."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import subprocess
 import sys
 
+from analysis.discrepancy import DEFAULT_POLICY
 from tests.discrepancy.hidden_cause import draw_case, write_case
 from tests.html_page import read_page
 from tests.strict_json import strict_loads
@@ -44,7 +46,11 @@ def test_analyze_writes_section_6_json_and_report(tmp_path):
     assert lo <= case.rig.L_m <= hi
     for row in report["ranking"]:
         assert {"cause", "score", "parameters"} <= set(row)
+    # the rules it was decided under, as the analysis held them
+    assert {k: v["value"] for k, v in report["policy"].items() if "value" in v} == \
+        dataclasses.asdict(DEFAULT_POLICY)
     md = (tmp_path / "rep" / "run.md").read_text()
+    assert "Rules: decided under the default rules" in md
     assert f"cause: `{case.cause}`" in md
     # the parameters say which data and model they come from, and why identify may differ
     story = md.split("## Parameters", 1)[1].split("|", 1)[0]

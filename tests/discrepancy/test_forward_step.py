@@ -22,7 +22,7 @@ from analysis.discrepancy.forced_models import (
     level_hints,
     screen_cause,
 )
-from analysis.discrepancy.selection import BIC_MARGIN
+from analysis.discrepancy.policy import DEFAULT_POLICY
 from analysis.experiments import FORCED
 from analysis.extensions import model_name
 from analysis.identify.forced import forced_data, identify_forced
@@ -76,4 +76,4 @@ def test_a_step_screens_against_the_current_model_continued_to_its_optimum(tmp_p
     names = [c.name for c in candidates_for(FORCED.name)]
     gains = screened_beside(data, ident, "sensor_nonlinearity", cubic, names, 2)
     assert set(gains) == set(names) - {"sensor_nonlinearity"}
-    assert max(gain for gain, _fit in gains.values()) <= BIC_MARGIN, gains
+    assert max(gain for gain, _fit in gains.values()) <= DEFAULT_POLICY.bic_margin, gains
