@@ -110,7 +110,7 @@ def _check_the_command_output(case, report, tmp_path):
 
 # two causes at once: the pair drawn from the seed among every registered cause (a 10 Hz
 # record without a laser, seed 5302, is a known miss: a 2 ms lag beside a drive harmonic is
-# named as a 1 % table amplitude error, see the README's benchmark of pairs)
+# named as a 1 % table amplitude error, see docs/benchmarks.md)
 PAIR_SEEDS = {"2 Hz": (5301, 2.0)}
 
 

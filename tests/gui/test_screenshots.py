@@ -1,6 +1,6 @@
-"""The README's screenshots (``impact-rig gui --screenshots DIR``), taken by the same code on a
-quicker plan: every picture is drawn on (not one colour), carries what made it, and shows the
-view and panels it is meant to, with data in them."""
+"""The screenshots of README.md and docs/guide.md (``impact-rig gui --screenshots DIR``), taken
+by the same code on a quicker plan: every picture is drawn on (not one colour), carries what
+made it, and shows the view and panels it is meant to, with data in them."""
 
 from __future__ import annotations
 
