@@ -161,22 +161,53 @@ def register(cause: Cause) -> Cause:
     return cause
 
 
-JOINED = "+"  # a model of several causes is named by theirs joined: "coulomb_friction+..."
+@dataclass(frozen=True)
+class ModelSpec:
+    """A model: the baseline of docs/MODEL.md section 2 extended by an ordered tuple of
+    named causes (none: the baseline itself).  Hashable; its display ``name`` is derived
+    from it (``none``, a cause's name, or causes joined by " + ") and is never parsed."""
+
+    causes: tuple[str, ...] = ()
+
+    def __post_init__(self) -> None:
+        for name in self.causes:
+            cause(name)  # a clear error for an unknown name
+        if len(set(self.causes)) != len(self.causes):
+            raise ParameterError(f"model {self.causes!r}: a cause named twice")
+
+    @classmethod
+    def of(cls, *causes: str) -> ModelSpec:
+        """The baseline extended by ``causes``, in that order."""
+        return cls(tuple(causes))
+
+    @property
+    def name(self) -> str:
+        """The display name: ``none``, a cause's name, or causes joined by " + "."""
+        return " + ".join(self.causes) if self.causes else NONE
+
+    @property
+    def is_baseline(self) -> bool:
+        """True for the baseline itself (no cause)."""
+        return not self.causes
+
+    def plus(self, name: str) -> ModelSpec:
+        """This model extended by cause ``name``."""
+        return ModelSpec((*self.causes, name))
+
+    def without(self, name: str) -> ModelSpec:
+        """This model less cause ``name``."""
+        return ModelSpec(tuple(c for c in self.causes if c != name))
+
+    def __str__(self) -> str:
+        return self.name
 
 
-def causes_in(model_name: str) -> tuple[str, ...]:
-    """The causes of a model named ``none``, a cause's name, or causes joined by JOINED."""
-    return () if model_name == NONE else tuple(model_name.split(JOINED))
+BASELINE = ModelSpec()
 
 
-def model_name(causes: tuple[str, ...] | list[str]) -> str:
-    """The name of the baseline extended by ``causes`` (``none`` for none)."""
-    return JOINED.join(causes) if causes else NONE
-
-
-def implausibility(model: str, values: Mapping[str, float]) -> str | None:
+def implausibility(model: ModelSpec, values: Mapping[str, float]) -> str | None:
     """Why model ``model``'s fitted values are no explanation a real rig can have, or None."""
-    reasons = [r for c in causes_in(model) if (r := cause(c).implausibility(values))]
+    reasons = [r for c in model.causes if (r := cause(c).implausibility(values))]
     return "; ".join(reasons) or None
 
 

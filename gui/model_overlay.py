@@ -17,7 +17,6 @@ import numpy as np
 
 from analysis.estimate_text import estimate_text
 from analysis.experiments import FREE_DECAY
-from analysis.extensions import causes_in
 from analysis.identify import IdentificationResult, fit_drive, fit_free_decay, fit_impact_decay
 from analysis.identify.free_decay import averaging_solution, simulated_free_decay
 from analysis.model import Drive, Model
@@ -88,7 +87,7 @@ def explain_recording(
     baseline, extended = analysis.model_curves()
     shown = analysis.shown_model
     adopted = analysis.final_outcome is not None
-    label = "" if shown is None else " + ".join(causes_in(shown.cause))
+    label = "" if shown is None else shown.model.name
     return Explanation(
         report=report_json(analysis),
         time_s=np.asarray(analysis.data.t, dtype=float),

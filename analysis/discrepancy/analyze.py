@@ -35,7 +35,7 @@ from analysis.discrepancy.selection import (
     heldout_rms,
     information_criterion_delta,
 )
-from analysis.extensions import NONE, RecordScale, cause, causes_in, implausibility, model_name
+from analysis.extensions import BASELINE, NONE, ModelSpec, RecordScale, cause, implausibility
 from analysis.identify import IdentificationError, fit_free_decay, fit_impact_decay
 from analysis.identify.impact_decay import impact_events
 from analysis.identify.preprocess import prepare
@@ -179,29 +179,28 @@ def record_scale(data: FitData, baseline: FitResult, contacts_delta: float) -> R
 
 
 def assess_candidate(
-    cause_name: str, data: FitData, n_train: int, baseline_train: FitResult,
+    model: ModelSpec, data: FitData, n_train: int, baseline_train: FitResult,
     baseline: FitResult, baseline_heldout: float, scale: RecordScale,
     hints: dict[str, float] | None = None, identified: dict[str, float] | None = None,
     policy: SelectionPolicy = DEFAULT_POLICY,
 ) -> CandidateOutcome:
     """Fit one model on the training part and on the whole record; judge it against
-    ``baseline`` (the baseline, or in a forward step the model it extends by one cause:
-    ``cause_name`` then joins their causes)."""
+    ``baseline`` (the baseline, or in a forward step the model it extends by one cause)."""
     head = data.head(n_train / data.t.size)
-    own = {s.name for c in causes_in(cause_name) for s in cause(c).parameters}
+    own = {s.name for c in model.causes for s in cause(c).parameters}
     hinted = {k: v for k, v in (hints or {}).items() if k in own}
-    train = fit(head, cause_name, baseline_train.values, scale)
+    train = fit(head, model, baseline_train.values, scale)
     if identified is not None and hinted:
         # The identification fitted this parameter together with the baseline's: its
         # whole solution is a second start, often in another basin than the baseline's.
-        second = fit(head, cause_name, {**identified, **hinted}, scale)
+        second = fit(head, model, {**identified, **hinted}, scale)
         if second.rms < train.rms:
             train = second
-    prediction, _ = predict(data, cause_name, train.values)
+    prediction, _ = predict(data, model, train.values)
     heldout = heldout_rms(prediction, data.y, data.valid, n_train)
-    full = fit(data, cause_name, train.values, scale)
+    full = fit(data, model, train.values, scale)
     verdict = Verdict(
-        cause=cause_name,
+        model=model,
         information_criterion_delta=information_criterion_delta(baseline, full, data.noise_rad),
         heldout_rms_baseline=baseline_heldout,
         heldout_rms_extended=heldout,
@@ -209,7 +208,7 @@ def assess_candidate(
         rms_extended=full.rms,
         noise_rad=data.noise_rad,
         n_heldout=int(np.count_nonzero(data.valid[n_train:])),
-        implausible=implausibility(cause_name, full.values),
+        implausible=implausibility(model, full.values),
         policy=policy,
     )
     rival = None
@@ -217,11 +216,11 @@ def assess_candidate(
         # Is the gain the cause's, or did its fit only find a better basin of the baseline's
         # own parameters?  Refit the baseline from the candidate's solution to find out.
         keys = set(baseline_train.values)
-        rival_train = fit(head, baseline_train.cause,
+        rival_train = fit(head, baseline_train.model,
                           {k: v for k, v in train.values.items() if k in keys}, scale)
         if rival_train.rms < baseline_train.rms * (1.0 - 1e-3):
             rival = rival_train
-    return CandidateOutcome(cause_name, train, full, verdict, prediction, rival)
+    return CandidateOutcome(model, train, full, verdict, prediction, rival)
 
 
 def rejudge(
@@ -299,12 +298,12 @@ def analyze_decay(
     )
     say("fitting the baseline model")
     head = data.head(n_train / data.t.size)
-    baseline_train = fit(head, NONE, start, neutral)
-    baseline = fit(data, NONE, baseline_train.values, neutral)
-    baseline_prediction, base_sim = predict(data, NONE, baseline_train.values)
+    baseline_train = fit(head, BASELINE, start, neutral)
+    baseline = fit(data, BASELINE, baseline_train.values, neutral)
+    baseline_prediction, base_sim = predict(data, BASELINE, baseline_train.values)
     baseline_heldout = heldout_rms(baseline_prediction, data.y, data.valid, n_train)
     timings["baseline"] = time.perf_counter() - clock
-    _, full_sim = predict(data, NONE, baseline.values)
+    _, full_sim = predict(data, BASELINE, baseline.values)
     deltas = full_sim.contacts.delta_max_m
     scale = record_scale(data, baseline, float(np.median(deltas)) if deltas.size else 0.0)
     localization = localize(data, baseline, *motion_of(data, full_sim))
@@ -313,8 +312,8 @@ def analyze_decay(
     if causes is not None:
         names = [n for n in names if n in causes]
     jobs = [
-        (n, data, n_train, baseline_train, baseline, baseline_heldout, scale, hints, start,
-         policy)
+        (ModelSpec.of(n), data, n_train, baseline_train, baseline, baseline_heldout, scale,
+         hints, start, policy)
         for n in names
     ]
     # one pool of processes for the candidates and the forward selection's steps (none
@@ -322,7 +321,7 @@ def analyze_decay(
     with ProcessPoolExecutor(max_workers=workers) if workers > 1 else nullcontext() as pool:
         outcomes: list[CandidateOutcome] = []
         for outcome in _assessed(jobs, pool):
-            say(f"  {outcome.cause}: {outcome.verdict.why}")
+            say(f"  {outcome.model}: {outcome.verdict.why}")
             outcomes.append(outcome)
         rivals = [o.rival for o in outcomes if o.rival is not None]
         if rivals:
@@ -331,17 +330,17 @@ def analyze_decay(
                 f"{better.rms:.3g} rad against {baseline_train.rms:.3g}): judging again")
             notes.append("the baseline was refitted from a candidate's solution (better basin)")
             baseline_train = better
-            baseline = fit(data, NONE, baseline_train.values, neutral)
-            baseline_prediction, base_sim = predict(data, NONE, baseline_train.values)
+            baseline = fit(data, BASELINE, baseline_train.values, neutral)
+            baseline_prediction, base_sim = predict(data, BASELINE, baseline_train.values)
             baseline_heldout = heldout_rms(baseline_prediction, data.y, data.valid, n_train)
             outcomes = [rejudge(o, baseline, baseline_heldout, data) for o in outcomes]
-            _, full_sim = predict(data, NONE, baseline.values)
+            _, full_sim = predict(data, BASELINE, baseline.values)
             localization = localize(data, baseline, *motion_of(data, full_sim))
         verdict = choose([o.verdict for o in outcomes])
-        chosen = verdict.cause if verdict is not None else NONE
+        chosen = verdict.model.causes[0] if verdict is not None else NONE
         final, steps = None, []
         if verdict is not None:
-            first = next(o for o in outcomes if o.cause == chosen)
+            first = next(o for o in outcomes if o.model == verdict.model)
             final, steps = _add_causes(first, outcomes, data, n_train, scale, hints, pool, say,
                                        policy)
     timings["candidates"] = time.perf_counter() - clock - timings["baseline"]
@@ -371,11 +370,11 @@ def _add_causes(
     against it (information criterion, held-out prediction), up to the policy's
     ``max_causes``.  Returns
     the final model when a step added a cause (None otherwise) and the steps taken."""
-    current, steps = first, [(first.cause, first.verdict)]
-    names = [o.cause for o in outcomes]
+    current, steps = first, [(first.model.causes[0], first.verdict)]
+    names = [o.model.causes[0] for o in outcomes]
     while len(steps) < policy.max_causes:
-        inside = causes_in(current.cause)
-        jobs = [(model_name((*inside, n)), data, n_train, current.train, current.full,
+        inside = current.model.causes
+        jobs = [(current.model.plus(n), data, n_train, current.train, current.full,
                  current.verdict.heldout_rms_extended, scale, hints, None, policy)
                 for n in names if n not in inside]
         if not jobs:
@@ -385,8 +384,8 @@ def _add_causes(
         if verdict is None:
             say(f"beside {' and '.join(inside)}: no further cause earns its place")
             break
-        current = next(o for o in tried if o.cause == verdict.cause)
-        added = causes_in(current.cause)[-1]
+        current = next(o for o in tried if o.model == verdict.model)
+        added = current.model.causes[-1]
         say(f"  {added} added to {' and '.join(inside)}: {verdict.why}")
         steps.append((added, verdict))
     return (current if len(steps) > 1 else None), steps
@@ -410,7 +409,8 @@ def compare_restitution(
     r = residual[np.isfinite(residual)]
     rms = float(math.sqrt(np.mean(r * r)))
     # Same judges as the candidates: positive values favour Hunt-Crossley.
-    fake = FitResult("restitution", result["values"], {}, residual, result["n_params"], True, "")
+    # a stand-in for the criterion, which reads only its residual and parameter count
+    fake = FitResult(BASELINE, result["values"], {}, residual, result["n_params"], True, "")
     ic = information_criterion_delta(fake, baseline, data.noise_rad)
     return {
         "model": "instantaneous impacts at theta = 0 with constant coefficient of restitution e",

@@ -19,7 +19,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from analysis.discrepancy.candidates import plan_for
-from analysis.extensions import ParameterPlan, RecordScale, cause, causes_in
+from analysis.extensions import ModelSpec, ParameterPlan, RecordScale, cause
 from analysis.identify.intervals import Z95, sandwich_covariance
 from analysis.identify.result import Estimate, Residuals, SampledRecord
 from analysis.model import Drive, Model, RigParameters
@@ -69,7 +69,7 @@ class FitData(SampledRecord):
 class FitResult(Residuals):
     """A fitted model: its values, estimates with 95 % intervals, and residuals."""
 
-    cause: str
+    model: ModelSpec
     values: dict[str, float]
     estimates: dict[str, Estimate]
     residual: np.ndarray  # model - data over the whole FitData, NaN where not valid
@@ -79,17 +79,17 @@ class FitResult(Residuals):
     contacts: int = 0
 
 
-def build_model(data: FitData, cause_name: str, values: Mapping[str, float]) -> Model:
-    """The model of the given baseline values, extended by the cause (``none``: baseline)."""
-    return model_from_values(data.rig, data.drive, data.barrier, values, causes_in(cause_name))
+def build_model(data: FitData, model: ModelSpec, values: Mapping[str, float]) -> Model:
+    """The model ``model`` at the given values."""
+    return model_from_values(data.rig, data.drive, data.barrier, values, model.causes)
 
 
 def predict(
-    data: FitData, cause_name: str, values: Mapping[str, float], n: int | None = None
+    data: FitData, model: ModelSpec, values: Mapping[str, float], n: int | None = None
 ) -> tuple[np.ndarray, SimulationResult]:
     """The angle the sensor would report under the model, at the record's sample times."""
     n = data.t.size if n is None else n
-    p = packed_from_values(data.rig, data.drive, data.barrier, values, causes_in(cause_name),
+    p = packed_from_values(data.rig, data.drive, data.barrier, values, model.causes,
                            data.phase0_rad)
     sim = simulate_packed(
         p, values["theta0_rad"], values["theta_dot0_rad_s"],
@@ -103,14 +103,14 @@ def predict(
         # a large residual and steps back instead of failing.
         last = theta[-1] if theta.size else values["theta0_rad"]
         theta = np.concatenate([theta, np.full(n - theta.size, last)])
-    return measured_angle(causes_in(cause_name), values, np.arange(n) * data.dt, theta), sim
+    return measured_angle(model.causes, values, np.arange(n) * data.dt, theta), sim
 
 
 def free_parameters(
-    data: FitData, cause_name: str, scale: RecordScale, start: Mapping[str, float]
+    data: FitData, model: ModelSpec, scale: RecordScale, start: Mapping[str, float]
 ) -> dict[str, tuple[float, ParameterPlan, float, float]]:
     """name -> (start value, plan, lower, upper) of every parameter the fit adjusts."""
-    causes = [cause(name) for name in causes_in(cause_name)]
+    causes = [cause(name) for name in model.causes]
     replaced = {name for c in causes for name in c.replaces}
     out: dict[str, tuple[float, ParameterPlan, float, float]] = {}
     for name in SWING_PARAMETERS + (CONTACT_PARAMETERS if data.barrier else ()):
@@ -143,15 +143,15 @@ def _baseline_step(name: str, s: RecordScale) -> float:
 
 def fit(
     data: FitData,
-    cause_name: str,
+    model: ModelSpec,
     start: Mapping[str, float],
     scale: RecordScale,
     *,
     max_iterations: int = MAX_ITERATIONS,
 ) -> FitResult:
-    """Least-squares fit of the baseline (``none``) or the baseline extended by a cause, or
-    by several (their names joined: ``extensions.model_name``)."""
-    free = free_parameters(data, cause_name, scale, start)
+    """Least-squares fit of model ``model`` (the baseline, or the baseline extended by one
+    cause or several)."""
+    free = free_parameters(data, model, scale, start)
     names = list(free)
     fixed = {k: v for k, v in start.items() if k not in free}
     # Work in step units u: x = x0 + u * step (or log x = log x0 + u * step), so a unit
@@ -177,7 +177,7 @@ def fit(
         return {**fixed, **dict(zip(names, raw.tolist(), strict=True))}
 
     def residual(u: np.ndarray) -> np.ndarray:
-        theta, _ = predict(data, cause_name, values_of(u))
+        theta, _ = predict(data, model, values_of(u))
         return theta[mask] - y
 
     def jacobian(u: np.ndarray) -> np.ndarray:
@@ -200,11 +200,11 @@ def fit(
         max_nfev=max_iterations, xtol=1e-10, ftol=1e-10,
     )
     values = values_of(solution.x)
-    theta, sim = predict(data, cause_name, values)
+    theta, sim = predict(data, model, values)
     full_residual = np.where(mask, theta - np.where(mask, data.y, 0.0), np.nan)
     estimates = _estimates(names, solution, values, steps, logs, data)
     return FitResult(
-        cause=cause_name, values=values, estimates=estimates, residual=full_residual,
+        model=model, values=values, estimates=estimates, residual=full_residual,
         n_params=len(names), success=bool(solution.status > 0), message=str(solution.message),
         contacts=sim.contacts.count,
     )

@@ -71,7 +71,7 @@ from analysis.discrepancy.term_proposal import ProposedTerm, propose_terms
 from analysis.dynamics.lines import FALSE_ALARM
 from analysis.dynamics.regime import Regime
 from analysis.experiments import FORCED
-from analysis.extensions import NONE, cause, causes_in, model_name
+from analysis.extensions import BASELINE, NONE, ModelSpec, cause
 from analysis.identify.forced import (
     ForcedData,
     ForcedIdentification,
@@ -139,20 +139,21 @@ def analyze_forced_fits(
     def baseline(threads_: int | None) -> tuple[ShootingFit, ShootingFit]:
         """The baseline screened, then fitted over the record from there (the longest
         task, so it starts first)."""
-        short = screen_cause(data, NONE, ident, hints, threads_)
-        return short, fit_cause(data, NONE, short, lay, threads_)
+        short = screen_cause(data, BASELINE, ident, hints, threads_)
+        return short, fit_cause(data, BASELINE, short, lay, threads_)
 
     started = side_by_side(
-        {NONE: baseline, **{n: partial(screen_cause, data, n, ident, hints) for n in names}},
+        {NONE: baseline, **{n: partial(screen_cause, data, ModelSpec.of(n), ident, hints)
+                            for n in names}},
         threads)
     screened_none, base_full = started.pop(NONE)
     screened = {NONE: screened_none, **started}
-    base_short = ModelFits(NONE, screened[NONE])
+    base_short = ModelFits(BASELINE, screened[NONE])
     screened |= rescreened_from_baseline(data, ident, screened, threads, policy)
     bic = {n: _bic(data, base_short, screened[n]) for n in names}
     say("screened: " + ", ".join(f"{n} {bic[n]:.3g}" for n in sorted(bic, key=lambda n: -bic[n])))
     timings["screening"] = time.perf_counter() - clock - timings["identification"]
-    base = ModelFits(NONE, base_full)
+    base = ModelFits(BASELINE, base_full)
     say(f"baseline rms {base_full.rms:.3g} rad ({base_full.rms / data.noise_rad:.3g} x noise)")
     fits = _fit_over_record(data, names, screened, bic, base_full, lay, threads, period, say,
                             policy)
@@ -161,16 +162,17 @@ def analyze_forced_fits(
     # first cause they accept is the finding, and the rest need no training fits.
     # (a cause whose values no real rig can have explains nothing: it needs no forecasts)
     passing = sorted((n for n in names if bic[n] > policy.bic_margin
-                      and not (n in fits and disqualification(data, n, fits[n], policy))),
+                      and not (n in fits and disqualification(data, ModelSpec.of(n), fits[n],
+                                                              policy))),
                      key=lambda n: -bic[n])
     measured = base_distance = None
     if passing:
-        base = ModelFits(NONE, base_full, refit(data, NONE, base_full, lay, threads,
-                                                heldout_s=data.segment_s))
+        base = ModelFits(BASELINE, base_full, refit(data, BASELINE, base_full, lay, threads,
+                                                    heldout_s=data.segment_s))
         if chaotic:
             measured = invariants(data.t, data.y, data.drive.frequency_hz,
                                   data.drive.phase0_rad)
-            base_distance = model_invariants_distance(data, measured, NONE, base_full)
+            base_distance = model_invariants_distance(data, measured, BASELINE, base_full)
     judged, trains, accepted = _judge_in_order(
         data, passing, fits, base, lay, threads, measured, base_distance, policy)
     steps: list[tuple[str, Verdict]] = []
@@ -178,13 +180,15 @@ def analyze_forced_fits(
     if accepted is not None:
         steps.append((accepted, judged[accepted]))
         final, more = _forward_selection(
-            data, ident, hints, ModelFits(accepted, fits[accepted], trains[accepted]),
+            data, ident, hints,
+            ModelFits(ModelSpec.of(accepted), fits[accepted], trains[accepted]),
             screened, fits, lay, threads, measured, period, say, policy)
         steps += more
         indistinct = _indistinct(data, base.full, accepted, fits, bic, final, policy)
     outcomes = []
     for name in names:
-        model_fits = ModelFits(name, fits.get(name, screened[name]), trains.get(name))
+        model_fits = ModelFits(ModelSpec.of(name), fits.get(name, screened[name]),
+                               trains.get(name))
         verdict = judged.get(name) or verdict_of(
             data, model_fits, base if name in fits else base_short, lay, policy=policy)
         say(f"  {name}: {verdict.why}")
@@ -206,7 +210,7 @@ def rescreened_from_baseline(
     in its place)."""
     base = screened[NONE]
     nested = side_by_side({
-        name: partial(extend, data, NONE, base, name, ident.short,
+        name: partial(extend, data, BASELINE, base, name, ident.short,
                       max_iterations=policy.step_screen_iterations)
         for name, fit in screened.items() if name != NONE and fit.rss > base.rss
     }, threads)
@@ -227,8 +231,8 @@ def _fit_over_record(
     fits: dict[str, ShootingFit] = {}
     complete = None  # the first refined cause that gains, is plausible and leaves white noise
     for name in [n for n in ranked if bic[n] > 0.0][:policy.refined]:
-        if contradiction := table_contradiction(data, name, screened[name], absent_only=True,
-                                                policy=policy):
+        if contradiction := table_contradiction(data, ModelSpec.of(name), screened[name],
+                                                absent_only=True, policy=policy):
             say(f"  {name} not fitted over the record: its screening gives {contradiction}")
             continue
         if complete is not None and \
@@ -238,10 +242,11 @@ def _fit_over_record(
             continue
         fits[name] = _fit_cause_over_record(data, name, screened[name], base_full, fits, lay,
                                             threads, policy)
-        bic[name] = _bic(data, ModelFits(NONE, base_full), fits[name])
+        bic[name] = _bic(data, ModelFits(BASELINE, base_full), fits[name])
         say(f"  {name} over the record: BIC gain {bic[name]:.3g}")
         if complete is None and bic[name] > policy.bic_margin and not disqualification(
-                data, name, fits[name], policy) and not _structured(data, fits[name], period):
+                data, ModelSpec.of(name), fits[name], policy) \
+                and not _structured(data, fits[name], period):
             complete = name
     _finish_rivals(data, fits, bic, base_full, lay, threads, say, policy)
     for name in names:
@@ -268,8 +273,8 @@ def _finish_rivals(
         if not unfinished:
             return
         for name in unfinished:
-            fits[name] = refit(data, name, fits[name], lay, threads)
-            bic[name] = _bic(data, ModelFits(NONE, base_full), fits[name])
+            fits[name] = refit(data, ModelSpec.of(name), fits[name], lay, threads)
+            bic[name] = _bic(data, ModelFits(BASELINE, base_full), fits[name])
             say(f"  {name} fitted on (it had not converged): BIC gain {bic[name]:.3g}")
 
 
@@ -283,15 +288,16 @@ def _fit_cause_over_record(
     # the best full fit so far lends its states when it fits the record closely
     best = min([base_full, *fits.values()], key=lambda f: f.rms)
     seed = best if best.rms < policy.seed_rms * data.noise_rad else None
-    fit = fit_cause(data, name, screened, lay, threads, seed)
+    model = ModelSpec.of(name)
+    fit = fit_cause(data, model, screened, lay, threads, seed)
     # a model ending worse than the baseline found a worse basin: start again from the
     # baseline's optimum, then (when the first start was another model's states) from
     # its own states drawn onto the data afresh
     if fit.rss > base_full.rss:
-        fit = min(fit, extend(data, NONE, base_full, name, lay.full, threads),
+        fit = min(fit, extend(data, BASELINE, base_full, name, lay.full, threads),
                   key=lambda f: f.rss)
     if fit.rss > base_full.rss and seed is not None:
-        fit = min(fit, fit_cause(data, name, screened, lay, threads), key=lambda f: f.rss)
+        fit = min(fit, fit_cause(data, model, screened, lay, threads), key=lambda f: f.rss)
     return fit
 
 
@@ -309,16 +315,17 @@ def _judge_in_order(
     for name in passing:
         if accepted is not None:
             judged[name] = verdict_of(
-                data, ModelFits(name, fits[name]), base, lay,
+                data, ModelFits(ModelSpec.of(name), fits[name]), base, lay,
                 not_judged=f"not judged further: {accepted} scores higher and earns its place",
                 policy=policy)
             continue
+        model = ModelSpec.of(name)
         distances: tuple[float | None, float | None] = (None, None)
         if measured is not None:
             distances = (base_distance,
-                         model_invariants_distance(data, measured, name, fits[name]))
-        trains[name] = refit(data, name, fits[name], lay, threads, heldout_s=data.segment_s)
-        judged[name] = verdict_of(data, ModelFits(name, fits[name], trains[name]), base, lay,
+                         model_invariants_distance(data, measured, model, fits[name]))
+        trains[name] = refit(data, model, fits[name], lay, threads, heldout_s=data.segment_s)
+        judged[name] = verdict_of(data, ModelFits(model, fits[name], trains[name]), base, lay,
                                   distances, policy=policy)
         if judged[name].earns_keep:
             accepted = name
@@ -355,23 +362,22 @@ def _forward_selection(
     model unexplained can still be a second cause's (quadratic drag beside a barrier offset
     on a chaotic record left 0.11 x the noise's rms, with p = 2e-25)."""
     steps: list[tuple[str, Verdict]] = []
-    short = screened[current.cause]
+    short = screened[current.model.causes[0]]
     distance = None
     names = [n for n in screened if n != NONE]
-    while len(causes_in(current.cause)) < policy.max_causes:
+    while len(current.model.causes) < policy.max_causes:
         left = _residual_reading(data, current.full, period)
         if not (left.structured or left.ljung_box_p < FALSE_ALARM):
-            say(f"  beside {current.cause}: {left.why}, and its correlation is no more than "
+            say(f"  beside {current.model}: {left.why}, and its correlation is no more than "
                 f"white noise's (Ljung-Box p {left.ljung_box_p:.2g}); no further cause tried")
             break
-        present = causes_in(current.cause)
-        gains = screened_beside(data, ident, current.cause, short, names, threads, policy)
-        say(f"  screened beside {current.cause}: " + ", ".join(
+        gains = screened_beside(data, ident, current.model, short, names, threads, policy)
+        say(f"  screened beside {current.model}: " + ", ".join(
             f"{n} {g:.3g}" for n, (g, _) in sorted(gains.items(), key=lambda kv: -kv[1][0])))
         pool = sorted((n for n in gains if gains[n][0] > policy.bic_margin),
                       key=lambda n: -gains[n][0])[:policy.step_added]
         refused = {n: why for n in pool if (why := table_contradiction(
-            data, model_name([*present, n]), gains[n][1], absent_only=True, policy=policy))}
+            data, current.model.plus(n), gains[n][1], absent_only=True, policy=policy))}
         for name, why in refused.items():
             say(f"  {name} not fitted over the record: its screening gives {why}")
         pool = [n for n in pool if n not in refused]
@@ -379,35 +385,35 @@ def _forward_selection(
             break
         # the current model continued, and each candidate fitted from its optimum and afresh
         started = side_by_side({
-            "parent": partial(refit, data, current.cause, current.full, lay),
-            **{(name, "nested"): partial(extend, data, current.cause, current.full, name,
+            "parent": partial(refit, data, current.model, current.full, lay),
+            **{(name, "nested"): partial(extend, data, current.model, current.full, name,
                                          lay.full) for name in pool},
-            **{(name, "afresh"): partial(_fit_afresh, data, model_name([*present, name]),
+            **{(name, "afresh"): partial(_fit_afresh, data, current.model.plus(name),
                                          ident, hints, lay) for name in pool},
         }, threads)
         parent = started["parent"]
         tried = []
         for name in pool:
-            model = model_name([*present, name])
+            model = current.model.plus(name)
             fit = min(started[name, "nested"], started[name, "afresh"], key=lambda f: f.rss)
-            gain = _bic(data, ModelFits(current.cause, parent), fit)
+            gain = _bic(data, ModelFits(current.model, parent), fit)
             why = disqualification(data, model, fit, policy) or _indeterminate(fit, name)
-            say(f"  {model} over the record: BIC gain {gain:.3g} over {current.cause}"
+            say(f"  {model} over the record: BIC gain {gain:.3g} over {current.model}"
                 + (f", but {why}" if why else ""))
             if gain > policy.bic_margin and not why:
                 tried.append((gain, name, fit))
         if not tried:
             break
         _, name, fit = max(tried, key=lambda t: t[0])
-        model = model_name([*present, name])
+        present, model = current.model.causes, current.model.plus(name)
         train = refit(data, model, fit, lay, threads, heldout_s=data.segment_s)
         distances: tuple[float | None, float | None] = (None, None)
         if measured is not None:
             if distance is None:
-                distance = model_invariants_distance(data, measured, current.cause, current.full)
+                distance = model_invariants_distance(data, measured, current.model, current.full)
             distances = (distance, model_invariants_distance(data, measured, model, fit))
         verdict = verdict_of(data, ModelFits(model, fit, train),
-                             ModelFits(current.cause, parent, current.train), lay, distances,
+                             ModelFits(current.model, parent, current.train), lay, distances,
                              policy=policy)
         say(f"  adding {name}: {verdict.why}")
         if not verdict.earns_keep:
@@ -421,18 +427,19 @@ def _forward_selection(
         short = gains[name][1]
         steps.append((name, verdict))
         for earlier in present:
-            rest = model_name([c for c in causes_in(model) if c != earlier])
-            if rest in fits and \
-                    _bic(data, ModelFits(rest, fits[rest]), fit) <= policy.bic_margin:
+            rest = model.without(earlier)
+            alone = rest.causes[0] if len(rest.causes) == 1 else None
+            if alone in fits and \
+                    _bic(data, ModelFits(rest, fits[alone]), fit) <= policy.bic_margin:
                 say(f"  {earlier} dropped: {rest} alone explains the record as well")
-                current, short = ModelFits(rest, fits[rest]), screened[rest]
+                current, short = ModelFits(rest, fits[alone]), screened[alone]
                 steps = [(n, v) for n, v in steps if n != earlier]
                 break
     return current, steps
 
 
 def screened_beside(
-    data: ForcedData, ident: ForcedIdentification, current: str, short: ShootingFit,
+    data: ForcedData, ident: ForcedIdentification, current: ModelSpec, short: ShootingFit,
     names: Sequence[str], threads: int | None, policy: SelectionPolicy = DEFAULT_POLICY,
 ) -> dict[str, tuple[float, ShootingFit]]:
     """A step's screening: each of ``names`` not in model ``current`` added to its short
@@ -445,7 +452,7 @@ def screened_beside(
     from none.  The yardstick is the same for every cause, so it moves no cause ahead of
     another (starting the causes from the continued fit did: a barrier offset fell out of
     the two tried beside a sensor cubic, and a lag and a zero were named in its place)."""
-    present = causes_in(current)
+    present = current.causes
     added = side_by_side({
         None: partial(extend, data, current, short, None, ident.short,
                       max_iterations=policy.step_parent_iterations),
@@ -458,7 +465,8 @@ def screened_beside(
 
 
 def _fit_afresh(
-    data: ForcedData, model: str, ident: ForcedIdentification, hints: Mapping[str, float],
+    data: ForcedData, model: ModelSpec, ident: ForcedIdentification,
+    hints: Mapping[str, float],
     lay: Layouts, threads: int | None,
 ) -> ShootingFit:
     """Model ``model`` fitted over the record the way every single cause is: screened from
@@ -492,7 +500,7 @@ def _indistinct(
     curve (each fit's curve minus the baseline's) correlate by the policy's
     ``indistinct_correlation`` or more, each explains the record nearly as well (its
     ``indistinct_bic``), and the forward selection did not keep both."""
-    kept = causes_in(final.cause)
+    kept = final.model.causes
     effect = fits[accepted].prediction - base.prediction
     use = data.valid & np.isfinite(effect)
     out = []
@@ -527,8 +535,9 @@ def _structured(data: ForcedData, fit: ShootingFit, period: int) -> bool:
 
 
 def _bic(data: ForcedData, base: ModelFits, fit: ShootingFit) -> float:
-    return information_criterion_delta(as_fit_result(base.full, NONE),
-                                       as_fit_result(fit, "candidate"), data.noise_rad)
+    # the criterion reads only the fits' residuals and parameter counts, not their models
+    return information_criterion_delta(as_fit_result(base.full, base.model),
+                                       as_fit_result(fit, base.model), data.noise_rad)
 
 
 def regime_summary(regime: Regime) -> dict[str, Any]:
@@ -566,33 +575,34 @@ def analyze_forced(
     except IdentificationError as error:
         raise AnalysisError(f"{record.source or 'record'}: {error}") from error
     verdict = choose([v for _, v in out.candidates])
-    chosen = out.steps[0][0] if out.steps else verdict.cause if verdict is not None else NONE
+    chosen = out.steps[0][0] if out.steps else \
+        verdict.model.causes[0] if verdict is not None else NONE
     base = out.base
     view = fit_data_view(data)
-    baseline = as_fit_result(base.full, NONE)
+    baseline = as_fit_result(base.full, BASELINE)
     candidates = [
         CandidateOutcome(
-            cause=fits.cause,
-            train=as_fit_result(fits.train if fits.train is not None else fits.full, fits.cause),
-            full=as_fit_result(fits.full, fits.cause),
+            model=fits.model,
+            train=as_fit_result(fits.train if fits.train is not None else fits.full, fits.model),
+            full=as_fit_result(fits.full, fits.model),
             verdict=v,
             prediction=(fits.train if fits.train is not None else fits.full).prediction,
         )
         for fits, v in out.candidates
     ]
     final = None
-    if out.final is not None and len(causes_in(out.final.cause)) > 1:
+    if out.final is not None and len(out.final.model.causes) > 1:
         f = out.final
         final = CandidateOutcome(
-            cause=f.cause, train=as_fit_result(f.train if f.train is not None else f.full,
-                                               f.cause),
-            full=as_fit_result(f.full, f.cause),
+            model=f.model, train=as_fit_result(f.train if f.train is not None else f.full,
+                                               f.model),
+            full=as_fit_result(f.full, f.model),
             verdict=verdict_of(data, f, base, out.layouts, policy=policy),
             prediction=(f.train if f.train is not None else f.full).prediction)
     in_contact = base.full.true_angle > 0.0
     localization = localize(view, baseline, base.full.rate, _widened(in_contact))
     shown = out.final if final is not None else \
-        next((f for f, _ in out.candidates if f.cause == chosen), None)
+        next((f for f, _ in out.candidates if f.model.causes == (chosen,)), None)
     if shown is None and out.candidates:
         shown = max(out.candidates, key=lambda fv: fv[1].information_criterion_delta)[0]
     notes = [*out.notes]
@@ -606,7 +616,8 @@ def analyze_forced(
     say(f"cause{'s' if len(out.steps) > 1 else ''}: {adopted} ({timings['total']:.1f} s)")
     analysis = Analysis(
         record=record, data=view, n_train=view.t.size,
-        baseline_train=as_fit_result(base.train if base.train is not None else base.full, NONE),
+        baseline_train=as_fit_result(base.train if base.train is not None else base.full,
+                                     BASELINE),
         baseline=baseline, baseline_prediction=base.full.prediction, candidates=candidates,
         excluded=excluded_for(FORCED.name), chosen=chosen, localization=localization,
         zero_one_k=regime.evidence.get("K"), chaotic=chaotic, timings=timings, notes=notes,
@@ -635,7 +646,7 @@ def proposed_terms(data: ForcedData, fits: ModelFits) -> list[ProposedTerm]:
     (:mod:`analysis.discrepancy.term_proposal`), at the data's true angle: the measured one
     with the model's sensor (its measured minus its true angle there) taken off."""
     fit = fits.full
-    packed = ForcedModel(data, causes_in(fits.cause)).packed(fit.values)
+    packed = ForcedModel(data, fits.model.causes).packed(fit.values)
     theta = data.y - (fit.prediction - fit.true_angle)
     return propose_terms(data.t, theta, data.valid, packed, fit.true_angle, fit.rate)
 

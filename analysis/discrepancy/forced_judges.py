@@ -12,7 +12,7 @@ from analysis.discrepancy.forced_models import Layouts, ModelFits, as_fit_result
 from analysis.discrepancy.invariants import Invariants, invariant_distance, invariants
 from analysis.discrepancy.policy import DEFAULT_POLICY, SelectionPolicy
 from analysis.discrepancy.selection import Verdict, information_criterion_delta
-from analysis.extensions import NONE, cause, causes_in, implausibility
+from analysis.extensions import BASELINE, ModelSpec, cause, implausibility
 from analysis.identify.forced import ForcedData
 from analysis.identify.intervals import Z95
 from analysis.identify.result import Estimate
@@ -23,7 +23,7 @@ from analysis.simulate import SimulationSettings, simulate_packed
 MODEL_INVARIANT_SPAN = 4  # a model's invariants come from a run this many records long
 
 
-def disqualification(data: ForcedData, model: str, fit: ShootingFit,
+def disqualification(data: ForcedData, model: ModelSpec, fit: ShootingFit,
                      policy: SelectionPolicy = DEFAULT_POLICY) -> str | None:
     """Why a fitted model explains nothing, whatever it gains, or None: values no real rig
     can have (:func:`analysis.extensions.implausibility`), or a drive the table channel
@@ -32,7 +32,7 @@ def disqualification(data: ForcedData, model: str, fit: ShootingFit,
         table_contradiction(data, model, fit, policy=policy)
 
 
-def table_contradiction(data: ForcedData, model: str, fit: ShootingFit, *,
+def table_contradiction(data: ForcedData, model: ModelSpec, fit: ShootingFit, *,
                         absent_only: bool = False,
                         policy: SelectionPolicy = DEFAULT_POLICY) -> str | None:
     """Why the drive causes' sizes fitted from the angle contradict what the table channel
@@ -50,7 +50,7 @@ def table_contradiction(data: ForcedData, model: str, fit: ShootingFit, *,
 
     measured = data.drive.measured_sizes()
     reasons = []
-    for name in causes_in(model):
+    for name in model.causes:
         for spec in cause(name).parameters:
             laser, fitted = measured.get(spec.name), fit.estimates.get(spec.name)
             if laser is None or fitted is None:
@@ -68,11 +68,11 @@ def table_contradiction(data: ForcedData, model: str, fit: ShootingFit, *,
 
 
 def model_invariants_distance(
-    data: ForcedData, measured: Invariants, cause_name: str, fit: ShootingFit
+    data: ForcedData, measured: Invariants, model: ModelSpec, fit: ShootingFit
 ) -> float:
     """Distance between the record's invariants and those of the fitted model run from its
     first segment's state over MODEL_INVARIANT_SPAN times the record's length."""
-    causes = causes_in(cause_name)
+    causes = model.causes
     values = fit.values
     phase = values.get("drive_phase_rad", data.drive.phase0_rad)
     drive = data.drive.model_drive(values.get("drive_frequency_hz"))
@@ -120,9 +120,9 @@ def verdict_of(
     no forecast)."""
     judged = candidate.train is not None and base.train is not None
     return Verdict(
-        cause=candidate.cause,
+        model=candidate.model,
         information_criterion_delta=information_criterion_delta(
-            as_fit_result(base.full, NONE), as_fit_result(candidate.full, candidate.cause),
+            as_fit_result(base.full, BASELINE), as_fit_result(candidate.full, candidate.model),
             data.noise_rad),
         heldout_rms_baseline=base.train.forecast_rms if base.train is not None else math.nan,
         heldout_rms_extended=candidate.train.forecast_rms if judged else math.nan,
@@ -135,6 +135,6 @@ def verdict_of(
         if base.train is not None else 0,
         forecast_z=forecast_z(base.train, candidate.train, lay.train) if judged else None,
         not_judged=not_judged,
-        implausible=disqualification(data, candidate.cause, candidate.full, policy),
+        implausible=disqualification(data, candidate.model, candidate.full, policy),
         policy=policy,
     )

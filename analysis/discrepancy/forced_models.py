@@ -15,7 +15,7 @@ import numpy as np
 from analysis.discrepancy.candidates import plan_for
 from analysis.discrepancy.fitting import FitData, FitResult
 from analysis.experiments import FORCED
-from analysis.extensions import RecordScale, cause, causes_in, model_name
+from analysis.extensions import ModelSpec, RecordScale, cause
 from analysis.identify.forced import (
     BASELINE_PLANS,
     ForcedData,
@@ -63,7 +63,7 @@ class ModelFits:
     """One model fitted to the whole record and (when it is judged on forecasts) to the
     alternating training stretches."""
 
-    cause: str
+    model: ModelSpec
     full: ShootingFit
     train: ShootingFit | None = None
 
@@ -92,10 +92,10 @@ def fit_data_view(data: ForcedData) -> FitData:
     )
 
 
-def as_fit_result(fit: ShootingFit, cause_name: str, contacts: int = 0) -> FitResult:
-    """A shooting fit as the judges and reports of every experiment see a fit."""
+def as_fit_result(fit: ShootingFit, model: ModelSpec, contacts: int = 0) -> FitResult:
+    """A shooting fit of ``model`` as the judges and reports of every experiment see a fit."""
     return FitResult(
-        cause=cause_name, values=dict(fit.values), estimates=dict(fit.estimates),
+        model=model, values=dict(fit.values), estimates=dict(fit.estimates),
         residual=fit.residual, n_params=fit.n_params, success=fit.success,
         message=fit.message, contacts=contacts,
     )
@@ -137,14 +137,14 @@ def cause_hints(ident: ForcedIdentification) -> dict[str, float]:
     return hints
 
 
-def level_hints(name: str, hints: Mapping[str, float]) -> dict[str, float]:
-    """The hints for model ``name``: where it holds only one of the barrier and the sensor
+def level_hints(model: ModelSpec, hints: Mapping[str, float]) -> dict[str, float]:
+    """The hints for model ``model``: where it holds only one of the barrier and the sensor
     zero, that one takes the whole measured stop level (the identified barrier plus zero),
     since a swing's stops are what the record fixes most sharply; the identification's
     split between the two can be far off when a cause it lacks bends it (a barrier 0.158
     and a zero -0.175 rad for a true barrier -0.025 and zero 0 under a sensor cubic)."""
     out = dict(hints)
-    present = set(causes_in(name))
+    present = set(model.causes)
     if "theta_b_rad" in hints and "offset_rad" in hints:
         level = hints["theta_b_rad"] + hints["offset_rad"]
         if "barrier_offset" in present and "sensor_offset" not in present:
@@ -154,25 +154,25 @@ def level_hints(name: str, hints: Mapping[str, float]) -> dict[str, float]:
     return out
 
 
-def baseline_names(data: ForcedData, name: str) -> list[str]:
-    """The baseline parameters a fit of model ``name`` adjusts (a cause may take over one's
+def baseline_names(data: ForcedData, model: ModelSpec) -> list[str]:
+    """The baseline parameters a fit of model ``model`` adjusts (a cause may take over one's
     role)."""
-    replaced = {r for c in causes_in(name) for r in cause(c).replaces}
+    replaced = {r for c in model.causes for r in cause(c).replaces}
     return [n for n in BASELINE_PLANS if n not in replaced]
 
 
 def candidate_parameters(
-    data: ForcedData, name: str, start: Mapping[str, float], scale: RecordScale,
+    data: ForcedData, model: ModelSpec, start: Mapping[str, float], scale: RecordScale,
     hints: Mapping[str, float],
 ) -> list[FreeParameter]:
-    """Free parameters of model ``name``: the baseline extended by its causes."""
+    """Free parameters of model ``model``: the baseline extended by its causes."""
     extra = []
     if not data.drive.timing_known:
         extra.append(clock_parameter(start["drive_frequency_hz"]))
         phase = start["drive_phase_rad"]
         extra.append(FreeParameter("drive_phase_rad", phase, 1e-5, False, phase - math.pi,
                                    phase + math.pi))
-    for c in map(cause, causes_in(name)):
+    for c in map(cause, model.causes):
         plans = plan_for(c, scale)
         for spec in c.parameters:
             plan = plans[spec.name]
@@ -182,20 +182,20 @@ def candidate_parameters(
                 value = max(value, spec.lower if spec.lower > 0 else 1e-12)
             extra.append(FreeParameter(spec.name, value, plan.step, plan.log, spec.lower,
                                        spec.upper))
-    return free_parameters(baseline_names(data, name), start, extra)
+    return free_parameters(baseline_names(data, model), start, extra)
 
 
 def true_angle_states(
-    states: np.ndarray, name: str, values: Mapping[str, float], dt_s: float
+    states: np.ndarray, model: ModelSpec, values: Mapping[str, float], dt_s: float
 ) -> np.ndarray:
-    """Segment states of model ``name``, whose sensor reads through its causes, from states
+    """Segment states of model ``model``, whose sensor reads through its causes, from states
     whose first column is the measured angle: the measured angle is kept (a few fixed-point
     steps through the measurement), the rate is not changed.  A sensor with memory (a lag)
     reads a segment's first sample as the model does, settled on the ramp of the state's
     rate over a sample period ``dt_s``; read as one series, it would carry every segment's
     state into the next."""
     out = states.copy()
-    causes = causes_in(name)
+    causes = model.causes
     if not has_measurement(causes):
         return out
     measured, rate = states[:, 0], states[:, 1]
@@ -215,10 +215,11 @@ def true_angle_states(
 
 
 def screen_cause(
-    data: ForcedData, cause_name: str, ident: ForcedIdentification,
+    data: ForcedData, model: ModelSpec, ident: ForcedIdentification,
     hints: Mapping[str, float], threads: int | None,
 ) -> ShootingFit:
-    """A cause (or ``none``) fitted over the identification's short unlinked segments from
+    """A model (the baseline, or the baseline extended by causes) fitted over the
+    identification's short unlinked segments from
     where the identification started (equation error, priors, nominal contact values) and
     the hints on the cause's own parameters: every model is identified from the record the
     same way, and over segments this short a start far from the solution still converges.
@@ -226,41 +227,41 @@ def screen_cause(
     own free barrier, sensor zero and phase made for an effect it lacks.)  The segments'
     states are drawn onto the data for each model: its own sensor and dynamics at its start
     values decide where they must begin."""
-    model = ForcedModel(data, causes_in(cause_name))
     timing = ("drive_phase_rad", "drive_frequency_hz") if not data.drive.timing_known else ()
     start = {k: v for k, v in ident.start.items() if k in BASELINE_PLANS or k in timing}
-    free = candidate_parameters(data, cause_name, start, record_scale(data, start),
-                                level_hints(cause_name, hints))
-    fit, _ = fit_model(model, ident.short, free, {},
+    free = candidate_parameters(data, model, start, record_scale(data, start),
+                                level_hints(model, hints))
+    fit, _ = fit_model(ForcedModel(data, model.causes), ident.short, free, {},
                        smoothed_states(data, ident.short.start, 0.0), threads=threads,
                        max_iterations=SCREEN_ITERATIONS)
     return fit
 
 
 def fit_cause(
-    data: ForcedData, cause_name: str, screened: ShootingFit, lay: Layouts,
+    data: ForcedData, model: ModelSpec, screened: ShootingFit, lay: Layouts,
     threads: int | None, seed: ShootingFit | None = None,
 ) -> ShootingFit:
-    """A cause fitted over the whole record from its screening fit's values.  Its segment
+    """A model fitted over the whole record from its screening fit's values.  Its segment
     states come from ``seed`` (a full-layout fit of another model that fits the record
-    well, its states read through this cause's sensor), or else are drawn onto the data
+    well, its states read through this model's sensor), or else are drawn onto the data
     over half-length segments first, as the identification does."""
-    model = ForcedModel(data, causes_in(cause_name))
     scale = record_scale(data, screened.values)
     free = [replace(p, start=screened.values[p.name]) for p in
-            candidate_parameters(data, cause_name, screened.values, scale, screened.values)]
+            candidate_parameters(data, model, screened.values, scale, screened.values)]
     start_from = None
     if seed is not None:
         measured = seed.prediction[lay.full.start]
-        states = true_angle_states(np.column_stack([measured, seed.states[:, 1]]), cause_name,
+        states = true_angle_states(np.column_stack([measured, seed.states[:, 1]]), model,
                                    screened.values, data.dt)
         start_from = (replace(seed, states=states), lay.full)
-    full, _ = fit_over_record(model, free, {}, threads=threads, start_from=start_from,
+    full, _ = fit_over_record(ForcedModel(data, model.causes), free, {}, threads=threads,
+                              start_from=start_from,
                               max_iterations=REFINE_ITERATIONS)
     return full
 
 
-def extend(data: ForcedData, parent: str, parent_fit: ShootingFit, cause_name: str | None,
+def extend(data: ForcedData, parent: ModelSpec, parent_fit: ShootingFit,
+           cause_name: str | None,
            segments: Segments, threads: int | None,
            max_iterations: int = REFINE_ITERATIONS) -> ShootingFit:
     """Model ``parent`` extended by ``cause_name``, fitted over ``segments`` (the layout of
@@ -271,8 +272,7 @@ def extend(data: ForcedData, parent: str, parent_fit: ShootingFit, cause_name: s
     is a step of the forward selection.  ``cause_name`` None continues the parent itself
     for as many iterations: the fair yardstick of a step (a gain the parent would have
     made by iterating on is not the new cause's)."""
-    name = model_name([*causes_in(parent), *([cause_name] if cause_name else [])])
-    model = ForcedModel(data, causes_in(name))
+    model = parent.plus(cause_name) if cause_name else parent
     scale = record_scale(data, parent_fit.values)
     # the new cause at its plan's start: neutral, or next to it where the neutral value
     # gives the fit no gradient (a lag of 0, a second harmonic of 0 with its phase)
@@ -281,24 +281,24 @@ def extend(data: ForcedData, parent: str, parent_fit: ShootingFit, cause_name: s
         neutral = {k: plan.start for k, plan in plan_for(cause(cause_name), scale).items()}
     start = {**parent_fit.values, **neutral}
     free = [replace(p, start=start[p.name])
-            for p in candidate_parameters(data, name, start, scale, neutral)]
+            for p in candidate_parameters(data, model, start, scale, neutral)]
     states = true_angle_states(
         np.column_stack([parent_fit.prediction[segments.start], parent_fit.states[:, 1]]),
-        name, start, data.dt)
-    out, _ = fit_model(model, segments, free, {}, states, warm_states=False, threads=threads,
-                       max_iterations=max_iterations)
+        model, start, data.dt)
+    out, _ = fit_model(ForcedModel(data, model.causes), segments, free, {}, states,
+                       warm_states=False, threads=threads, max_iterations=max_iterations)
     return out
 
 
-def refit(data: ForcedData, cause_name: str, fit: ShootingFit, lay: Layouts,
+def refit(data: ForcedData, model: ModelSpec, fit: ShootingFit, lay: Layouts,
           threads: int | None, *, heldout_s: float = 0.0,
           max_iterations: int = REFINE_ITERATIONS) -> ShootingFit:
     """Continue a full-layout fit (to convergence), or fit the training stretches
     (``heldout_s`` > 0) from it: the same free parameters, started at its solution."""
-    model = ForcedModel(data, causes_in(cause_name))
     scale = record_scale(data, fit.values)
     free = [replace(p, start=fit.values[p.name])
-            for p in candidate_parameters(data, cause_name, fit.values, scale, fit.values)]
-    out, _ = fit_over_record(model, free, {}, heldout_s=heldout_s, threads=threads,
+            for p in candidate_parameters(data, model, fit.values, scale, fit.values)]
+    out, _ = fit_over_record(ForcedModel(data, model.causes), free, {}, heldout_s=heldout_s,
+                             threads=threads,
                              start_from=(fit, lay.full), max_iterations=max_iterations)
     return out

@@ -16,7 +16,7 @@ from analysis.discrepancy.residual_reading import Finding, ResidualReading, read
 from analysis.discrepancy.selection import Verdict, heldout_rms
 from analysis.discrepancy.term_proposal import ProposedTerm
 from analysis.experiments import KINDS
-from analysis.extensions import NONE, cause, causes_in
+from analysis.extensions import BASELINE, NONE, ModelSpec, cause
 from analysis.identify.result import Estimate
 from analysis.records import Record
 
@@ -27,9 +27,10 @@ class AnalysisError(ValueError):
 
 @dataclass(frozen=True)
 class CandidateOutcome:
-    """One cause fitted as an extension: training fit, full fit and the judges' verdict."""
+    """A model (the baseline extended by one cause or several) fitted: training fit, full
+    fit and the judges' verdict."""
 
-    cause: str
+    model: ModelSpec
     train: FitResult
     full: FitResult
     verdict: Verdict
@@ -83,7 +84,7 @@ class Analysis:
     def chosen_outcome(self) -> CandidateOutcome | None:
         """The chosen candidate (None for ``none``)."""
         for c in self.candidates:
-            if c.cause == self.chosen:
+            if c.model.causes == (self.chosen,):
                 return c
         return None
 
@@ -116,7 +117,7 @@ class Analysis:
             curve = self.curves[0] if best is None else self.curves[1]
         backbone = KINDS[self.data.experiment].shows_backbone
         if backbone:  # a free decay: the final model's curve, for its backbone
-            curve = predict(self.data, final.cause, final.values)[0]
+            curve = predict(self.data, final.model, final.values)[0]
         period = (self.regime or {}).get("period") or 1
         self.reading = read_residual(
             self.data.t, final.residual, self.data.valid, self.data.noise_rad,
@@ -129,7 +130,7 @@ class Analysis:
         out = []
         best = self.final_outcome
         if self.unexplained:
-            what = f"the baseline extended by {' and '.join(causes_in(best.cause))}" \
+            what = f"the baseline extended by {' and '.join(best.model.causes)}" \
                 if best is not None else "the baseline"
             out.append(
                 f"the model still misses something: {self.reading.why} ({what}; structure "
@@ -138,10 +139,10 @@ class Analysis:
             )
         for c in self.ranked():
             if c.verdict.information_criterion_delta <= self.policy.bic_margin \
-                    or c.cause == self.chosen:
+                    or c.model.causes == (self.chosen,):
                 break
             if c.verdict.implausible:
-                out.append(f"{c.cause} fits the record better (BIC gain "
+                out.append(f"{c.model} fits the record better (BIC gain "
                            f"{c.verdict.information_criterion_delta:.3g}) but is no explanation: "
                            f"{c.verdict.implausible}")
         return out
@@ -159,9 +160,9 @@ class Analysis:
         """The baseline's and the shown model's responses over the record (None: no model)."""
         if self.curves is not None:
             return self.curves
-        base, _ = predict(self.data, NONE, self.baseline.values)
+        base, _ = predict(self.data, BASELINE, self.baseline.values)
         shown = self.shown_model
-        extended = predict(self.data, shown.cause, shown.full.values)[0] if shown else None
+        extended = predict(self.data, shown.model, shown.full.values)[0] if shown else None
         return base, extended
 
     def ranked(self) -> list[CandidateOutcome]:
@@ -206,7 +207,7 @@ class Analysis:
             else baseline_heldout
         ranking = [
             {
-                "cause": c.cause,
+                "cause": c.model.name,
                 "score": c.verdict.information_criterion_delta,
                 "parameters": cause_parameters(c.full),
                 "heldout_ratio": c.verdict.heldout_ratio,
@@ -233,7 +234,7 @@ class Analysis:
                 "rms_residual": self.baseline.rms,
             },
             "extended": {
-                "cause": best.cause if best is not None else NONE,
+                "cause": best.model.name if best is not None else NONE,
                 "parameters": self.extended_parameters(),
                 "rms_residual": extended.rms,
             },
@@ -280,7 +281,7 @@ def cause_parameters(result: FitResult, name: str | None = None) -> dict[str, An
     extended fit, as {value, ci95}."""
     return {
         spec.name: result.estimates[spec.name].as_json()
-        for c in ((name,) if name is not None else causes_in(result.cause))
+        for c in ((name,) if name is not None else result.model.causes)
         for spec in cause(c).parameters
         if spec.name in result.estimates
     }
@@ -305,6 +306,6 @@ def report_parameters(result: FitResult, rig) -> dict[str, Any]:
         ci = (K.ci95[0] * factor, K.ci95[1] * factor) if K.ci95 else None
         out["E_Pa"] = Estimate(K.value * factor, ci).as_json()
         out["R_m"] = {"value": rig.R_m}
-    if (result.cause != "barrier_offset" and "K_N_per_m1.5" in est) or "K_n" in est:
+    if ("barrier_offset" not in result.model.causes and "K_N_per_m1.5" in est) or "K_n" in est:
         out.setdefault("theta_b_rad", {"value": 0.0, "held": True})
     return out

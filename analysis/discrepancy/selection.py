@@ -18,6 +18,7 @@ import numpy as np
 
 from analysis.discrepancy.fitting import FitResult
 from analysis.discrepancy.policy import DEFAULT_POLICY, SelectionPolicy
+from analysis.extensions import ModelSpec
 from analysis.identify.intervals import correlation_time
 
 
@@ -38,7 +39,7 @@ def information_criterion_delta(
 class Verdict:
     """Both judges' view of one candidate."""
 
-    cause: str
+    model: ModelSpec
     information_criterion_delta: float
     heldout_rms_baseline: float
     heldout_rms_extended: float

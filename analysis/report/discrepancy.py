@@ -17,7 +17,7 @@ import matplotlib.pyplot as plt
 from analysis.discrepancy.fitting import predict
 from analysis.discrepancy.outcome import Analysis
 from analysis.estimate_text import interval_text
-from analysis.extensions import NONE, causes_in
+from analysis.extensions import BASELINE, NONE
 from analysis.figure_style import legend_beside, save_figure
 from analysis.json_output import json_ready, write_json
 from analysis.provenance import markdown_provenance, provenance
@@ -44,7 +44,7 @@ def figure_fit(analysis: Analysis, path: Path) -> Path:
     data = analysis.data
     base, ext = analysis.model_curves()
     best = analysis.shown_model
-    label = " + ".join(causes_in(best.cause)) if best is not None else "none"
+    label = best.model.name if best is not None else NONE
     fig, axes = plt.subplots(2, 1, figsize=(8, 5.2), sharex=True)
     t = data.t
     ax = axes[0]
@@ -58,7 +58,7 @@ def figure_fit(analysis: Analysis, path: Path) -> Path:
         for a in axes:
             a.axvline(t[analysis.n_train], color="0.6", lw=0.6, ls=":")
     adopted = analysis.final_outcome
-    title = " + ".join(causes_in(adopted.cause)) if adopted is not None else NONE
+    title = adopted.model.name if adopted is not None else NONE
     ax.set_title(f"{data.experiment}: {'causes' if '+' in title else 'cause'} = {title}",
                  fontsize=10)
     ax = axes[1]
@@ -78,7 +78,7 @@ def figure_fit(analysis: Analysis, path: Path) -> Path:
 def figure_restitution(analysis: Analysis, path: Path) -> Path:
     """Constant-restitution and Hunt-Crossley fits of an impact decay."""
     data = analysis.data
-    base, _ = predict(data, NONE, analysis.baseline.values)
+    base, _ = predict(data, BASELINE, analysis.baseline.values)
     rest = analysis.restitution or {}
     fig, axes = plt.subplots(2, 1, figsize=(8, 5.2), sharex=True)
     axes[0].plot(data.t, data.y, ".", ms=1.5, color="0.4", label="measured")

@@ -24,7 +24,7 @@ from analysis.discrepancy.forced_models import (
 )
 from analysis.discrepancy.policy import DEFAULT_POLICY
 from analysis.experiments import FORCED
-from analysis.extensions import model_name
+from analysis.extensions import ModelSpec
 from analysis.identify.forced import forced_data, identify_forced
 from analysis.record_loaders import load_record
 from tests.reference.forced_records import draw_forced_case, write_forced_case
@@ -35,12 +35,13 @@ PAIR = ("barrier_offset", "sensor_nonlinearity")
 def test_a_model_with_one_of_barrier_and_zero_starts_it_at_the_stop_level():
     hints = {"theta_b_rad": 0.158, "offset_rad": -0.175, "k3": 0.1}
     level = 0.158 - 0.175
-    assert level_hints("barrier_offset", hints)["theta_b_rad"] == pytest.approx(level)
-    assert level_hints("sensor_nonlinearity+sensor_offset", hints)["offset_rad"] == \
+    barrier, cubic = ModelSpec.of("barrier_offset"), ModelSpec.of("sensor_nonlinearity")
+    assert level_hints(barrier, hints)["theta_b_rad"] == pytest.approx(level)
+    assert level_hints(cubic.plus("sensor_offset"), hints)["offset_rad"] == \
         pytest.approx(level)
-    assert level_hints("barrier_offset+sensor_offset", hints) == hints  # both: the split
-    assert level_hints("sensor_nonlinearity", hints) == hints
-    assert level_hints("barrier_offset", {"theta_b_rad": 0.1}) == {"theta_b_rad": 0.1}
+    assert level_hints(barrier.plus("sensor_offset"), hints) == hints  # both: the split
+    assert level_hints(cubic, hints) == hints
+    assert level_hints(barrier, {"theta_b_rad": 0.1}) == {"theta_b_rad": 0.1}
 
 
 def test_a_second_cause_is_fitted_afresh_beside_the_first(tmp_path):
@@ -49,9 +50,9 @@ def test_a_second_cause_is_fitted_afresh_beside_the_first(tmp_path):
     ident = identify_forced(data, whole=False, threads=2)
     hints = cause_hints(ident)
     lay = layouts(data)
-    first = "sensor_nonlinearity"
+    first = ModelSpec.of("sensor_nonlinearity")
     alone = fit_cause(data, first, screen_cause(data, first, ident, hints, 2), lay, 2)
-    pair = model_name(list(PAIR))
+    pair = ModelSpec.of(*PAIR)
     nested = extend(data, first, alone, "barrier_offset", lay.full, 2)
     afresh = _fit_afresh(data, pair, ident, hints, lay, 2)
     truth = case.causes["barrier_offset"]["theta_b_rad"]
@@ -71,9 +72,10 @@ def test_a_step_screens_against_the_current_model_continued_to_its_optimum(tmp_p
     case = draw_forced_case(9359, "sensor_nonlinearity", frequency_hz=10.0)
     data = forced_data(load_record(write_forced_case(case, tmp_path)))
     ident = identify_forced(data, whole=False, threads=2)
-    cubic = screen_cause(data, "sensor_nonlinearity", ident, cause_hints(ident), 2)
+    model = ModelSpec.of("sensor_nonlinearity")
+    cubic = screen_cause(data, model, ident, cause_hints(ident), 2)
     assert not cubic.success  # stopped at its cap: the case this is about
     names = [c.name for c in candidates_for(FORCED.name)]
-    gains = screened_beside(data, ident, "sensor_nonlinearity", cubic, names, 2)
+    gains = screened_beside(data, ident, model, cubic, names, 2)
     assert set(gains) == set(names) - {"sensor_nonlinearity"}
     assert max(gain for gain, _fit in gains.values()) <= DEFAULT_POLICY.bic_margin, gains

@@ -13,7 +13,7 @@ from analysis.discrepancy.forced_models import true_angle_states
 from analysis.discrepancy.restitution import restitution_samples
 from analysis.discrepancy.selection import Verdict, choose
 from analysis.experiments import KINDS
-from analysis.extensions import CAUSES
+from analysis.extensions import CAUSES, ModelSpec
 from analysis.identify.intervals import correlation_time
 from analysis.model_values import measured_angle
 
@@ -97,10 +97,15 @@ def test_invariants_poincare_section_of_a_sine_is_its_value_at_phase_zero():
     assert d_sub > 5 * d_noise
 
 
-def _verdict(cause: str, bic: float, heldout: float, invariant: float | None = None) -> Verdict:
+# two stand-in causes for the judges' tests: which ones does not matter
+A, B = ModelSpec.of("quadratic_drag"), ModelSpec.of("coulomb_friction")
+
+
+def _verdict(model: ModelSpec, bic: float, heldout: float,
+             invariant: float | None = None) -> Verdict:
     """A verdict with a BIC gain, a held-out error ratio and (chaotic) an invariant ratio."""
     return Verdict(
-        cause=cause,
+        model=model,
         information_criterion_delta=bic,
         heldout_rms_baseline=1.0,
         heldout_rms_extended=heldout,
@@ -113,44 +118,44 @@ def _verdict(cause: str, bic: float, heldout: float, invariant: float | None = N
 
 def test_a_worse_fit_stands_in_for_a_rejected_best_fit_only_on_point_by_point_records():
     # point by point: the best fit does not predict the unseen part, the next one does
-    periodic = [_verdict("a", 50.0, 1.0), _verdict("b", 30.0, 0.5)]
-    assert choose(periodic).cause == "b"
+    periodic = [_verdict(A, 50.0, 1.0), _verdict(B, 30.0, 0.5)]
+    assert choose(periodic).model == B
     # chaotic: one realization's invariants veto the best fit; they do not promote "b"
-    chaotic = [_verdict("a", 50.0, 1.0, invariant=0.8), _verdict("b", 30.0, 1.0, invariant=0.6)]
+    chaotic = [_verdict(A, 50.0, 1.0, invariant=0.8), _verdict(B, 30.0, 1.0, invariant=0.6)]
     assert choose(chaotic) is None
-    accepted = [_verdict("a", 50.0, 1.0, invariant=0.5), _verdict("b", 30.0, 1.0, invariant=0.3)]
-    assert choose(accepted).cause == "a"
+    accepted = [_verdict(A, 50.0, 1.0, invariant=0.5), _verdict(B, 30.0, 1.0, invariant=0.3)]
+    assert choose(accepted).model == A
     # a candidate below the BIC margin is no best fit: it neither wins nor vetoes
-    weak = [_verdict("a", 5.0, 1.0, invariant=0.9), _verdict("b", 30.0, 1.0, invariant=0.5)]
-    assert choose(weak).cause == "b"
+    weak = [_verdict(A, 5.0, 1.0, invariant=0.9), _verdict(B, 30.0, 1.0, invariant=0.5)]
+    assert choose(weak).model == B
 
 
 def test_a_small_forecast_gain_counts_when_it_is_significant_stretch_by_stretch():
     # a forced record's forecasts barely improve (ratio 0.99, under the 5 % a ratio alone
     # needs) but do so on nearly every held-out stretch: the paired test accepts it
-    small = replace(_verdict("drag", 50.0, 0.99), forecast_z=6.0)
+    small = replace(_verdict(A, 50.0, 0.99), forecast_z=6.0)
     assert small.heldout_helps and small.earns_keep
     # the same ratio without that consistency is noise
     assert not replace(small, forecast_z=1.0).heldout_helps
     # and a significant loss is a loss, whatever the ratio
-    assert not replace(_verdict("drag", 50.0, 1.2), forecast_z=-8.0).earns_keep
+    assert not replace(_verdict(A, 50.0, 1.2), forecast_z=-8.0).earns_keep
 
 
 def test_on_a_chaotic_record_the_invariants_veto_forecasts_but_do_not_replace_them():
-    forecast = replace(_verdict("a", 50.0, 0.5, invariant=0.9), forecast_z=9.0)
+    forecast = replace(_verdict(A, 50.0, 0.5, invariant=0.9), forecast_z=9.0)
     assert forecast.earns_keep  # closer statistics than the baseline's, better forecasts
     # one long run's statistics are noisy: further away by less than the factor the
     # forecasts gain (2 here) does not overrule them, further than that does
     assert replace(forecast, invariant_distance_extended=1.9).earns_keep
     assert not replace(forecast, invariant_distance_extended=2.1).earns_keep
     # forecasts better only by the paired test: no further away at all
-    slight = replace(_verdict("a", 50.0, 0.98, invariant=0.9), forecast_z=9.0)
+    slight = replace(_verdict(A, 50.0, 0.98, invariant=0.9), forecast_z=9.0)
     assert slight.earns_keep
     assert not replace(slight, invariant_distance_extended=1.05).earns_keep
     # with forecasts, a vetoed best fit no longer blocks the next candidate
-    runner = replace(_verdict("b", 30.0, 0.6, invariant=0.8), forecast_z=7.0)
+    runner = replace(_verdict(B, 30.0, 0.6, invariant=0.8), forecast_z=7.0)
     vetoed = replace(forecast, invariant_distance_extended=2.5)
-    assert choose([vetoed, runner]).cause == "b"
+    assert choose([vetoed, runner]).model == B
 
 
 def test_a_long_decay_is_thinned_and_the_note_says_how_in_plain_words(tmp_path):
@@ -182,7 +187,7 @@ def test_segment_states_read_back_through_a_lagging_sensor_are_the_true_angle():
     measured = measured_angle(["sensor_lag"], {"tau_s": tau}, t, theta, float(rate[0]))
     at = np.arange(200, t.size, 150)
     states = np.column_stack([measured[at], rate[at]])
-    back = true_angle_states(states, "sensor_lag", {"tau_s": tau}, dt)
+    back = true_angle_states(states, ModelSpec.of("sensor_lag"), {"tau_s": tau}, dt)
     lag_effect = np.abs(measured[at] - theta[at])
     assert np.max(lag_effect) > 0.03  # the lag shows: tens of mrad at the fastest
     assert np.all(np.abs(back[:, 0] - theta[at]) <= 0.15 * np.max(lag_effect))
@@ -190,6 +195,7 @@ def test_segment_states_read_back_through_a_lagging_sensor_are_the_true_angle():
     # a sensor without memory is inverted sample by sample (four fixed-point steps)
     cubic = {"k3": 0.3}
     seen = measured_angle(["sensor_nonlinearity"], cubic, t[at], theta[at])
-    back = true_angle_states(np.column_stack([seen, rate[at]]), "sensor_nonlinearity", cubic,
+    back = true_angle_states(np.column_stack([seen, rate[at]]),
+                             ModelSpec.of("sensor_nonlinearity"), cubic,
                              dt)
     assert np.all(np.abs(back[:, 0] - theta[at]) <= 0.01 * np.max(np.abs(seen - theta[at])))

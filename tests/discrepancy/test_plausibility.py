@@ -12,7 +12,7 @@ import pytest
 
 from analysis.discrepancy.forced_judges import table_contradiction
 from analysis.discrepancy.selection import Verdict, choose
-from analysis.extensions import CAUSES, cause
+from analysis.extensions import CAUSES, ModelSpec, cause
 from analysis.identify.forced import forced_data
 from analysis.identify.result import Estimate
 from analysis.record_loaders import load_record
@@ -43,16 +43,16 @@ def test_an_estimate_outside_the_range_or_on_a_bound_is_named_with_its_value():
 
 
 def _verdict(name: str, bic: float, implausible: str | None = None) -> Verdict:
-    return Verdict(cause=name, information_criterion_delta=bic, heldout_rms_baseline=1.0,
-                   heldout_rms_extended=0.5, rms_baseline=1.0, rms_extended=0.5,
-                   implausible=implausible)
+    return Verdict(model=ModelSpec.of(name), information_criterion_delta=bic,
+                   heldout_rms_baseline=1.0, heldout_rms_extended=0.5, rms_baseline=1.0,
+                   rms_extended=0.5, implausible=implausible)
 
 
 def test_an_implausible_best_fit_is_passed_over_and_says_why():
     bent = _verdict("sensor_nonlinearity", 500.0, "k3 = 7 is outside ...")
     right = _verdict("coulomb_friction", 80.0)
     assert not bent.earns_keep and "no explanation: k3 = 7" in bent.why
-    assert choose([bent, right]).cause == "coulomb_friction"
+    assert choose([bent, right]).model == ModelSpec.of("coulomb_friction")
     assert choose([bent]) is None
     assert replace(bent, implausible=None).earns_keep
 
@@ -95,19 +95,21 @@ def test_a_drive_size_the_table_channel_measured_otherwise_is_no_explanation(tmp
         return SimpleNamespace(estimates={k: Estimate(v, (v - w, v + w))
                                           for k, (v, w) in sizes.items()})
 
-    model = "excitation_distortion"
+    model = ModelSpec.of("excitation_distortion")
+    amplitude = ModelSpec.of("excitation_amplitude")
     assert table_contradiction(data, model, fit(h2=(1.05 * h2, 1e-4))) is None
     assert table_contradiction(data, model, fit(h2=(0.0, 1.0))) is None  # not known
     why = table_contradiction(data, model, fit(h2=(0.5 * h2, 1e-4)))
     assert "h2 = " in why and "table channel measured" in why
-    assert "eps = 0.1" in table_contradiction(data, "excitation_amplitude",
+    assert "eps = 0.1" in table_contradiction(data, amplitude,
                                               fit(eps=(0.1, 0.01)))
     # a screening is judged only on the sizes the channel found absent: its rough harmonic
     # may stand off the measured one, but no amplitude error is no amplitude error
     assert table_contradiction(data, model, fit(h2=(0.5 * h2, 1e-4)), absent_only=True) is None
-    assert "eps = 0.1" in table_contradiction(data, "excitation_amplitude",
+    assert "eps = 0.1" in table_contradiction(data, amplitude,
                                               fit(eps=(0.1, 0.01)), absent_only=True)
     # causes the table does not measure, and a record without a table channel: no verdict
-    assert table_contradiction(data, "sensor_offset", fit(offset_rad=(0.1, 0.01))) is None
+    zero = ModelSpec.of("sensor_offset")
+    assert table_contradiction(data, zero, fit(offset_rad=(0.1, 0.01))) is None
     no_laser = replace(data, drive=replace(data.drive, table=None))
     assert table_contradiction(no_laser, model, fit(h2=(0.5 * h2, 1e-4))) is None

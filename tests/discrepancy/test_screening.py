@@ -12,7 +12,7 @@ import pytest
 
 from analysis.discrepancy.forced import rescreened_from_baseline
 from analysis.discrepancy.forced_models import cause_hints, screen_cause
-from analysis.extensions import NONE
+from analysis.extensions import BASELINE, NONE, ModelSpec
 from analysis.identify.forced import forced_data, identify_forced
 from analysis.record_loaders import load_record
 from tests.reference.forced_records import draw_forced_case, write_forced_case
@@ -24,8 +24,9 @@ def test_a_screening_stuck_worse_than_the_baseline_starts_again_from_it(tmp_path
     data = forced_data(load_record(write_forced_case(case, tmp_path)))
     ident = identify_forced(data, whole=False, threads=2)
     hints = cause_hints(ident)
-    base = screen_cause(data, NONE, ident, hints, 2)
-    stuck = screen_cause(data, "coulomb_friction", ident, {**hints, "Tc_N_m": 1e-2}, 2)
+    base = screen_cause(data, BASELINE, ident, hints, 2)
+    stuck = screen_cause(data, ModelSpec.of("coulomb_friction"), ident,
+                         {**hints, "Tc_N_m": 1e-2}, 2)
     assert stuck.rss > base.rss  # a model holding the baseline, stuck below it
     again = rescreened_from_baseline(data, ident, {NONE: base, "coulomb_friction": stuck}, 2)
     found = again["coulomb_friction"]
