@@ -14,10 +14,10 @@ from __future__ import annotations
 import math
 import os
 import time
-from collections.abc import Callable, Iterator, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import Executor, ProcessPoolExecutor
 from contextlib import nullcontext
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -25,9 +25,12 @@ import numpy as np
 from analysis.discrepancy.candidates import candidates_for, excluded_for
 from analysis.discrepancy.fitting import FitData, FitResult, fit, predict
 from analysis.discrepancy.forced import analyze_forced
+from analysis.discrepancy.forward import forward_selection
+from analysis.discrepancy.forward import indistinct as forward_indistinct
 from analysis.discrepancy.localize import localize, motion_of
 from analysis.discrepancy.outcome import Analysis, AnalysisError, CandidateOutcome
 from analysis.discrepancy.policy import DEFAULT_POLICY, SelectionPolicy
+from analysis.discrepancy.residual_reading import read_residual
 from analysis.discrepancy.restitution import fit_restitution, restitution_from_hunt_crossley
 from analysis.discrepancy.selection import (
     Verdict,
@@ -35,11 +38,15 @@ from analysis.discrepancy.selection import (
     heldout_rms,
     information_criterion_delta,
 )
+from analysis.discrepancy.term_proposal import ProposedTerm, propose_terms
+from analysis.dynamics.lines import FALSE_ALARM
 from analysis.extensions import BASELINE, NONE, ModelSpec, RecordScale, cause, implausibility
 from analysis.identify import IdentificationError, fit_free_decay, fit_impact_decay
 from analysis.identify.impact_decay import impact_events
 from analysis.identify.preprocess import prepare
+from analysis.identify.result import Estimate
 from analysis.model import Drive
+from analysis.model_values import packed_from_values
 from analysis.records import Record
 
 MAX_FIT_SAMPLES = 4000
@@ -51,25 +58,41 @@ Progress = Callable[[str], None]
 # --------------------------------------------------------------------------- preparation
 
 
-def prepare_data(record: Record) -> tuple[FitData, list[str]]:
+def prepare_data(record: Record, *, thinned: bool = True) -> tuple[FitData, list[str]]:
     """The fit's view of a decay record: release and rest trimmed, bad samples out,
-    decimated to at most MAX_FIT_SAMPLES samples, noise level from the full-rate data."""
+    decimated to at most MAX_FIT_SAMPLES samples (unless not ``thinned``: every sample),
+    noise level from the full-rate data."""
     notes: list[str] = []
-    experiment = record.experiment
     kind = record.kind
     signal = prepare(record.time_s, record.angle_rad, detect_release=True)
     t, y, valid, noise = signal.time_s, signal.angle_rad, signal.valid, signal.noise_rad
     notes.extend(signal.notes)
     limit = MAX_FIT_SAMPLES_WITH_CONTACT if kind.barrier else MAX_FIT_SAMPLES
-    stride = max(1, math.ceil(t.size / limit))
+    stride = max(1, math.ceil(t.size / limit)) if thinned else 1
     if stride > 1:
         notes.append(f"fitted on one sample in {stride} ({t.size} -> {-(-t.size // stride)})")
     t, y, valid = t[::stride], y[::stride], valid[::stride].copy()
     data = FitData(
-        experiment=experiment, t=t - t[0], y=y, valid=valid, noise_rad=float(noise),
+        experiment=record.experiment, t=t - t[0], y=y, valid=valid, noise_rad=float(noise),
         rig=record.rig_parameters(), drive=Drive(), barrier=kind.barrier,
     )
     return data, notes
+
+
+def proposed_terms(record: Record, final: FitResult) -> list[ProposedTerm]:
+    """The terms the residual acceleration of a decay's final model asks for
+    (:mod:`analysis.discrepancy.term_proposal`), at every sample of the record (a contact
+    lasts milliseconds) and at the data's true angle: the measured one with the model's
+    sensor (its measured minus its true angle) taken off."""
+    data, _ = prepare_data(record, thinned=False)
+    measured, sim = predict(data, final.model, final.values)
+    n = min(data.t.size, sim.theta.size)
+    true = np.asarray(sim.theta, dtype=float)[:n]
+    rate = np.asarray(sim.theta_dot, dtype=float)[:n]
+    packed = packed_from_values(data.rig, data.drive, data.barrier, final.values,
+                                final.model.causes, data.phase0_rad)
+    theta = data.y[:n] - (measured[:n] - true)
+    return propose_terms(data.t[:n], theta, data.valid[:n], packed, true, rate)
 
 
 def baseline_start(
@@ -178,49 +201,68 @@ def record_scale(data: FitData, baseline: FitResult, contacts_delta: float) -> R
 # --------------------------------------------------------------------------- candidates
 
 
+@dataclass(frozen=True)
+class DecayFits:
+    """What every fit of a decay shares: the prepared record, its training part, the scale
+    of its steps, the identified hints on causes' parameters (and the identification's whole
+    solution, a second start where a cause frees one of them) and the rules."""
+
+    data: FitData
+    n_train: int
+    scale: RecordScale
+    hints: Mapping[str, float]
+    identified: Mapping[str, float]
+    policy: SelectionPolicy
+
+    @property
+    def head(self) -> FitData:
+        """The training part: the record's first ``n_train`` samples."""
+        return self.data.head(self.n_train / self.data.t.size)
+
+
 def assess_candidate(
-    model: ModelSpec, data: FitData, n_train: int, baseline_train: FitResult,
-    baseline: FitResult, baseline_heldout: float, scale: RecordScale,
-    hints: dict[str, float] | None = None, identified: dict[str, float] | None = None,
-    policy: SelectionPolicy = DEFAULT_POLICY,
+    model: ModelSpec, fits: DecayFits, start: FitResult, against: FitResult,
+    against_heldout: float, *, rival: bool = True,
 ) -> CandidateOutcome:
-    """Fit one model on the training part and on the whole record; judge it against
-    ``baseline`` (the baseline, or in a forward step the model it extends by one cause)."""
-    head = data.head(n_train / data.t.size)
+    """Fit ``model`` on the training part from ``start``'s training solution (the causes it
+    lacks neutral), predict the rest, fit the whole record, and judge it against
+    ``against`` (the baseline, or in a forward step the model it extends by one cause) whose
+    held-out error is ``against_heldout``.  With ``rival``, a model that earns its keep also
+    refits ``start``'s model from its solution: is the gain the cause's, or only a better
+    basin of the baseline's own parameters?"""
+    data, head = fits.data, fits.head
     own = {s.name for c in model.causes for s in cause(c).parameters}
-    hinted = {k: v for k, v in (hints or {}).items() if k in own}
-    train = fit(head, model, baseline_train.values, scale)
-    if identified is not None and hinted:
+    hinted = {k: v for k, v in fits.hints.items() if k in own}
+    train = fit(head, model, start.values, fits.scale)
+    if hinted:
         # The identification fitted this parameter together with the baseline's: its
         # whole solution is a second start, often in another basin than the baseline's.
-        second = fit(head, model, {**identified, **hinted}, scale)
+        second = fit(head, model, {**fits.identified, **hinted}, fits.scale)
         if second.rms < train.rms:
             train = second
     prediction, _ = predict(data, model, train.values)
-    heldout = heldout_rms(prediction, data.y, data.valid, n_train)
-    full = fit(data, model, train.values, scale)
+    heldout = heldout_rms(prediction, data.y, data.valid, fits.n_train)
+    full = fit(data, model, train.values, fits.scale)
     verdict = Verdict(
         model=model,
-        information_criterion_delta=information_criterion_delta(baseline, full, data.noise_rad),
-        heldout_rms_baseline=baseline_heldout,
+        information_criterion_delta=information_criterion_delta(against, full, data.noise_rad),
+        heldout_rms_baseline=against_heldout,
         heldout_rms_extended=heldout,
-        rms_baseline=baseline.rms,
+        rms_baseline=against.rms,
         rms_extended=full.rms,
         noise_rad=data.noise_rad,
-        n_heldout=int(np.count_nonzero(data.valid[n_train:])),
+        n_heldout=int(np.count_nonzero(data.valid[fits.n_train:])),
         implausible=implausibility(model, full.values),
-        policy=policy,
+        policy=fits.policy,
     )
-    rival = None
-    if verdict.earns_keep:
-        # Is the gain the cause's, or did its fit only find a better basin of the baseline's
-        # own parameters?  Refit the baseline from the candidate's solution to find out.
-        keys = set(baseline_train.values)
-        rival_train = fit(head, baseline_train.model,
-                          {k: v for k, v in train.values.items() if k in keys}, scale)
-        if rival_train.rms < baseline_train.rms * (1.0 - 1e-3):
-            rival = rival_train
-    return CandidateOutcome(model, train, full, verdict, prediction, rival)
+    better_basin = None
+    if rival and verdict.earns_keep:
+        keys = set(start.values)
+        refit = fit(head, start.model, {k: v for k, v in train.values.items() if k in keys},
+                    fits.scale)
+        if refit.rms < start.rms * (1.0 - 1e-3):
+            better_basin = refit
+    return CandidateOutcome(model, train, full, verdict, prediction, better_basin)
 
 
 def rejudge(
@@ -238,16 +280,96 @@ def rejudge(
     return replace(outcome, verdict=verdict, rival=None)
 
 
-def _assess_job(args: tuple) -> CandidateOutcome:
-    return assess_candidate(*args)
+@dataclass(frozen=True)
+class _Assessment:
+    """One :func:`assess_candidate` call, as a process pool's job."""
+
+    model: ModelSpec
+    start: FitResult
+    against: FitResult
+    against_heldout: float
+    rival: bool = True
 
 
-def _assessed(jobs: list[tuple], pool: Executor | None) -> Iterator[CandidateOutcome]:
+def _assess_job(args: tuple[DecayFits, _Assessment]) -> CandidateOutcome:
+    fits, job = args
+    return assess_candidate(job.model, fits, job.start, job.against, job.against_heldout,
+                            rival=job.rival)
+
+
+def _assessed(fits: DecayFits, jobs: list[_Assessment], pool: Executor | None
+              ) -> list[CandidateOutcome]:
     """Each job's outcome, in order: in ``pool``'s processes when there is a pool and more
     than one job."""
-    if pool is not None and len(jobs) > 1:
-        return pool.map(_assess_job, jobs)
-    return map(_assess_job, jobs)
+    work = [(fits, job) for job in jobs]
+    if pool is not None and len(work) > 1:
+        return list(pool.map(_assess_job, work))
+    return list(map(_assess_job, work))
+
+
+class DecaySteps:
+    """The forward selection's steps on a decay (:mod:`analysis.discrepancy.forward`),
+    point by point: a cause is screened beside the current model by fitting it from the
+    current model's training solution (the step's nested fit, judged on the held-out part
+    after the training one), and the best are fitted again afresh, from the baseline's
+    training solution with every cause of the model neutral, the closer over the record
+    kept.  A decay's fits run to convergence, so the current model itself is the step's
+    yardstick."""
+
+    def __init__(self, fits: DecayFits, baseline_train: FitResult,
+                 outcomes: Sequence[CandidateOutcome], pool: Executor | None) -> None:
+        self.fits, self.baseline_train, self.pool = fits, baseline_train, pool
+        self.single = {o.model.causes[0]: o for o in outcomes}
+        self.beside: dict[str, CandidateOutcome] = {}
+
+    def open_structure(self, current: CandidateOutcome) -> str | None:
+        data = self.fits.data
+        left = read_residual(data.t, current.full.residual, data.valid, data.noise_rad)
+        if left.structured or left.ljung_box_p < FALSE_ALARM:
+            return None
+        return (f"{left.why}, and its correlation is no more than white noise's (Ljung-Box "
+                f"p {left.ljung_box_p:.2g})")
+
+    def screen(self, current: CandidateOutcome) -> dict[str, float]:
+        jobs = [_Assessment(current.model.plus(name), current.train, current.full,
+                            current.verdict.heldout_rms_extended, rival=False)
+                for name in self.single if name not in current.model.causes]
+        self.beside = {o.model.causes[-1]: o for o in _assessed(self.fits, jobs, self.pool)}
+        return {name: o.verdict.information_criterion_delta for name, o in self.beside.items()}
+
+    def refused(self, current: CandidateOutcome, name: str) -> str | None:
+        return None  # a decay has no channel that measures a cause apart from the angle
+
+    def fit(self, current: CandidateOutcome, names: Sequence[str]
+            ) -> tuple[CandidateOutcome, dict[str, CandidateOutcome]]:
+        jobs = [_Assessment(current.model.plus(name), self.baseline_train, current.full,
+                            current.verdict.heldout_rms_extended, rival=False)
+                for name in names]
+        afresh = _assessed(self.fits, jobs, self.pool)
+        return current, {name: min(self.beside[name], again, key=lambda o: o.full.rss)
+                         for name, again in zip(names, afresh, strict=True)}
+
+    def gain(self, parent: CandidateOutcome, fit: CandidateOutcome) -> float:
+        return information_criterion_delta(parent.full, fit.full, self.fits.data.noise_rad)
+
+    def disqualification(self, model: ModelSpec, fit: CandidateOutcome) -> str | None:
+        return implausibility(model, fit.full.values)
+
+    def estimates(self, fit: CandidateOutcome) -> Mapping[str, Estimate]:
+        return fit.full.estimates
+
+    def full(self, fitted: CandidateOutcome) -> CandidateOutcome:
+        return fitted
+
+    def judge(self, current: CandidateOutcome, parent: CandidateOutcome, model: ModelSpec,
+              fit: CandidateOutcome) -> tuple[CandidateOutcome, Verdict]:
+        return fit, fit.verdict  # judged against the current model when it was fitted
+
+    def adopted(self, fitted: CandidateOutcome, name: str | None) -> None:
+        return None
+
+    def alone(self, model: ModelSpec) -> CandidateOutcome | None:
+        return self.single.get(model.causes[0]) if len(model.causes) == 1 else None
 
 
 def analyze_record(
@@ -311,18 +433,15 @@ def analyze_decay(
     names = [c.name for c in candidates_for(data.experiment)]
     if causes is not None:
         names = [n for n in names if n in causes]
-    jobs = [
-        (ModelSpec.of(n), data, n_train, baseline_train, baseline, baseline_heldout, scale,
-         hints, start, policy)
-        for n in names
-    ]
+    fits = DecayFits(data, n_train, scale, hints, start, policy)
     # one pool of processes for the candidates and the forward selection's steps (none
     # with one worker): its processes start once per record
     with ProcessPoolExecutor(max_workers=workers) if workers > 1 else nullcontext() as pool:
-        outcomes: list[CandidateOutcome] = []
-        for outcome in _assessed(jobs, pool):
+        outcomes = _assessed(fits, [
+            _Assessment(ModelSpec.of(n), baseline_train, baseline, baseline_heldout)
+            for n in names], pool)
+        for outcome in outcomes:
             say(f"  {outcome.model}: {outcome.verdict.why}")
-            outcomes.append(outcome)
         rivals = [o.rival for o in outcomes if o.rival is not None]
         if rivals:
             better = min(rivals, key=lambda r: r.rms)
@@ -337,58 +456,39 @@ def analyze_decay(
             _, full_sim = predict(data, BASELINE, baseline.values)
             localization = localize(data, baseline, *motion_of(data, full_sim))
         verdict = choose([o.verdict for o in outcomes])
-        chosen = verdict.model.causes[0] if verdict is not None else NONE
-        final, steps = None, []
+        chosen, final, steps, indistinct = NONE, None, [], []
         if verdict is not None:
             first = next(o for o in outcomes if o.model == verdict.model)
-            final, steps = _add_causes(first, outcomes, data, n_train, scale, hints, pool, say,
-                                       policy)
+            current, steps = forward_selection(
+                DecaySteps(fits, baseline_train, outcomes, pool), first, verdict, policy, say)
+            chosen = steps[0][0]
+            final = current if len(current.model.causes) > 1 else None
+            indistinct = forward_indistinct(
+                verdict.model.causes[0], current.model.causes, baseline.residual,
+                {o.model.causes[0]: o.full.residual for o in outcomes},
+                {o.model.causes[0]: o.verdict.information_criterion_delta for o in outcomes},
+                policy)
     timings["candidates"] = time.perf_counter() - clock - timings["baseline"]
     analysis = Analysis(
         record=record, data=data, n_train=n_train, baseline_train=baseline_train,
         baseline=baseline, baseline_prediction=baseline_prediction, candidates=outcomes,
         excluded=excluded_for(data.experiment), chosen=chosen, localization=localization,
-        timings=timings, notes=notes, steps=steps, final=final, policy=policy,
+        timings=timings, notes=notes, steps=steps, final=final, indistinct=indistinct,
+        policy=policy,
     )
     if data.barrier:
         say("constant coefficient of restitution against Hunt-Crossley")
         analysis.restitution = compare_restitution(data, n_train, baseline, baseline_heldout,
                                                    base_sim)
     analysis.read()
+    if analysis.unexplained:
+        best = analysis.final_outcome
+        analysis.proposed_terms = proposed_terms(record, best.full if best else baseline)
+        say("proposed terms (not named causes): " + (
+            ", ".join(f"{t.term} in {t.region}" for t in analysis.proposed_terms) or "none"))
     timings["total"] = time.perf_counter() - clock
     say(f"cause: {chosen} ({timings['total']:.1f} s)")
     return analysis
-
-
-def _add_causes(
-    first: CandidateOutcome, outcomes: list[CandidateOutcome], data: FitData, n_train: int,
-    scale: RecordScale, hints: dict[str, float], pool: Executor | None, say: Progress,
-    policy: SelectionPolicy,
-) -> tuple[CandidateOutcome | None, list[tuple[str, Verdict]]]:
-    """Forward selection from the chosen cause: each step fits every other candidate added to
-    the current model (from its solution) and keeps the best that both judges accept
-    against it (information criterion, held-out prediction), up to the policy's
-    ``max_causes``.  Returns
-    the final model when a step added a cause (None otherwise) and the steps taken."""
-    current, steps = first, [(first.model.causes[0], first.verdict)]
-    names = [o.model.causes[0] for o in outcomes]
-    while len(steps) < policy.max_causes:
-        inside = current.model.causes
-        jobs = [(current.model.plus(n), data, n_train, current.train, current.full,
-                 current.verdict.heldout_rms_extended, scale, hints, None, policy)
-                for n in names if n not in inside]
-        if not jobs:
-            break
-        tried = list(_assessed(jobs, pool))
-        verdict = choose([o.verdict for o in tried])
-        if verdict is None:
-            say(f"beside {' and '.join(inside)}: no further cause earns its place")
-            break
-        current = next(o for o in tried if o.model == verdict.model)
-        added = current.model.causes[-1]
-        say(f"  {added} added to {' and '.join(inside)}: {verdict.why}")
-        steps.append((added, verdict))
-    return (current if len(steps) > 1 else None), steps
 
 
 def compare_restitution(

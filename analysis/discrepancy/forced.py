@@ -22,7 +22,6 @@
 
 from __future__ import annotations
 
-import math
 import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -51,6 +50,8 @@ from analysis.discrepancy.forced_models import (
     screen_cause,
     side_by_side,
 )
+from analysis.discrepancy.forward import forward_selection
+from analysis.discrepancy.forward import indistinct as forward_indistinct
 from analysis.discrepancy.invariants import Invariants, invariants
 from analysis.discrepancy.localize import localize
 from analysis.discrepancy.outcome import Analysis, AnalysisError, CandidateOutcome
@@ -71,7 +72,7 @@ from analysis.discrepancy.term_proposal import ProposedTerm, propose_terms
 from analysis.dynamics.lines import FALSE_ALARM
 from analysis.dynamics.regime import Regime
 from analysis.experiments import FORCED
-from analysis.extensions import BASELINE, NONE, ModelSpec, cause
+from analysis.extensions import BASELINE, NONE, ModelSpec
 from analysis.identify.forced import (
     ForcedData,
     ForcedIdentification,
@@ -80,7 +81,7 @@ from analysis.identify.forced import (
     identify_forced,
     record_regime,
 )
-from analysis.identify.result import IdentificationError
+from analysis.identify.result import Estimate, IdentificationError
 from analysis.identify.shooting import ShootingFit
 from analysis.records import Record
 
@@ -178,13 +179,14 @@ def analyze_forced_fits(
     steps: list[tuple[str, Verdict]] = []
     final = indistinct = None
     if accepted is not None:
-        steps.append((accepted, judged[accepted]))
-        final, more = _forward_selection(
-            data, ident, hints,
+        final, steps = forward_selection(
+            ForcedSteps(data, ident, hints, screened, fits, lay, threads, measured, period,
+                        policy, accepted),
             ModelFits(ModelSpec.of(accepted), fits[accepted], trains[accepted]),
-            screened, fits, lay, threads, measured, period, say, policy)
-        steps += more
-        indistinct = _indistinct(data, base.full, accepted, fits, bic, final, policy)
+            judged[accepted], policy, say)
+        indistinct = forward_indistinct(
+            accepted, final.model.causes, base.full.residual,
+            {name: fit.residual for name, fit in fits.items()}, bic, policy)
     outcomes = []
     for name in names:
         model_fits = ModelFits(ModelSpec.of(name), fits.get(name, screened[name]),
@@ -332,110 +334,108 @@ def _judge_in_order(
     return judged, trains, accepted
 
 
-def _forward_selection(
-    data: ForcedData, ident: ForcedIdentification, hints: Mapping[str, float],
-    current: ModelFits,
-    screened: Mapping[str, ShootingFit], fits: Mapping[str, ShootingFit], lay: Layouts,
-    threads: int | None, measured: Invariants | None, period: int, say: Progress,
-    policy: SelectionPolicy,
-) -> tuple[ModelFits, list[tuple[str, Verdict]]]:
-    """Add causes to the accepted one while a step earns its place by the same judges
-    (information criterion, then forecasts, and on a chaotic record the invariants' veto).
+class ForcedSteps:
+    """The forward selection's steps on a forced record (:mod:`analysis.discrepancy.forward`).
 
     A step screens every cause not yet in on the short segments, each added to the current
     model's screening solution and fitted a few iterations, against the current model
     continued to its optimum (:func:`screened_beside`; a cause the first one masked gains
-    here, where it could not against the baseline); the best that gains is fitted over
-    the record from the current model's optimum, again against the current model
-    continued as long.  Its own size must be
-    known to differ from none (its first parameter's interval excludes the neutral value).
-    After a step, a backward check drops an earlier cause the new one makes redundant (by
-    the information criterion against the model without it, when that fit is at hand).
-    A step must also shrink the forecasts' error above the noise to the policy's
-    ``heldout_excess_ratio``,
-    not only significantly: over a minute of record, a 0.46 mrad sensor zero beside a
-    lag and a harmonic (none in the truth) forecast 0.3 % better, 3 standard errors clear.
-    A candidate's fit over the record starts twice, from that optimum and afresh as every
-    single cause does (:func:`_fit_afresh`); the closer one is judged.
-    No step is tried once the current model's residual is white noise: not even correlated
-    beyond chance (a Ljung-Box p of FALSE_ALARM), since structure too small to call the
+    here, where it could not against the baseline); a drive cause whose screened size the
+    table channel found absent is not fitted on.  The best are fitted over the record from
+    the current model's optimum and afresh as every single cause is (:func:`_fit_afresh`),
+    the closer kept, against the current model continued as long; the judges are the
+    information criterion, the forecasts, and on a chaotic record the invariants' veto.
+    A step is tried while the current model's residual is not white noise, not even
+    correlated beyond chance (a Ljung-Box p of FALSE_ALARM): structure too small to call the
     model unexplained can still be a second cause's (quadratic drag beside a barrier offset
-    on a chaotic record left 0.11 x the noise's rms, with p = 2e-25)."""
-    steps: list[tuple[str, Verdict]] = []
-    short = screened[current.model.causes[0]]
-    distance = None
-    names = [n for n in screened if n != NONE]
-    while len(current.model.causes) < policy.max_causes:
-        left = _residual_reading(data, current.full, period)
-        if not (left.structured or left.ljung_box_p < FALSE_ALARM):
-            say(f"  beside {current.model}: {left.why}, and its correlation is no more than "
-                f"white noise's (Ljung-Box p {left.ljung_box_p:.2g}); no further cause tried")
-            break
-        gains = screened_beside(data, ident, current.model, short, names, threads, policy)
-        say(f"  screened beside {current.model}: " + ", ".join(
-            f"{n} {g:.3g}" for n, (g, _) in sorted(gains.items(), key=lambda kv: -kv[1][0])))
-        pool = sorted((n for n in gains if gains[n][0] > policy.bic_margin),
-                      key=lambda n: -gains[n][0])[:policy.step_added]
-        refused = {n: why for n in pool if (why := table_contradiction(
-            data, current.model.plus(n), gains[n][1], absent_only=True, policy=policy))}
-        for name, why in refused.items():
-            say(f"  {name} not fitted over the record: its screening gives {why}")
-        pool = [n for n in pool if n not in refused]
-        if not pool:
-            break
-        # the current model continued, and each candidate fitted from its optimum and afresh
+    on a chaotic record left 0.11 x the noise's rms, with p = 2e-25).  The step's own
+    excess-ratio rule keeps out a 0.46 mrad sensor zero beside a lag and a harmonic (none
+    in the truth) that forecast 0.3 % better, 3 standard errors clear, over a minute."""
+
+    def __init__(
+        self, data: ForcedData, ident: ForcedIdentification, hints: Mapping[str, float],
+        screened: Mapping[str, ShootingFit], fits: Mapping[str, ShootingFit], lay: Layouts,
+        threads: int | None, measured: Invariants | None, period: int,
+        policy: SelectionPolicy, first: str,
+    ) -> None:
+        self.data, self.ident, self.hints, self.lay = data, ident, hints, lay
+        self.screened, self.fits, self.threads = screened, fits, threads
+        self.measured, self.period, self.policy = measured, period, policy
+        self.names = [n for n in screened if n != NONE]
+        self.short = screened[first]  # the current model's screening solution
+        self.distance: float | None = None  # its invariants' distance (chaotic records)
+        self.beside: dict[str, tuple[float, ShootingFit]] = {}  # the last step's screening
+        self.next_distance: float | None = None
+
+    def open_structure(self, current: ModelFits) -> str | None:
+        left = _residual_reading(self.data, current.full, self.period)
+        if left.structured or left.ljung_box_p < FALSE_ALARM:
+            return None
+        return (f"{left.why}, and its correlation is no more than white noise's (Ljung-Box "
+                f"p {left.ljung_box_p:.2g})")
+
+    def screen(self, current: ModelFits) -> dict[str, float]:
+        self.beside = screened_beside(self.data, self.ident, current.model, self.short,
+                                      self.names, self.threads, self.policy)
+        return {name: gain for name, (gain, _) in self.beside.items()}
+
+    def refused(self, current: ModelFits, name: str) -> str | None:
+        return table_contradiction(self.data, current.model.plus(name), self.beside[name][1],
+                                   absent_only=True, policy=self.policy)
+
+    def fit(self, current: ModelFits, names: Sequence[str]
+            ) -> tuple[ShootingFit, dict[str, ShootingFit]]:
+        data, lay = self.data, self.lay
         started = side_by_side({
             "parent": partial(refit, data, current.model, current.full, lay),
             **{(name, "nested"): partial(extend, data, current.model, current.full, name,
-                                         lay.full) for name in pool},
+                                         lay.full) for name in names},
             **{(name, "afresh"): partial(_fit_afresh, data, current.model.plus(name),
-                                         ident, hints, lay) for name in pool},
-        }, threads)
-        parent = started["parent"]
-        tried = []
-        for name in pool:
-            model = current.model.plus(name)
-            fit = min(started[name, "nested"], started[name, "afresh"], key=lambda f: f.rss)
-            gain = _bic(data, ModelFits(current.model, parent), fit)
-            why = disqualification(data, model, fit, policy) or _indeterminate(fit, name)
-            say(f"  {model} over the record: BIC gain {gain:.3g} over {current.model}"
-                + (f", but {why}" if why else ""))
-            if gain > policy.bic_margin and not why:
-                tried.append((gain, name, fit))
-        if not tried:
-            break
-        _, name, fit = max(tried, key=lambda t: t[0])
-        present, model = current.model.causes, current.model.plus(name)
-        train = refit(data, model, fit, lay, threads, heldout_s=data.segment_s)
+                                         self.ident, self.hints, lay) for name in names},
+        }, self.threads)
+        return started["parent"], {
+            name: min(started[name, "nested"], started[name, "afresh"], key=lambda f: f.rss)
+            for name in names}
+
+    def gain(self, parent: ShootingFit, fit: ShootingFit) -> float:
+        return _bic(self.data, ModelFits(BASELINE, parent), fit)
+
+    def disqualification(self, model: ModelSpec, fit: ShootingFit) -> str | None:
+        return disqualification(self.data, model, fit, self.policy)
+
+    def estimates(self, fit: ShootingFit) -> Mapping[str, Estimate]:
+        return fit.estimates
+
+    def full(self, fitted: ModelFits) -> ShootingFit:
+        return fitted.full
+
+    def judge(self, current: ModelFits, parent: ShootingFit, model: ModelSpec,
+              fit: ShootingFit) -> tuple[ModelFits, Verdict]:
+        data = self.data
+        train = refit(data, model, fit, self.lay, self.threads, heldout_s=data.segment_s)
         distances: tuple[float | None, float | None] = (None, None)
-        if measured is not None:
-            if distance is None:
-                distance = model_invariants_distance(data, measured, current.model, current.full)
-            distances = (distance, model_invariants_distance(data, measured, model, fit))
-        verdict = verdict_of(data, ModelFits(model, fit, train),
-                             ModelFits(current.model, parent, current.train), lay, distances,
-                             policy=policy)
-        say(f"  adding {name}: {verdict.why}")
-        if not verdict.earns_keep:
-            break
-        if verdict.heldout_excess_ratio >= policy.heldout_excess_ratio:
-            say(f"  {name} not added: the forecasts' error above the noise shrinks only "
-                f"x{verdict.heldout_excess_ratio:.3g} (a step needs "
-                f"x{policy.heldout_excess_ratio:g})")
-            break
-        current, distance = ModelFits(model, fit, train), distances[1]
-        short = gains[name][1]
-        steps.append((name, verdict))
-        for earlier in present:
-            rest = model.without(earlier)
-            alone = rest.causes[0] if len(rest.causes) == 1 else None
-            if alone in fits and \
-                    _bic(data, ModelFits(rest, fits[alone]), fit) <= policy.bic_margin:
-                say(f"  {earlier} dropped: {rest} alone explains the record as well")
-                current, short = ModelFits(rest, fits[alone]), screened[alone]
-                steps = [(n, v) for n, v in steps if n != earlier]
-                break
-    return current, steps
+        if self.measured is not None:
+            if self.distance is None:
+                self.distance = model_invariants_distance(data, self.measured, current.model,
+                                                          current.full)
+            distances = (self.distance,
+                         model_invariants_distance(data, self.measured, model, fit))
+        self.next_distance = distances[1]
+        candidate = ModelFits(model, fit, train)
+        return candidate, verdict_of(data, candidate,
+                                     ModelFits(current.model, parent, current.train), self.lay,
+                                     distances, policy=self.policy)
+
+    def adopted(self, fitted: ModelFits, name: str | None) -> None:
+        if name is not None:
+            self.short, self.distance = self.beside[name][1], self.next_distance
+        else:  # an earlier cause dropped: the one left is a single cause fitted already
+            self.short = self.screened[fitted.model.causes[0]]
+
+    def alone(self, model: ModelSpec) -> ModelFits | None:
+        if len(model.causes) == 1 and model.causes[0] in self.fits:
+            return ModelFits(model, self.fits[model.causes[0]])
+        return None
 
 
 def screened_beside(
@@ -476,51 +476,6 @@ def _fit_afresh(
     away by a rigid contact (K on its bound), and from there the barrier did not move."""
     return fit_cause(data, model, screen_cause(data, model, ident, hints, threads), lay,
                      threads)
-
-
-def _indeterminate(fit: ShootingFit, name: str) -> str | None:
-    """Why a cause's fitted size is not known to differ from none (its first parameter's
-    95 % interval holds the neutral value), or None."""
-    size = cause(name).parameters[0]
-    estimate = fit.estimates.get(size.name)
-    if estimate is None or estimate.ci95 is None:
-        return None
-    low, high = estimate.ci95
-    if low <= size.default <= high:
-        return (f"its {size.name} = {estimate.value:.3g} [{low:.3g}, {high:.3g}] does not "
-                f"differ from none ({size.default:g})")
-    return None
-
-
-def _indistinct(
-    data: ForcedData, base: ShootingFit, accepted: str, fits: Mapping[str, ShootingFit],
-    bic: Mapping[str, float], final: ModelFits, policy: SelectionPolicy,
-) -> list[dict[str, Any]]:
-    """Causes the record cannot tell from the accepted one: their effects on the model
-    curve (each fit's curve minus the baseline's) correlate by the policy's
-    ``indistinct_correlation`` or more, each explains the record nearly as well (its
-    ``indistinct_bic``), and the forward selection did not keep both."""
-    kept = final.model.causes
-    effect = fits[accepted].prediction - base.prediction
-    use = data.valid & np.isfinite(effect)
-    out = []
-    for name, fit in fits.items():
-        if name in kept or name == accepted or \
-                not bic[name] >= policy.indistinct_bic * bic[accepted]:
-            continue
-        other = fit.prediction - base.prediction
-        both = use & np.isfinite(other)
-        a, b = effect[both], other[both]
-        r = float(a @ b / math.sqrt(max((a @ a) * (b @ b), 1e-300)))
-        if abs(r) >= policy.indistinct_correlation:
-            out.append({
-                "causes": [accepted, name], "correlation": r,
-                "why": (f"{accepted} and {name} change the model's curve alike (correlation "
-                        f"{r:.3f}) and explain the record nearly as well (BIC gains "
-                        f"{bic[accepted]:.4g} and {bic[name]:.4g}): this record cannot tell "
-                        f"them apart; {accepted} is named for its slightly higher score"),
-            })
-    return out
 
 
 def _residual_reading(data: ForcedData, fit: ShootingFit, period: int) -> ResidualReading:

@@ -192,7 +192,7 @@ def equation_error(t: np.ndarray, theta: np.ndarray, valid: np.ndarray, packed: 
     filtered as the data's is (see the module's docstring)."""
     dt = float(t[1] - t[0])
     window = max(POLYORDER + 2, round(SMOOTHING_S / dt) | 1)
-    lowpass = lowpass_window(packed[P.OMEGA_DRIVE] / (2.0 * math.pi), 1.0 / dt)
+    lowpass = lowpass_window(base_frequency_hz(packed), 1.0 / dt)
     good = valid & np.isfinite(theta) & np.isfinite(model_theta) & np.isfinite(model_rate)
     idx = np.arange(theta.size)
     filled = np.interp(idx, idx[good], theta[good])
@@ -215,9 +215,22 @@ def equation_error(t: np.ndarray, theta: np.ndarray, valid: np.ndarray, packed: 
     return EquationError(residual, theta_at, rate_at, flight, contact, window, lowpass)
 
 
+def driven(packed: np.ndarray) -> bool:
+    """Whether the model's table moves (a forced record; a decay's does not)."""
+    return bool(packed[P.OMEGA_DRIVE] > 0.0)
+
+
+def base_frequency_hz(packed: np.ndarray) -> float:
+    """The frequency whose harmonics the flight library and its low-pass reach: the drive's
+    on a forced record, the pendulum's own small-swing frequency on a decay."""
+    omega = packed[P.OMEGA_DRIVE] if driven(packed) else math.sqrt(packed[P.OMEGA2])
+    return float(omega / (2.0 * math.pi))
+
+
 def lowpass_window(drive_hz: float, sample_rate_hz: float) -> int:
     """Samples of the cubic Savitzky-Golay smoother whose -3 dB frequency is the highest
-    drive harmonic of the flight library's and one more: it takes out the smoothed second
+    harmonic of the flight library's (of ``drive_hz``, the base frequency) and one more:
+    it takes out the smoothed second
     derivative's noise, which grows as the frequency to the fourth, and no term's signal
     (R. W. Schafer, "What is a Savitzky-Golay filter?", IEEE Signal Processing Magazine
     28 (2011): f_c = (N + 1) / (3.2 M - 4.6) fs / 2 for order N and M samples)."""
@@ -252,8 +265,12 @@ def penetration(theta: np.ndarray, packed: np.ndarray) -> np.ndarray:
 
 def flight_library(t: np.ndarray, theta: np.ndarray, rate: np.ndarray,
                    packed: np.ndarray) -> Library:
-    """The flight terms: a constant, theta, theta', sign(theta'), theta'|theta'|, theta^3
-    and the drive harmonics' sines and cosines (phase of the model's drive).
+    """The flight terms: a constant, theta, theta', sign(theta'), theta'|theta'|, theta^3;
+    when the table moves, the drive harmonics' sines and cosines (phase of the model's
+    drive); when it does not (a decay), the products theta'^3 and theta^2 theta' (a damping
+    that grows with the rate or the angle).  Over swings of one size theta'^3 and
+    theta'|theta'| correlate by 0.98 and a record cannot tell them apart (a hidden drag was
+    proposed as theta'^3); a decay's swing shrinks, and they scale apart (A^3 against A^2).
 
     The constant is not in issue 15's list: a model that compromised on its sensor zero
     measures theta from a shifted zero, and a term about a shifted zero has a constant
@@ -262,12 +279,18 @@ def flight_library(t: np.ndarray, theta: np.ndarray, rate: np.ndarray,
     phase = packed[P.OMEGA_DRIVE] * t + packed[P.PHASE0]
     names = ["1", "theta", "theta'", "sign(theta')", "theta'|theta'|", "theta^3"]
     units = ["1", "rad", "rad/s", "1", "rad^2/s^2", "rad^3"]
-    columns = [np.ones_like(theta), theta, rate, np.sign(rate), rate * np.abs(rate), theta**3]
-    for k in range(1, DRIVE_HARMONICS + 1):
-        names += [f"sin({k} Omega t)", f"cos({k} Omega t)"]
-        units += ["1", "1"]
-        columns += [np.sin(k * phase), np.cos(k * phase)]
-    own = tuple(names.index(name) for name in FLIGHT_OWN)
+    columns = [np.ones_like(theta), theta, rate, np.sign(rate), rate * np.abs(rate),
+               theta * theta * theta]
+    if driven(packed):
+        for k in range(1, DRIVE_HARMONICS + 1):
+            names += [f"sin({k} Omega t)", f"cos({k} Omega t)"]
+            units += ["1", "1"]
+            columns += [np.sin(k * phase), np.cos(k * phase)]
+    else:
+        names += ["theta'^3", "theta^2 theta'"]
+        units += ["rad^3/s^3", "rad^3/s"]
+        columns += [rate * rate * rate, theta * theta * rate]
+    own = tuple(names.index(name) for name in FLIGHT_OWN if name in names)
     return Library("flight", tuple(names), tuple(units), np.column_stack(columns), own)
 
 
