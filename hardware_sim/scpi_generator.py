@@ -277,6 +277,7 @@ class ScpiGeneratorEmulator:
             conn.close()
             with self._changed:
                 self._clients.pop(conn, None)
+                self._changed.notify_all()  # whoever waits on the connections
                 if self._output_owner is conn:
                     self._output_owner = None
                     if self.output_off_on_disconnect and self._state.output:

@@ -146,7 +146,7 @@ def test_an_amplitude_beyond_the_generators_volts_is_refused_before_the_wire(gen
 @pytest.mark.parametrize(
     ("fault", "setting", "value", "error", "words"),
     [
-        (GeneratorFault.NO_ANSWER, "frequency_hz", 11.0, ScpiLinkError, "no answer to 'SOUR1:FREQ 11;*OPC?'"),
+        (GeneratorFault.NO_ANSWER, "frequency_hz", 11.0, ScpiLinkError, "no answer to 'SOUR1:FREQ"),
         (GeneratorFault.QUEUE_ERROR, "frequency_hz", 11.0, InstrumentError, '-221,"Settings'),
         (GeneratorFault.IGNORE_FREQUENCY, "frequency_hz", 11.0, SettingNotConfirmedError, "10"),
         (GeneratorFault.CLIP_AMPLITUDE, "amplitude_m", 0.002, SettingNotConfirmedError, "3 Vpp"),
