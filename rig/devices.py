@@ -257,7 +257,9 @@ def _start_virtual_rig(config: RigConfig, sample_rate_hz: float, speed: float):
         speed_factor=speed,
     )
     # SimRig.start compiles the physics before its emulators serve (no stalled first frames)
-    return SimRig(settings).start()
+    drive = config.shaker
+    gain = drive.gain_m_per_v if drive.kind == "scpi" else 1e-3
+    return SimRig(settings, drive=drive.kind, gain_m_per_v=gain).start()
 
 
 def virtual_config(config: RigConfig) -> RigConfig:
