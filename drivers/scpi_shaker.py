@@ -57,8 +57,8 @@ T = TypeVar("T")
 
 log = logging.getLogger("impact_rig.shaker")
 
-# The smallest amplitude the 33500B (into high-Z), DG1000Z and SDG2000X all accept: a
-# generator cannot output 0 V, so "amplitude 0" is this, and the output goes off on stop.
+# A generator cannot output 0 V: "amplitude 0" is sent as this (the 33500B's smallest into
+# High Z), and the output goes off on stop.
 MIN_VPP = 0.002
 # Resolution the generators hold settings to (33500B/DG1000Z: 1 uHz, 0.1 mV); the read-back
 # must agree with what was sent within half of it, plus a relative part for their 4-digit
@@ -263,7 +263,7 @@ class ScpiShaker:
             self._confirm_word("amplitude unit", f"{src}:VOLT:UNIT VPP", f"{src}:VOLT:UNIT?", "VPP")
             self._confirm_number("offset", f"{src}:VOLT:OFFS", 0.0, "V", 1e-3)
             self._send_vpp(MIN_VPP, "amplitude_m")
-            self._output = False
+            self._output, self._target_m = False, 0.0
         except BaseException:
             self._connected = False
             self.backend.close()
@@ -289,6 +289,8 @@ class ScpiShaker:
                 else:
                     self._make_safe()
             except DeviceError as error:
+                if isinstance(error, ScpiLinkError):
+                    self._link_failure = error  # the retry below is sent without waiting
                 self._make_safe()
                 problem = error
             finally:
@@ -348,9 +350,10 @@ class ScpiShaker:
         checked = _check(self.limits, "amplitude_m", value)
         vpp = self._vpp_for(checked)
         with self._command_lock:
+            generation = self._ramp_generation  # a stop from now on cuts the ramp short
             self._target_m = checked
             if self._output:
-                self._ramp_to(vpp)
+                self._ramp_to(vpp, generation)
             else:
                 self._io("write amplitude_m", self._send_vpp, vpp, "amplitude_m")
 
@@ -376,10 +379,11 @@ class ScpiShaker:
             self.stop()
             return
         with self._command_lock:
+            generation = self._ramp_generation  # a stop from now on cuts the ramp short
             if not self._output:
                 self._io("write amplitude_m", self._send_vpp, MIN_VPP, "amplitude_m")
                 self._io("enable", self._set_output, True)
-            self._ramp_to(self._vpp_for(self._target_m))
+            self._ramp_to(self._vpp_for(self._target_m), generation)
 
     def stop(self, wait_s: float = 0.0) -> None:
         """Ramp the amplitude down at ``ramp_rate_m_s``, then turn the output off (confirmed).
@@ -392,8 +396,8 @@ class ScpiShaker:
         self._interrupt_ramp()
         with self._command_lock:
             self._target_m = 0.0
-            if self._output:
-                self._ramp_to(MIN_VPP)  # a failure here has turned the output off already
+            if self._output:  # a failure in the ramp has turned the output off already
+                self._ramp_to(MIN_VPP, self._ramp_generation)
             self._io("disable", self._output_off_confirmed)
 
     def clear_faults(self) -> None:
@@ -485,14 +489,14 @@ class ScpiShaker:
             )
         return max(vpp, MIN_VPP)
 
-    def _ramp_to(self, target_vpp: float) -> None:
+    def _ramp_to(self, target_vpp: float, generation: int) -> None:
         """Step the amplitude (output on) to ``target_vpp``, each step confirmed.
 
         A step is at most ``ramp_rate * ramp_step_s`` and steps are at least ``ramp_step_s``
         apart, so the amplitude never moves faster than the ramp rate (a slow link makes the
-        ramp slower, never steeper).
+        ramp slower, never steeper).  RampInterruptedError once a stop or close came after
+        ``generation`` was read (the caller reads it when its command sequence begins).
         """
-        generation = self._ramp_generation
         rate_vpp_s = 2.0 * self._ramp_rate_m_s / self.gain_m_per_v
         # a step smaller than the 0.1 mV the generator holds would never arrive: slower steps
         step_vpp = max(rate_vpp_s * self.ramp_step_s, VPP_RESOLUTION)

@@ -8,6 +8,7 @@ the output off; the output is off after every way out.
 from __future__ import annotations
 
 import math
+import threading
 from collections.abc import Iterator
 
 import pytest
@@ -22,6 +23,7 @@ from drivers.interfaces import (
 from drivers.scpi_shaker import (
     MIN_VPP,
     InstrumentError,
+    RampInterruptedError,
     ScpiLink,
     ScpiLinkError,
     ScpiShaker,
@@ -226,3 +228,39 @@ def test_nothing_listening_is_a_one_line_device_not_found(generator) -> None:
     with pytest.raises(DeviceNotFoundError, match="connection refused") as caught:
         ScpiShaker(ScpiLink(resource, timeout_s=TIMEOUT_S), LIMITS, gain_m_per_v=1e-3).connect()
     assert "\n" not in str(caught.value)
+
+
+def test_close_says_so_when_the_generator_does_not_confirm_the_output_off(generator) -> None:
+    shaker = make_shaker(generator).connect()
+    driving(generator, shaker)
+    generator.fault = GeneratorFault.NO_ANSWER  # it still carries out commands
+    with pytest.raises(DeviceError, match="could not confirm the output off") as caught:
+        shaker.close()
+    assert "\n" not in str(caught.value) and "switch it off at the generator" in str(caught.value)
+    assert generator.wait_for(lambda state: not state.output, 2.0)  # the blind OFF arrived
+    assert not shaker.connected
+
+
+def test_stop_from_another_thread_cuts_a_ramp_short_and_the_output_goes_off(generator) -> None:
+    with make_shaker(generator, ramp_step_s=0.02) as shaker:
+        shaker.ramp_rate_m_s = 1e-3  # 1 mm takes 1 s: the stop comes in the middle
+        shaker.frequency_hz = 10.0
+        shaker.amplitude_m = 0.001
+        outcome: list[BaseException | None] = []
+
+        def enable() -> None:
+            try:
+                shaker.enabled = True
+                outcome.append(None)
+            except DeviceError as error:
+                outcome.append(error)
+
+        generator.clear_log()
+        ramping = threading.Thread(target=enable)
+        ramping.start()
+        assert generator.wait_for(lambda state: state.output, 5.0)
+        shaker.stop()
+        ramping.join(5.0)
+        assert isinstance(outcome[0], RampInterruptedError)
+        assert not generator.state.output
+        assert max(volt_writes(generator.received)) < 2.0  # never the full amplitude (2 Vpp)
