@@ -262,7 +262,10 @@ class ScpiGeneratorEmulator:
                 buffer += chunk
                 while b"\n" in buffer:
                     line, buffer = buffer.split(b"\n", 1)
-                    if discarding:
+                    if discarding or len(line) > MAX_LINE_BYTES:
+                        if not discarding:
+                            with self._changed:
+                                self._queue(-223, "Too much data")
                         discarding = False
                         continue
                     reply = self._line(line.decode("ascii", "replace").strip(), conn)
@@ -321,6 +324,7 @@ class ScpiGeneratorEmulator:
             self._errors.clear()
             return None
         if nodes == ("*RST",) and not query:
+            self._output_owner = None
             self._set(**vars(GeneratorState()))
             return None
         if nodes in (("SYST", "ERR"), ("SYST", "ERR", "NEXT")) and query:
