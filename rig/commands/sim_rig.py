@@ -69,8 +69,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         description=(
             "Start the virtual impact-pendulum rig: the DAQ board on a pseudo-terminal and "
             "the shaker amplifier on Modbus TCP (127.0.0.1 unless --host says otherwise), "
-            "optionally Modbus RTU on a pseudo-terminal.  Prints the endpoints, then runs "
-            "until Ctrl-C."
+            "optionally Modbus RTU on a pseudo-terminal; or, with --drive scpi, a function "
+            "generator serving SCPI on a TCP socket in place of the Modbus controller "
+            "(docs/scpi_generator.md).  Prints the endpoints, then runs until Ctrl-C."
         ),
         epilog=CAUSE_HELP,
         formatter_class=argparse.RawDescriptionHelpFormatter,
