@@ -22,6 +22,9 @@ from drivers.sensors import LaserCalibration, PotentiometerCalibration, Tachomet
 DEFAULT_CONFIG_NAME = "default_rig.toml"
 RIG_KINDS = ("virtual", "real")
 SHAKER_TRANSPORTS = ("tcp", "rtu")
+SHAKER_KINDS = ("modbus", "scpi")  # the amplifier's Modbus controller, or a SCPI function generator
+SCPI_GAIN_M_PER_V_RANGE = (1e-7, 1.0)  # table amplitude per volt of generator amplitude
+SCPI_MAX_VPP = 40.0  # no bench generator goes beyond (20 Vpp into high-Z is typical)
 MAX_INPUT_V = 100.0  # no DAQ input reads beyond this
 GAIN_RAD_PER_V_RANGE = (1e-6, 100.0)
 M_PER_UNIT_RANGE = (1e-12, 1.0)  # from a count of a 32-bit converter to a volt of a 1 m sensor
@@ -67,13 +70,27 @@ class DaqConfig:
 
 @dataclass(frozen=True)
 class ShakerConfig:
-    """How to reach the amplifier's Modbus controller."""
+    """How the shaker is driven: the amplifier's Modbus controller (``kind = "modbus"``, the
+    default) or a SCPI function generator feeding the power amplifier (``kind = "scpi"``).
 
-    transport: str
-    host: str
-    port: int
-    unit_id: int
-    serial_port: str
+    Only the keys of the chosen kind are required; the other kind's keys may stay in the
+    file (checked all the same).
+    """
+
+    transport: str = "tcp"
+    host: str = "127.0.0.1"
+    port: int = 0
+    unit_id: int = 1
+    serial_port: str = ""
+    kind: str = "modbus"
+    # kind = "scpi": a VISA resource ("TCPIP::host::5025::SOCKET", "USB0::...::INSTR", "ASRL...")
+    # or "sim" (the virtual rig's generator), the amplifier gain in m of table amplitude per V of
+    # generator amplitude, the reply timeout, the generator's output ceiling and its channel
+    resource: str = ""
+    gain_m_per_v: float = 0.0
+    timeout_s: float = 1.0
+    max_output_vpp: float = 10.0
+    channel: int = 1
 
 
 @dataclass(frozen=True)
@@ -283,6 +300,53 @@ def _virtual_causes(virtual: _Section) -> Mapping[str, Mapping[str, float]]:
     return MappingProxyType(causes)
 
 
+def _shaker_config(section: _Section, rig_kind: str) -> ShakerConfig:
+    """The [shaker] table: the keys of the chosen kind required, the other kind's optional."""
+    defaults = ShakerConfig()
+    kind = (
+        section.text("kind", choices=SHAKER_KINDS) if "kind" in section.table else defaults.kind
+    )
+    readers = {
+        "transport": lambda key: section.text(key, choices=SHAKER_TRANSPORTS),
+        "host": section.text,
+        "port": lambda key: section.integer(key, low=0, high=65535),
+        "unit_id": lambda key: section.integer(key, low=0, high=247),
+        "serial_port": section.text,
+        "resource": section.text,
+        "gain_m_per_v": lambda key: section.number(
+            key, low=SCPI_GAIN_M_PER_V_RANGE[0], high=SCPI_GAIN_M_PER_V_RANGE[1]
+        ),
+        "timeout_s": lambda key: section.number(key, low=0.05, high=60),
+        "max_output_vpp": lambda key: section.number(key, low=0.01, high=SCPI_MAX_VPP),
+        "channel": lambda key: section.integer(key, low=1, high=2),
+    }
+    required = {
+        "modbus": ("transport", "host", "port", "unit_id", "serial_port"),
+        "scpi": ("resource", "gain_m_per_v"),
+    }[kind]
+    values = {
+        key: read(key)
+        for key, read in readers.items()
+        if key in required or key in section.table
+    }
+    shaker = ShakerConfig(kind=kind, **values)
+    real = rig_kind == "real"
+    if kind == "modbus" and shaker.transport == "rtu" and not shaker.serial_port and real:
+        raise ConfigError(
+            f"{section.source}: 'shaker.serial_port' is ''; expected a serial device when "
+            "shaker.transport is 'rtu'"
+        )
+    visa = "::" in shaker.resource
+    if kind == "scpi" and not (visa or (shaker.resource == "sim" and not real)):
+        raise section._bad(
+            "resource",
+            shaker.resource,
+            'a VISA resource such as "TCPIP::192.168.1.20::5025::SOCKET"'
+            + ("" if real else ', or "sim" (the virtual rig\'s generator)'),
+        )
+    return shaker
+
+
 def default_config_path() -> Path:
     """The shipped default rig file (the virtual rig)."""
     return Path(str(resources.files("rig").joinpath(DEFAULT_CONFIG_NAME)))
@@ -362,18 +426,7 @@ def parse_config(text: str, source: str = "<rig file>") -> RigConfig:
     tach_calibration = TachometerCalibration(line=daq.tach_bit)
 
     shaker_section = top.section("shaker")
-    shaker = ShakerConfig(
-        transport=shaker_section.text("transport", choices=SHAKER_TRANSPORTS),
-        host=shaker_section.text("host"),
-        port=shaker_section.integer("port", low=0, high=65535),
-        unit_id=shaker_section.integer("unit_id", low=0, high=247),
-        serial_port=shaker_section.text("serial_port"),
-    )
-    if shaker.transport == "rtu" and not shaker.serial_port and kind == "real":
-        raise ConfigError(
-            f"{source}: 'shaker.serial_port' is ''; expected a serial device when "
-            "shaker.transport is 'rtu'"
-        )
+    shaker = _shaker_config(shaker_section, kind)
     shaker_section.finish()
 
     limits_section = top.section("limits")
@@ -402,6 +455,15 @@ def parse_config(text: str, source: str = "<rig file>") -> RigConfig:
         limits = ShakerLimits(**limit_values)
     except LimitsConfigError as error:
         raise ConfigError(f"{source}: [limits] {error}") from None
+    if shaker.kind == "scpi":
+        needed_vpp = 2.0 * limits.max_amplitude_m / shaker.gain_m_per_v
+        if needed_vpp > shaker.max_output_vpp:
+            raise ConfigError(
+                f"{source}: 'limits.max_amplitude_m' is {limits.max_amplitude_m!r}; expected at "
+                f"most {shaker.max_output_vpp * shaker.gain_m_per_v / 2:g} m, what "
+                f"shaker.max_output_vpp ({shaker.max_output_vpp:g} Vpp) gives at "
+                f"shaker.gain_m_per_v ({shaker.gain_m_per_v:g} m/V)"
+            )
 
     virtual_section = top.section("virtual")
     virtual = VirtualRigConfig(

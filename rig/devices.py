@@ -1,8 +1,9 @@
 """Open the rig's devices from a rig configuration: the real ports, or the virtual rig's emulators.
 
-Either way the same drivers are used (serial DAQ board with its role drivers, Modbus
-shaker): with a virtual rig, the emulators are started in this process on a pty and
-a loopback TCP port, and the drivers connect to them over those real transports.
+Either way the same drivers are used (serial DAQ board with its role drivers, and the
+shaker the rig file names: the amplifier's Modbus controller or a SCPI function
+generator): with a virtual rig, the emulators are started in this process on a pty
+and loopback TCP ports, and the drivers connect to them over those real transports.
 The one difference a procedure sees is ``release``: on the virtual rig it lets the
 simulated pendulum go; on a real rig it asks the operator to do it.
 """
@@ -12,11 +13,13 @@ from __future__ import annotations
 import contextlib
 import math
 from collections.abc import Callable
-from dataclasses import dataclass, field, replace
+from dataclasses import asdict, dataclass, field, replace
+from typing import Any
 
 from drivers.daq import DaqBoard
 from drivers.interfaces import DeviceError, InputStream
 from drivers.modbus_shaker import ModbusRtuBackend, ModbusTcpBackend
+from drivers.scpi_shaker import ScpiLink, ScpiShaker
 from drivers.sensors import LaserDisplacementSensor, PotentiometerAngleSensor, Tachometer
 from drivers.serial_daq import SerialDaqBackend
 from drivers.shaker import ShakerAmplifier
@@ -24,6 +27,9 @@ from rig.config import RigConfig
 from rig.recorder import ChannelSpec
 
 ANGLE, TABLE, TACH = "angle", "table", "tach"
+
+# The shaker's drive: both have the same settings, readings, limits and safe stop.
+Shaker = ShakerAmplifier | ScpiShaker
 
 
 @dataclass
@@ -35,7 +41,7 @@ class RigDevices:
     angle: PotentiometerAngleSensor
     table: LaserDisplacementSensor
     tach: Tachometer
-    shaker: ShakerAmplifier
+    shaker: Shaker
     sim: object | None = None  # hardware_sim.sim_rig.SimRig when the rig is virtual
     ask_operator: Callable[[str], None] = field(default=lambda text: input(text))
 
@@ -77,9 +83,8 @@ class RigDevices:
         if self.shaker.identity is not None:
             out["shaker"] = {
                 "where": self.shaker.backend.description,
-                "model_code": self.shaker.identity.model_code,
-                "firmware": self.shaker.identity.firmware,
-                "map_version": self.shaker.identity.map_version,
+                "kind": self.config.shaker.kind,
+                **asdict(self.shaker.identity),
             }
         out["rig"] = {"name": self.config.name, "kind": self.config.kind}
         return out
@@ -153,11 +158,9 @@ def open_rig(
     fs = float(sample_rate_hz or config.daq.sample_rate_hz)
     sim = None
     daq_port = config.daq.port
-    shaker_host, shaker_port = config.shaker.host, config.shaker.port
     if config.is_virtual:
         sim = _start_virtual_rig(config, fs, virtual_speed)
         daq_port = sim.endpoints.daq_port
-        shaker_host, shaker_port = "127.0.0.1", sim.amplifier.port
     board = None
     shaker = None
     try:
@@ -170,12 +173,7 @@ def open_rig(
         angle = PotentiometerAngleSensor(board, config.daq.angle_input, config.angle_calibration)
         table = LaserDisplacementSensor(board, config.daq.table_input, config.table_calibration)
         tach = Tachometer(board, config.tach_calibration)
-        if config.shaker.transport == "rtu" and not config.is_virtual:
-            backend = ModbusRtuBackend(config.shaker.serial_port, device_id=config.shaker.unit_id)
-        else:
-            backend = ModbusTcpBackend(shaker_host, shaker_port, device_id=config.shaker.unit_id)
-        shaker = ShakerAmplifier(backend, config.limits, watchdog_s=config.watchdog_s)
-        shaker.connect()
+        shaker = open_shaker(config, sim)
     except BaseException:
         if shaker is not None:
             with contextlib.suppress(DeviceError):
@@ -187,6 +185,36 @@ def open_rig(
             sim.stop()
         raise
     return RigDevices(config, board, angle, table, tach, shaker, sim)
+
+
+def open_shaker(config: RigConfig, sim: Any = None) -> Shaker:
+    """The shaker drive the rig file names (``shaker.kind``), connected.
+
+    ``"modbus"``: the amplifier's controller on Modbus TCP or RTU; ``"scpi"``: a function
+    generator through pyvisa, amplitudes converted with ``shaker.gain_m_per_v``.  With
+    ``sim`` (a running virtual rig) the drive is the virtual rig's emulator of that kind.
+    Both refuse settings outside ``[limits]`` before anything is sent.
+    """
+    s = config.shaker
+    if s.kind == "scpi":
+        resource = sim.generator.resource if sim is not None else s.resource
+        shaker: Shaker = ScpiShaker(
+            ScpiLink(resource, timeout_s=s.timeout_s),
+            config.limits,
+            gain_m_per_v=s.gain_m_per_v,
+            max_output_vpp=s.max_output_vpp,
+            channel=s.channel,
+        )
+    else:
+        if sim is not None:
+            backend = ModbusTcpBackend("127.0.0.1", sim.amplifier.port, device_id=s.unit_id)
+        elif s.transport == "rtu":
+            backend = ModbusRtuBackend(s.serial_port, device_id=s.unit_id)
+        else:
+            backend = ModbusTcpBackend(s.host, s.port, device_id=s.unit_id)
+        shaker = ShakerAmplifier(backend, config.limits, watchdog_s=config.watchdog_s)
+    shaker.connect()
+    return shaker
 
 
 def _start_virtual_rig(config: RigConfig, sample_rate_hz: float, speed: float):
@@ -229,7 +257,9 @@ def _start_virtual_rig(config: RigConfig, sample_rate_hz: float, speed: float):
         speed_factor=speed,
     )
     # SimRig.start compiles the physics before its emulators serve (no stalled first frames)
-    return SimRig(settings).start()
+    drive = config.shaker
+    gain = drive.gain_m_per_v if drive.kind == "scpi" else 1e-3
+    return SimRig(settings, drive=drive.kind, gain_m_per_v=gain).start()
 
 
 def virtual_config(config: RigConfig) -> RigConfig:

@@ -1,8 +1,9 @@
 """``impact-rig sim-rig``: run the virtual rig on real protocols until Ctrl-C.
 
 Prints one ``name: endpoint`` line per device (DAQ pty, Modbus TCP address, RTU
-pty), then serves.  Lines typed on stdin act on the rig while it runs (``help``
-lists them), so a person or a test can release the pendulum or inject faults.
+pty; or the SCPI generator's VISA resource with ``--drive scpi``), then serves.
+Lines typed on stdin act on the rig while it runs (``help`` lists them), so a person
+or a test can release the pendulum or inject faults.
 """
 
 from __future__ import annotations
@@ -25,10 +26,12 @@ commands read from stdin while running:
   release RAD          the operator lets go of the pendulum at RAD
   hold RAD             the operator holds the pendulum at RAD
   barrier in|out       put the barrier in or take it out
-  fault NAME           amplifier link fault: none, no_reply, device_failure, busy
+  fault NAME           amplifier link fault: none, no_reply, device_failure, busy;
+                       with --drive scpi the generator's: none, no_answer, queue_error,
+                       clip_amplitude, ignore_frequency
   trip NAME            latch an amplifier fault: over_amplitude, over_current,
-                       over_temperature, interlock_open
-  interlock open|closed
+                       over_temperature, interlock_open (Modbus drive only)
+  interlock open|closed  (Modbus drive only)
   status               print time, angle, table output and faults
 """
 
@@ -66,8 +69,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         description=(
             "Start the virtual impact-pendulum rig: the DAQ board on a pseudo-terminal and "
             "the shaker amplifier on Modbus TCP (127.0.0.1 unless --host says otherwise), "
-            "optionally Modbus RTU on a pseudo-terminal.  Prints the endpoints, then runs "
-            "until Ctrl-C."
+            "optionally Modbus RTU on a pseudo-terminal; or, with --drive scpi, a function "
+            "generator serving SCPI on a TCP socket in place of the Modbus controller "
+            "(docs/scpi_generator.md).  Prints the endpoints, then runs until Ctrl-C."
         ),
         epilog=CAUSE_HELP,
         formatter_class=argparse.RawDescriptionHelpFormatter,
@@ -81,6 +85,27 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--port", type=int, default=5020, help="Modbus TCP port (default 5020; 0 = any free port)"
     )
     parser.add_argument("--rtu", action="store_true", help="also serve Modbus RTU on a pty")
+    parser.add_argument(
+        "--drive",
+        choices=["modbus", "scpi"],
+        default="modbus",
+        help="the shaker's drive: the amplifier's Modbus controller (default) or a SCPI "
+        "function generator feeding the amplifier",
+    )
+    parser.add_argument(
+        "--scpi-port",
+        type=int,
+        default=5025,
+        help="TCP port of the SCPI generator with --drive scpi (default 5025; 0 = any free port)",
+    )
+    parser.add_argument(
+        "--gain",
+        type=float,
+        default=1e-3,
+        metavar="M_PER_V",
+        help="with --drive scpi: the emulated amplifier's gain, table amplitude in m per volt "
+        "of generator amplitude (default 1e-3; a rig file's shaker.gain_m_per_v must match)",
+    )
     parser.add_argument("--no-daq", action="store_true", help="do not start the DAQ board")
     parser.add_argument(
         "--speed",
@@ -120,7 +145,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--fault",
         default="none",
         choices=["none", "no_reply", "device_failure", "busy"],
-        help="amplifier communication fault at start",
+        help="amplifier communication fault at start (Modbus drive)",
     )
     parser.set_defaults(func=run, causes=[])
 
@@ -136,6 +161,10 @@ def _build(args: argparse.Namespace) -> Any:
         raise CommandError(f"--speed {args.speed}: expected a positive number")
     if not 0 <= args.port <= 65535:
         raise CommandError(f"--port {args.port}: expected 0..65535")
+    if not 0 <= args.scpi_port <= 65535:
+        raise CommandError(f"--scpi-port {args.scpi_port}: expected 0..65535")
+    if not (math.isfinite(args.gain) and args.gain > 0):
+        raise CommandError(f"--gain {args.gain}: expected a positive number (m per V)")
     try:
         model = Model(barrier=not args.no_barrier)
         for name, values in args.causes:
@@ -150,7 +179,16 @@ def _build(args: argparse.Namespace) -> Any:
         )
     except (ParameterError, ValueError) as error:
         raise CommandError(str(error)) from None
-    sim = SimRig(settings, host=args.host, port=args.port, rtu=args.rtu, daq=not args.no_daq)
+    sim = SimRig(
+        settings,
+        host=args.host,
+        port=args.port,
+        rtu=args.rtu,
+        daq=not args.no_daq,
+        drive=args.drive,
+        gain_m_per_v=args.gain,
+        scpi_port=args.scpi_port,
+    )
     sim.set_transport_fault(TransportFault(args.fault))
     return sim
 
@@ -161,9 +199,11 @@ def run(args: argparse.Namespace) -> int:
     try:
         sim.start()
     except (OSError, RuntimeError) as error:
+        scpi = args.drive == "scpi"
+        port, option = (args.scpi_port, "--scpi-port") if scpi else (args.port, "--port")
         raise CommandError(
-            f"could not start the virtual rig on {args.host}:{args.port}: {error} "
-            "(port in use? try --port 0)"
+            f"could not start the virtual rig on {args.host}:{port}: {error} "
+            f"(port in use? try {option} 0)"
         ) from None
     ends = sim.endpoints
     print(f"impact-rig sim-rig: virtual rig running at {args.speed:g}x real time", flush=True)
@@ -171,7 +211,14 @@ def run(args: argparse.Namespace) -> int:
         print(f"daq-serial: {ends.daq_port}")
     else:
         print("daq-serial: not started")
-    print(f"modbus-tcp: {ends.modbus_tcp}")
+    if ends.scpi:
+        print(f"scpi-generator: {ends.scpi}  (gain {args.gain:g} m/V)")
+        print(
+            "note: this emulated generator turns its output off when the host's connection "
+            "drops; a real one does not (docs/scpi_generator.md)"
+        )
+    else:
+        print(f"modbus-tcp: {ends.modbus_tcp}")
     if ends.modbus_rtu:
         print(f"modbus-rtu: {ends.modbus_rtu}")
     print("ready; Ctrl-C stops (type 'help' for commands)", flush=True)
@@ -203,6 +250,7 @@ def _read_commands(sim: Any, stopped: threading.Event) -> None:
 def _command(sim: Any, words: list[str]) -> str:
     from drivers.amplifier_registers import Fault
     from hardware_sim.amplifier_emulator import TransportFault
+    from hardware_sim.scpi_generator import GeneratorFault
 
     if not words:
         return ""
@@ -218,6 +266,15 @@ def _command(sim: Any, words: list[str]) -> str:
     if verb == "barrier" and rest in (["in"], ["out"]):
         sim.rig.set_barrier(rest[0] == "in")
         return f"ok barrier {rest[0]}"
+    scpi = getattr(sim, "drive", "modbus") == "scpi"  # sim is None while words are checked
+    if verb == "fault" and len(rest) == 1 and scpi:
+        generator_faults = {f.value: f for f in GeneratorFault}
+        if rest[0] not in generator_faults:
+            raise ValueError(f"fault {rest[0]!r}: expected one of {', '.join(generator_faults)}")
+        sim.generator.fault = generator_faults[rest[0]]
+        return f"ok fault {rest[0]}"
+    if verb in ("trip", "interlock") and scpi:
+        raise ValueError(f"{verb}: the SCPI generator has no {verb}; it is the Modbus drive's")
     if verb == "fault" and len(rest) == 1:
         faults = {f.value: f for f in TransportFault}
         if rest[0] not in faults:
@@ -236,8 +293,13 @@ def _command(sim: Any, words: list[str]) -> str:
     if verb == "status" and not rest:
         t, theta, _ = sim.rig.state()
         out = sim.rig.table_output
+        drive = (
+            f"generator={sim.generator.state!r}"
+            if sim.drive == "scpi"
+            else f"faults={sim.firmware.faults!r}"
+        )
         return (
             f"t={t:.3f} s theta={theta:.5f} rad table={out.amplitude_m:.6g} m "
-            f"at {out.frequency_hz:.6g} Hz faults={sim.firmware.faults!r}"
+            f"at {out.frequency_hz:.6g} Hz {drive}"
         )
     raise ValueError(f"unknown command {' '.join(words)!r} (type 'help')")
