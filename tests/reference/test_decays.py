@@ -15,6 +15,7 @@ from tests.reference.decays import (
     EFFECTS,
     FREE,
     IMPACT,
+    LIBRARY_TERMS,
     PAIRS,
     draw_decay,
 )
@@ -214,3 +215,21 @@ def test_the_benchmark_tables_hold_what_the_brief_asks():
     assert len(outside) >= 8
     for spec in EFFECTS.values():
         assert (spec.term is not None) == (spec.domain == "physics")
+
+
+def test_the_library_named_here_is_the_term_proposals():
+    # a true term counts as proposable only if today's library holds it
+    from analysis.discrepancy.term_proposal import contact_library, flight_library
+    from analysis.packed import P
+
+    packed = np.zeros(int(P.SIZE))
+    packed[P.BARRIER] = 1.0
+    packed[P.SHAFT_L] = 0.05
+    x = np.linspace(-0.1, 0.1, 5)
+    names = set(flight_library(x, x, x, packed).names) | set(contact_library(x, x, packed).names)
+    assert names == LIBRARY_TERMS
+    assert {e: s.term_in_library for e, s in EFFECTS.items() if s.term} == {
+        "pivot_hairspring_stiffening": True, "pivot_hairspring_softening": True,
+        "cubic_rate_damping": False, "angle_rate_damping": False,
+        "compliant_barrier_mount": True, "contact_damping_on_delta": True,
+        "contact_damping_on_delta2": True}
