@@ -133,7 +133,8 @@ def analyse_decay(decay: Decay, workers: int) -> tuple[dict | None, str | None, 
         try:
             report, error = analyze_record(load_record(path), workers=workers).as_json(), None
         except Exception as failure:  # a failure counts as a miss, with its reason shown
-            report, error = None, f"error: {type(failure).__name__}: {failure}"[:90]
+            reason = str(failure).replace(str(path), path.name)  # not the temporary folder
+            report, error = None, f"error: {type(failure).__name__}: {reason}"[:120]
         return report, error, time.perf_counter() - start
 
 
@@ -148,37 +149,38 @@ def run_decay_pairs(args: argparse.Namespace) -> dict:
         seed = args.seed + 47 * i
         decay = draw_pair_decay(seed, pair)
         report, error, elapsed = analyse_decay(decay, args.workers)
-        named, unexplained = [error], False
+        named, unexplained = [], False  # a failure names nothing and flags nothing
         if report is not None:
             named = [c["cause"] for c in report["causes"]]
             unexplained = bool(report.get("unexplained"))
         truth = set(pair.causes)
         found = set(named)
-        verdict = "both" if found == truth else \
+        verdict = "error" if error else "both" if found == truth else \
             "extra" if found - truth else f"{len(found & truth)} of 2"
         rows.append(dict(seed=seed, experiment=pair.experiment, truth=list(pair.causes),
-                         identifiable=pair.identifiable, named=named,
+                         identifiable=pair.identifiable, named=named, error=error,
                          unexplained=unexplained, seconds=elapsed, verdict=verdict,
                          sizes=decay.causes))
         print(f"[{i + 1}/{len(plan)}] {pair.label:52s} "
               f"{'identifiable' if pair.identifiable else 'not identifiable':16s} -> causes "
-              f"{'+'.join(named) or 'none':40s} unexplained {unexplained!s:5s} "
+              f"{error or '+'.join(named) or 'none':40s} unexplained {unexplained!s:5s} "
               f"{elapsed:6.1f} s  {verdict}", flush=True)
     ident = [r for r in rows if r["identifiable"]]
     both_ident = sum(r["verdict"] == "both" for r in ident)
     both_all = sum(r["verdict"] == "both" for r in rows)
     one = sum(r["verdict"] == "1 of 2" for r in rows)
     extra = sum(r["verdict"] == "extra" for r in rows)
+    failed = sum(r["verdict"] == "error" for r in rows)
     times = np.array([r["seconds"] for r in rows])
     print(f"\nboth causes named with nothing else: {both_ident}/{len(ident)} identifiable "
           f"pairs = {_percent(both_ident, len(ident))} (goal >= 80 %)")
     print(f"both causes named with nothing else: {both_all}/{len(rows)} all pairs = "
           f"{_percent(both_all, len(rows))}; one of the two only: {one}; a cause outside "
-          f"the pair: {extra}")
+          f"the pair: {extra}; analysis failed: {failed}")
     print(f"seconds per record: mean {times.mean():.1f}, max {times.max():.1f}")
     return {"rows": rows, "summary": {
         "both_identifiable": both_ident, "identifiable": len(ident), "both_all": both_all,
-        "all": len(rows), "one_only": one, "outside_pair": extra,
+        "all": len(rows), "one_only": one, "outside_pair": extra, "failed": failed,
         "seconds_mean": float(times.mean()), "seconds_max": float(times.max())}}
 
 
@@ -200,7 +202,7 @@ def run_decay_unknown(args: argparse.Namespace) -> dict:
         spec = DECAY_EFFECTS[effect]
         decay = draw_effect_decay(seed, effect)
         report, error, elapsed = analyse_decay(decay, args.workers)
-        named, unexplained, kinds, terms = [error], False, [], []
+        named, unexplained, kinds, terms = [], False, [], []  # a failure names, flags none
         if report is not None:
             named = [c["cause"] for c in report["causes"]]
             unexplained = bool(report.get("unexplained"))
@@ -210,14 +212,14 @@ def run_decay_unknown(args: argparse.Namespace) -> dict:
         right_term = spec.term is not None and f"{spec.term} ({spec.region})" in terms
         rows.append(dict(seed=seed, effect=effect, experiment=spec.experiment,
                          domain=spec.domain, named=named, unexplained=unexplained,
-                         findings=kinds, proposed_terms=terms, flagged=flagged,
+                         findings=kinds, proposed_terms=terms, flagged=flagged, error=error,
                          expected_finding=spec.finding, expected_term=spec.term,
                          term_in_library=spec.term_in_library, right_term=right_term,
                          seconds=elapsed, sizes=decay.effect_values))
         wants = f"{spec.term} ({spec.region})" if spec.term else \
             "no cause" if spec.domain == "noise" else (spec.finding or "a flag")
         print(f"[{i + 1}/{len(plan)}] {spec.experiment:12s} {effect:28s} -> causes "
-              f"{'+'.join(named) or 'none':30s} unexplained {unexplained!s:5s} findings "
+              f"{error or '+'.join(named) or 'none':30s} unexplained {unexplained!s:5s} findings "
               f"{','.join(kinds) or '-':22s} terms {'; '.join(terms) or '-':30s} "
               f"(wants {wants}) {elapsed:6.1f} s", flush=True)
     outside = [r for r in rows if r["domain"] != "noise"]
@@ -228,13 +230,14 @@ def run_decay_unknown(args: argparse.Namespace) -> dict:
     right = sum(r["right_term"] for r in physics)
     beyond = sum(not r["term_in_library"] for r in physics)
     decoy_named = [r for r in decoys if r["named"]]
+    failed = sum(r["error"] is not None for r in rows)
     times = np.array([r["seconds"] for r in rows])
     print(f"\neffects outside the registry: {len(outside)} records "
           f"({len(physics)} in the physics)")
     print(f"confident false explanations (a cause named and nothing flagged): "
           f"{confident}/{len(outside)} (goal 0)")
     print(f"flagged: {flagged}/{len(outside)} = {_percent(flagged, len(outside))} "
-          f"(goal >= 80 %)")
+          f"(goal >= 80 %); analysis failed (counted unflagged): {failed}")
     print(f"right proposed term on physics effects: {right}/{len(physics)} = "
           f"{_percent(right, len(physics))} (goal >= 60 %); {beyond} of them need a term "
           f"outside today's library")
@@ -244,7 +247,7 @@ def run_decay_unknown(args: argparse.Namespace) -> dict:
     return {"rows": rows, "summary": {
         "records": len(outside), "physics": len(physics), "confident_false": confident,
         "flagged": flagged, "right_term": right, "terms_outside_library": beyond,
-        "decoys": len(decoys), "decoys_with_a_cause": len(decoy_named),
+        "decoys": len(decoys), "decoys_with_a_cause": len(decoy_named), "failed": failed,
         "seconds_mean": float(times.mean()), "seconds_max": float(times.max())}}
 
 

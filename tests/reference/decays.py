@@ -168,7 +168,8 @@ EFFECTS: dict[str, DecayEffect] = {
         "impact's depth"),
     "sensor_gain_drift": DecayEffect(
         FREE, "sensor", "trend", what="the sensor's gain drifts linearly 4-10 % over the "
-        "record"),
+        "record; on a decay nearly the same as more (or less) viscous damping: the reading's "
+        "envelope exp(-zeta omega t) (1 + g t / T) differs from an exponential only in g^2"),
     "sensor_zero_drift": DecayEffect(
         IMPACT, "sensor", "trend", what="the sensor's zero drifts linearly 4-10 noise "
         "sigmas over the record"),
