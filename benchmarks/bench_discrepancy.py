@@ -21,16 +21,28 @@ judged right, the clean records' baseline residual over their true noise, and se
     python benchmarks/bench_discrepancy.py --kinds forced --causes sensor_lag,none
     python benchmarks/bench_discrepancy.py --kinds pairs --pairs 10   # two causes at once
     python benchmarks/bench_discrepancy.py --kinds unknown --per-effect 1  # outside the registry
+    python benchmarks/bench_discrepancy.py --kinds decays-pairs          # every decay pair once
+    python benchmarks/bench_discrepancy.py --kinds decays-unknown --json decays.json
 
 Effects outside the registry (``tests/reference/unregistered.py``: two in the physics, three
 in the sensor, three in the drive, and a noise decoy) must never be explained confidently by
 a named cause; the analysis should flag them (``unexplained``, or the finding of the right
 kind: a line, a trend, the drive frequency, the timing).
+
+Decays from the reference simulator (``tests/reference/decays.py``, issue 32): kind
+``decays-pairs`` draws free and impact decays with two named causes at once, every pair of
+its table in turn (each marked identifiable or not); kind ``decays-unknown`` draws one decay
+per effect outside the registry (physics and sensor) and the noise decoys.  The figures are
+the pairs named exactly, and for the effects the confident false explanations, the records
+flagged (unexplained or a residual finding), the right proposed term on the physics effects
+(a term outside today's library counts as missed) and the decoys' causes.  ``--json PATH``
+also writes the rows and figures of the decay kinds.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 import tempfile
 import time
@@ -46,6 +58,9 @@ from analysis.experiments import FORCED
 from analysis.record_loaders import load_record
 from tests.discrepancy.hidden_cause import SHOWS_IN, draw_case, write_case
 from tests.reference.cause_sizes import CHOICES
+from tests.reference.decays import EFFECTS as DECAY_EFFECTS
+from tests.reference.decays import PAIRS as DECAY_PAIRS
+from tests.reference.decays import Decay, draw_effect_decay, draw_pair_decay
 from tests.reference.forced_records import draw_forced_case, draw_pair, write_forced_case
 from tests.reference.regime_truth import periods_a_record_shows
 from tests.reference.unregistered import EFFECTS, draw_unregistered_case
@@ -77,8 +92,19 @@ def main() -> int:
                         help="kind 'unknown': forced records per effect outside the registry")
     parser.add_argument("--effects", default=",".join(EFFECTS),
                         help="kind 'unknown': the effects to add (comma separated)")
+    parser.add_argument("--decay-pairs", type=int, default=len(DECAY_PAIRS),
+                        help="kind 'decays-pairs': decays with two causes (default: every "
+                        "pair once; more go round the pairs again)")
+    parser.add_argument("--per-decay-effect", type=int, default=1,
+                        help="kind 'decays-unknown': decays per effect outside the registry "
+                        "(and per noise decoy)")
+    parser.add_argument("--decay-effects", default=",".join(DECAY_EFFECTS),
+                        help="kind 'decays-unknown': the effects (comma separated)")
+    parser.add_argument("--json", type=Path, default=None,
+                        help="also write the decay kinds' rows and figures to this JSON file")
     args = parser.parse_args()
     kinds = args.kinds.split(",")
+    figures: dict[str, dict] = {}
     if any(kind in SHOWS_IN for kind in kinds):
         run_decays(args, kinds)
     if FORCED.name in kinds:
@@ -87,7 +113,146 @@ def main() -> int:
         run_pairs(args)
     if "unknown" in kinds:
         run_unknown(args)
+    if "decays-pairs" in kinds:
+        figures["decays-pairs"] = run_decay_pairs(args)
+    if "decays-unknown" in kinds:
+        figures["decays-unknown"] = run_decay_unknown(args)
+    if args.json is not None and figures:
+        args.json.write_text(json.dumps({"command": sys.argv, "seed": args.seed, **figures},
+                                        indent=2, default=float) + "\n", encoding="utf-8")
+        print(f"\nfigures written to {args.json}")
     return 0
+
+
+def analyse_decay(decay: Decay, workers: int) -> tuple[dict | None, str | None, float]:
+    """Write a reference decay as a lab's CSV + JSON and analyse it alone: the report (None
+    on a failure, which is then described), and the seconds the analysis took."""
+    with tempfile.TemporaryDirectory() as tmp:
+        path = decay.write(Path(tmp), "record")
+        start = time.perf_counter()
+        try:
+            report, error = analyze_record(load_record(path), workers=workers).as_json(), None
+        except Exception as failure:  # a failure counts as a miss, with its reason shown
+            reason = str(failure).replace(str(path), path.name)  # not the temporary folder
+            report, error = None, f"error: {type(failure).__name__}: {reason}"[:120]
+        return report, error, time.perf_counter() - start
+
+
+def run_decay_pairs(args: argparse.Namespace) -> dict:
+    """Decays from the reference simulator with two named causes at once (issue 32): both
+    named and nothing else, on the identifiable pairs (the goal) and on all."""
+    plan = [DECAY_PAIRS[i % len(DECAY_PAIRS)] for i in range(args.decay_pairs)]
+    print(f"{len(plan)} decays with two causes (reference simulator), {args.workers} "
+          f"worker(s)", flush=True)
+    rows = []
+    for i, pair in enumerate(plan):
+        seed = args.seed + 47 * i
+        decay = draw_pair_decay(seed, pair)
+        report, error, elapsed = analyse_decay(decay, args.workers)
+        named, unexplained = [], False  # a failure names nothing and flags nothing
+        if report is not None:
+            named = [c["cause"] for c in report["causes"]]
+            unexplained = bool(report.get("unexplained"))
+        truth = set(pair.causes)
+        found = set(named)
+        verdict = "error" if error else "both" if found == truth else \
+            "extra" if found - truth else f"{len(found & truth)} of 2"
+        rows.append(dict(seed=seed, experiment=pair.experiment, truth=list(pair.causes),
+                         identifiable=pair.identifiable, named=named, error=error,
+                         unexplained=unexplained, seconds=elapsed, verdict=verdict,
+                         sizes=decay.causes))
+        print(f"[{i + 1}/{len(plan)}] {pair.label:52s} "
+              f"{'identifiable' if pair.identifiable else 'not identifiable':16s} -> causes "
+              f"{error or '+'.join(named) or 'none':40s} unexplained {unexplained!s:5s} "
+              f"{elapsed:6.1f} s  {verdict}", flush=True)
+    ident = [r for r in rows if r["identifiable"]]
+    both_ident = sum(r["verdict"] == "both" for r in ident)
+    both_all = sum(r["verdict"] == "both" for r in rows)
+    one = sum(r["verdict"] == "1 of 2" for r in rows)
+    extra = sum(r["verdict"] == "extra" for r in rows)
+    failed = sum(r["verdict"] == "error" for r in rows)
+    times = np.array([r["seconds"] for r in rows])
+    print(f"\nboth causes named with nothing else: {both_ident}/{len(ident)} identifiable "
+          f"pairs = {_percent(both_ident, len(ident))} (goal >= 80 %)")
+    print(f"both causes named with nothing else: {both_all}/{len(rows)} all pairs = "
+          f"{_percent(both_all, len(rows))}; one of the two only: {one}; a cause outside "
+          f"the pair: {extra}; analysis failed: {failed}")
+    print(f"seconds per record: mean {times.mean():.1f}, max {times.max():.1f}")
+    return {"rows": rows, "summary": {
+        "both_identifiable": both_ident, "identifiable": len(ident), "both_all": both_all,
+        "all": len(rows), "one_only": one, "outside_pair": extra, "failed": failed,
+        "seconds_mean": float(times.mean()), "seconds_max": float(times.max())}}
+
+
+def run_decay_unknown(args: argparse.Namespace) -> dict:
+    """Decays from the reference simulator with one effect outside the registry, and the
+    noise decoys (issue 32): never a cause named with nothing flagged; flagged as
+    unexplained or by a residual finding; on physics effects, the true term proposed."""
+    effects = args.decay_effects.split(",")
+    unknown = set(effects) - set(DECAY_EFFECTS)
+    if unknown:
+        raise SystemExit(f"--decay-effects: unknown {sorted(unknown)}; expected of "
+                         f"{', '.join(DECAY_EFFECTS)}")
+    plan = [(e, k) for k in range(args.per_decay_effect) for e in effects]
+    print(f"{len(plan)} decays with an effect outside the registry or a noise decoy "
+          f"(reference simulator), {args.workers} worker(s)", flush=True)
+    rows = []
+    for i, (effect, _) in enumerate(plan):
+        seed = args.seed + 53 * i
+        spec = DECAY_EFFECTS[effect]
+        decay = draw_effect_decay(seed, effect)
+        report, error, elapsed = analyse_decay(decay, args.workers)
+        named, unexplained, kinds, terms = [], False, [], []  # a failure names, flags none
+        if report is not None:
+            named = [c["cause"] for c in report["causes"]]
+            unexplained = bool(report.get("unexplained"))
+            kinds = sorted({f["kind"] for f in report.get("residual_findings", [])})
+            terms = [f"{t['term']} ({t['region']})" for t in report.get("proposed_terms", [])]
+        flagged = unexplained or bool(kinds)
+        right_term = spec.term is not None and f"{spec.term} ({spec.region})" in terms
+        rows.append(dict(seed=seed, effect=effect, experiment=spec.experiment,
+                         domain=spec.domain, named=named, unexplained=unexplained,
+                         findings=kinds, proposed_terms=terms, flagged=flagged, error=error,
+                         expected_finding=spec.finding, expected_term=spec.term,
+                         term_in_library=spec.term_in_library, right_term=right_term,
+                         seconds=elapsed, sizes=decay.effect_values))
+        wants = f"{spec.term} ({spec.region})" if spec.term else \
+            "no cause" if spec.domain == "noise" else (spec.finding or "a flag")
+        print(f"[{i + 1}/{len(plan)}] {spec.experiment:12s} {effect:28s} -> causes "
+              f"{error or '+'.join(named) or 'none':30s} unexplained {unexplained!s:5s} findings "
+              f"{','.join(kinds) or '-':22s} terms {'; '.join(terms) or '-':30s} "
+              f"(wants {wants}) {elapsed:6.1f} s", flush=True)
+    outside = [r for r in rows if r["domain"] != "noise"]
+    decoys = [r for r in rows if r["domain"] == "noise"]
+    physics = [r for r in outside if r["domain"] == "physics"]
+    confident = sum(bool(r["named"]) and not r["flagged"] for r in outside)
+    flagged = sum(r["flagged"] for r in outside)
+    right = sum(r["right_term"] for r in physics)
+    beyond = sum(not r["term_in_library"] for r in physics)
+    decoy_named = [r for r in decoys if r["named"]]
+    failed = sum(r["error"] is not None for r in rows)
+    times = np.array([r["seconds"] for r in rows])
+    print(f"\neffects outside the registry: {len(outside)} records "
+          f"({len(physics)} in the physics)")
+    print(f"confident false explanations (a cause named and nothing flagged): "
+          f"{confident}/{len(outside)} (goal 0)")
+    print(f"flagged: {flagged}/{len(outside)} = {_percent(flagged, len(outside))} "
+          f"(goal >= 80 %); analysis failed (counted unflagged): {failed}")
+    print(f"right proposed term on physics effects: {right}/{len(physics)} = "
+          f"{_percent(right, len(physics))} (goal >= 60 %); {beyond} of them need a term "
+          f"outside today's library")
+    print(f"decoy: causes named on {len(decoy_named)}/{len(decoys)} (goal none)"
+          + "".join(f"; {r['effect']}: {'+'.join(r['named'])}" for r in decoy_named))
+    print(f"seconds per record: mean {times.mean():.1f}, max {times.max():.1f}")
+    return {"rows": rows, "summary": {
+        "records": len(outside), "physics": len(physics), "confident_false": confident,
+        "flagged": flagged, "right_term": right, "terms_outside_library": beyond,
+        "decoys": len(decoys), "decoys_with_a_cause": len(decoy_named), "failed": failed,
+        "seconds_mean": float(times.mean()), "seconds_max": float(times.max())}}
+
+
+def _percent(count: int, total: int) -> str:
+    return f"{100 * count / total:.0f} %" if total else "- %"
 
 
 def analyse_case(case, workers: int) -> tuple[dict | None, str | None, float]:

@@ -17,6 +17,7 @@ from typing import Any
 
 import numpy as np
 from scipy.integrate import solve_ivp
+from scipy.optimize import brentq
 
 # How far one solve_ivp step may reach, as a fraction of the shortest period in play.
 # Events are found by sign changes at step ends, so the cap keeps a swing's events from
@@ -44,7 +45,14 @@ class Pendulum:
     Two effects outside the named causes (for tests of what the analysis cannot name):
     ``c3_per_s2`` a cubic restoring term c3 theta^3 in theta'' (a hairspring at the pivot),
     ``K_drift_per_s`` a contact stiffness K_n (1 + K_drift_per_s t) that drifts in time (a
-    barrier warming up).
+    barrier warming up).  More of them, for decays: ``d3_s_per_rad2`` a cubic rate damping
+    d3 theta'^3 in theta'', ``d21_per_rad2_s`` a position-dependent damping d21 theta^2
+    theta' in theta''; ``damping_exponent`` p puts the contact damping on another power
+    of the penetration, Fc = K_n delta^n + K_n mu0 delta^p deltadot (None: p = n, the
+    Hunt-Crossley law); ``k_mount_N_per_m`` mounts the barrier on a spring k in series with
+    the contact (0: a rigid mount): the elastic force F solves
+    delta = (F / K_n)^(1/n) + F / k, and Fc = F (1 + mu0 deltadot) + c deltadot with
+    delta the total penetration.
     """
 
     m_kg: float
@@ -62,14 +70,25 @@ class Pendulum:
     barrier: bool = True
     c3_per_s2: float = 0.0
     K_drift_per_s: float = 0.0
+    d3_s_per_rad2: float = 0.0
+    d21_per_rad2_s: float = 0.0
+    damping_exponent: float | None = None
+    k_mount_N_per_m: float = 0.0
 
     def __post_init__(self) -> None:
         for name in ("m_kg", "l_m", "L_m", "g_m_s2", "K_n", "n"):
             _require_finite(name, getattr(self, name), lower=0.0, strict=True)
-        for name in ("zeta", "mu0_s_per_m", "c_N_s_per_m", "Tc_N_m", "c2_per_rad"):
+        for name in ("zeta", "mu0_s_per_m", "c_N_s_per_m", "Tc_N_m", "c2_per_rad",
+                     "d3_s_per_rad2", "d21_per_rad2_s", "k_mount_N_per_m"):
             _require_finite(name, getattr(self, name), lower=0.0, strict=False)
         for name in ("theta_b_rad", "c3_per_s2", "K_drift_per_s"):
             _require_finite(name, getattr(self, name), lower=-math.inf, strict=False)
+        if self.damping_exponent is not None:
+            _require_finite("damping_exponent", self.damping_exponent, lower=0.0, strict=True)
+        if self.damping_exponent is not None and (self.k_mount_N_per_m > 0.0
+                                                  or self.c_N_s_per_m > 0.0):
+            raise ValueError("another damping exponent replaces the Hunt-Crossley damping "
+                             "alone: no compliant mount, no viscous contact damping with it")
         if abs(self.theta_b_rad) >= math.pi / 2:
             raise ValueError(
                 f"theta_b_rad = {self.theta_b_rad!r}: the barrier must sit below the pivot "
@@ -221,14 +240,38 @@ class _Equations:
         """K_n at time t (drifting when K_drift_per_s is not 0)."""
         return self.p.K_n * (1.0 + self.p.K_drift_per_s * t)
 
+    def elastic_force(self, t: float, delta: float) -> float:
+        """The contact's elastic force at penetration ``delta`` > 0 [N]: K_n delta^n, or with
+        a compliant mount the F that solves delta = (F / K_n)^(1/n) + F / k."""
+        p = self.p
+        stiffness = self.stiffness(t)
+        rigid = stiffness * delta**p.n
+        if p.k_mount_N_per_m == 0.0:
+            return rigid
+        mount = p.k_mount_N_per_m * delta
+        high = min(rigid, mount)  # in series, softer than either alone
+
+        def excess(force: float) -> float:
+            return (force / stiffness) ** (1.0 / p.n) + force / p.k_mount_N_per_m - delta
+
+        if high <= 0.0 or excess(high) <= 0.0:
+            return high
+        return brentq(excess, 0.0, high, xtol=1e-15 * max(high, 1e-300), rtol=1e-14)
+
     def unclamped_force(self, t: float, theta: float, theta_dot: float) -> float:
-        """K_n delta^n (1 + mu0 deltadot) + c deltadot in contact, else 0 [N]."""
+        """K_n delta^n (1 + mu0 deltadot) + c deltadot in contact (K_n delta^n + K_n mu0
+        delta^p deltadot with another damping exponent p; the mount's series
+        force in place of K_n delta^n with a compliant mount), else 0 [N]."""
         p = self.p
         delta = p.l_m * self.surface(theta)
         if not p.barrier or delta <= 0.0 or math.cos(theta) <= 0.0:
             return 0.0
         delta_dot = p.l_m * math.cos(theta) * theta_dot
-        return (self.stiffness(t) * delta**p.n * (1.0 + p.mu0_s_per_m * delta_dot)
+        if p.damping_exponent is not None:
+            stiffness = self.stiffness(t)
+            return (stiffness * delta**p.n
+                    + stiffness * p.mu0_s_per_m * delta**p.damping_exponent * delta_dot)
+        return (self.elastic_force(t, delta) * (1.0 + p.mu0_s_per_m * delta_dot)
                 + p.c_N_s_per_m * delta_dot)
 
     def clamp_indicator(self, t: float, theta: float, theta_dot: float) -> float:
@@ -238,14 +281,21 @@ class _Equations:
         at contact entry where the force itself starts at 0.  With viscous damping the
         force law itself is used, continued past the exit (delta < 0 counts as 0) so that
         a step reaching beyond the exit cannot read a spurious zero.
+        With another damping exponent p the force over delta^min(n, p) is used: it has the
+        force's sign and, at entry, that of deltadot (p < n) or 1 (p > n).
         """
         p = self.p
         delta_dot = p.l_m * math.cos(theta) * theta_dot
+        if p.damping_exponent is not None and p.damping_exponent != p.n:
+            delta = max(p.l_m * self.surface(theta), 0.0)
+            low = min(p.n, p.damping_exponent)
+            return delta ** (p.n - low) + p.mu0_s_per_m * delta ** (
+                p.damping_exponent - low) * delta_dot
         if p.c_N_s_per_m == 0.0:
             return 1.0 + p.mu0_s_per_m * delta_dot
         delta = max(p.l_m * self.surface(theta), 0.0)
-        return (self.stiffness(t) * delta**p.n * (1.0 + p.mu0_s_per_m * delta_dot)
-                + p.c_N_s_per_m * delta_dot)
+        force = self.elastic_force(t, delta) if delta > 0.0 else 0.0
+        return force * (1.0 + p.mu0_s_per_m * delta_dot) + p.c_N_s_per_m * delta_dot
 
     def acceleration_without_friction(self, t: float, theta: float, theta_dot: float) -> float:
         """theta'' from every term except Coulomb friction."""
@@ -254,6 +304,8 @@ class _Equations:
         return (
             -p.c3_per_s2 * theta**3
             - self.two_zeta_omega * theta_dot
+            - p.d3_s_per_rad2 * theta_dot**3
+            - p.d21_per_rad2_s * theta**2 * theta_dot
             - p.c2_per_rad * theta_dot * abs(theta_dot)
             - self.table.acceleration(t) / p.L_m * math.cos(theta)
             - self.omega2 * math.sin(theta)
