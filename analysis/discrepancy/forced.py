@@ -25,7 +25,6 @@ from __future__ import annotations
 import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
-from functools import partial
 from typing import Any
 
 import numpy as np
@@ -40,6 +39,7 @@ from analysis.discrepancy.forced_judges import (
 from analysis.discrepancy.forced_models import (
     Layouts,
     ModelFits,
+    SideBySide,
     as_fit_result,
     cause_hints,
     extend,
@@ -48,7 +48,6 @@ from analysis.discrepancy.forced_models import (
     layouts,
     refit,
     screen_cause,
-    side_by_side,
 )
 from analysis.discrepancy.forward import forward_selection
 from analysis.discrepancy.forward import indistinct as forward_indistinct
@@ -137,18 +136,13 @@ def analyze_forced_fits(
     say(f"screening every cause over {ident.short.count} short segments, and fitting the "
         "baseline model over the record")
 
-    def baseline(threads_: int | None) -> tuple[ShootingFit, ShootingFit]:
-        """The baseline screened, then fitted over the record from there (the longest
-        task, so it starts first)."""
-        short = screen_cause(data, BASELINE, ident, hints, threads_)
-        return short, fit_cause(data, BASELINE, short, lay, threads_)
-
-    started = side_by_side(
-        {NONE: baseline, **{n: partial(screen_cause, data, ModelSpec.of(n), ident, hints)
-                            for n in names}},
-        threads)
-    screened_none, base_full = started.pop(NONE)
-    screened = {NONE: screened_none, **started}
+    with SideBySide(threads) as batch:
+        # the baseline screened, then fitted over the record: the longest, so it starts first
+        baseline = batch.add(_screened_and_fitted, data, BASELINE, ident, hints, lay)
+        started = {n: batch.add(screen_cause, data, ModelSpec.of(n), ident, hints)
+                   for n in names}
+    screened_none, base_full = baseline.result
+    screened = {NONE: screened_none, **{n: fit.result for n, fit in started.items()}}
     base_short = ModelFits(BASELINE, screened[NONE])
     screened |= rescreened_from_baseline(data, ident, screened, threads, policy)
     bic = {n: _bic(data, base_short, screened[n]) for n in names}
@@ -211,12 +205,12 @@ def rescreened_from_baseline(
     without a laser screened 1000 below the baseline, and a 1 % amplitude error was named
     in its place)."""
     base = screened[NONE]
-    nested = side_by_side({
-        name: partial(extend, data, BASELINE, base, name, ident.short,
-                      max_iterations=policy.step_screen_iterations)
-        for name, fit in screened.items() if name != NONE and fit.rss > base.rss
-    }, threads)
-    return {name: fit for name, fit in nested.items() if fit.rss < screened[name].rss}
+    with SideBySide(threads) as batch:
+        nested = {name: batch.add(extend, data, BASELINE, base, name, ident.short,
+                                  max_iterations=policy.step_screen_iterations)
+                  for name, fit in screened.items() if name != NONE and fit.rss > base.rss}
+    return {name: fit.result for name, fit in nested.items()
+            if fit.result.rss < screened[name].rss}
 
 
 def _fit_over_record(
@@ -385,16 +379,15 @@ class ForcedSteps:
 
     def fit(self, current: ModelFits, names: Sequence[str]
             ) -> tuple[ShootingFit, dict[str, ShootingFit]]:
-        data, lay = self.data, self.lay
-        started = side_by_side({
-            "parent": partial(refit, data, current.model, current.full, lay),
-            **{(name, "nested"): partial(extend, data, current.model, current.full, name,
-                                         lay.full) for name in names},
-            **{(name, "afresh"): partial(_fit_afresh, data, current.model.plus(name),
-                                         self.ident, self.hints, lay) for name in names},
-        }, self.threads)
-        return started["parent"], {
-            name: min(started[name, "nested"], started[name, "afresh"], key=lambda f: f.rss)
+        data, lay, model = self.data, self.lay, current.model
+        with SideBySide(self.threads) as batch:
+            parent = batch.add(refit, data, model, current.full, lay)
+            nested = {name: batch.add(extend, data, model, current.full, name, lay.full)
+                      for name in names}
+            afresh = {name: batch.add(_fit_afresh, data, model.plus(name), self.ident,
+                                      self.hints, lay) for name in names}
+        return parent.result, {
+            name: min(nested[name].result, afresh[name].result, key=lambda f: f.rss)
             for name in names}
 
     def gain(self, parent: ShootingFit, fit: ShootingFit) -> float:
@@ -452,16 +445,23 @@ def screened_beside(
     from none.  The yardstick is the same for every cause, so it moves no cause ahead of
     another (starting the causes from the continued fit did: a barrier offset fell out of
     the two tried beside a sensor cubic, and a lag and a zero were named in its place)."""
-    present = current.causes
-    added = side_by_side({
-        None: partial(extend, data, current, short, None, ident.short,
-                      max_iterations=policy.step_parent_iterations),
-        **{name: partial(extend, data, current, short, name, ident.short,
-                         max_iterations=policy.step_screen_iterations)
-           for name in names if name not in present},
-    }, threads)
-    yardstick = ModelFits(current, added.pop(None))
-    return {name: (_bic(data, yardstick, fit), fit) for name, fit in added.items()}
+    with SideBySide(threads) as batch:
+        continued = batch.add(extend, data, current, short, None, ident.short,
+                              max_iterations=policy.step_parent_iterations)
+        added = {name: batch.add(extend, data, current, short, name, ident.short,
+                                 max_iterations=policy.step_screen_iterations)
+                 for name in names if name not in current.causes}
+    yardstick = ModelFits(current, continued.result)
+    return {name: (_bic(data, yardstick, fit.result), fit.result) for name, fit in added.items()}
+
+
+def _screened_and_fitted(
+    data: ForcedData, model: ModelSpec, ident: ForcedIdentification,
+    hints: Mapping[str, float], lay: Layouts, threads: int | None,
+) -> tuple[ShootingFit, ShootingFit]:
+    """Model ``model`` screened, then fitted over the record from its screening."""
+    short = screen_cause(data, model, ident, hints, threads)
+    return short, fit_cause(data, model, short, lay, threads)
 
 
 def _fit_afresh(
@@ -474,8 +474,7 @@ def _fit_afresh(
     current model's optimum, the new cause neutral) inherits the compromises the current
     model made for the cause it lacked: a sensor cubic alone fitted a barrier 0.025 rad
     away by a rigid contact (K on its bound), and from there the barrier did not move."""
-    return fit_cause(data, model, screen_cause(data, model, ident, hints, threads), lay,
-                     threads)
+    return _screened_and_fitted(data, model, ident, hints, lay, threads)[1]
 
 
 def _residual_reading(data: ForcedData, fit: ShootingFit, period: int) -> ResidualReading:

@@ -916,7 +916,7 @@ def thread_count(threads: int | None) -> int:
 
 class _InCaller:
     """One thread's share of work done in the calling thread: fits run side by side with a
-    thread each (``analysis.discrepancy.forced_models.side_by_side``) would otherwise queue
+    thread each (``analysis.discrepancy.forced_models.SideBySide``) would otherwise queue
     behind one shared pool thread."""
 
     @staticmethod

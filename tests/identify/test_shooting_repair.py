@@ -154,9 +154,7 @@ def test_states_fitted_alone_run_to_the_horizon_and_combine_readings_to_the_bit(
 def test_fits_side_by_side_give_the_numbers_each_gives_alone(thrown_off, chaotic_case):
     """Independent fits run at once, a thread each, end where each ends alone on two
     threads: the results do not depend on how the cores were shared out."""
-    from functools import partial
-
-    from analysis.discrepancy.forced_models import side_by_side
+    from analysis.discrepancy.forced_models import SideBySide
 
     problem, true_states, states, _noise = thrown_off
 
@@ -166,9 +164,9 @@ def test_fits_side_by_side_give_the_numbers_each_gives_alone(thrown_off, chaotic
             start, max_iterations=2)
 
     alone = {"thrown": fit(states, 2), "true": fit(true_states, 2)}
-    together = side_by_side({"thrown": partial(fit, states), "true": partial(fit, true_states)},
-                            threads=2)
-    assert list(together) == ["thrown", "true"]
+    with SideBySide(threads=2) as batch:
+        pending = {"thrown": batch.add(fit, states), "true": batch.add(fit, true_states)}
+    together = {key: fit.result for key, fit in pending.items()}
     for key, single in alone.items():
         assert together[key].values == single.values
         np.testing.assert_array_equal(together[key].states, single.states)
