@@ -18,6 +18,7 @@ from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import Executor, ProcessPoolExecutor
 from contextlib import nullcontext
 from dataclasses import dataclass, replace
+from itertools import pairwise
 from typing import Any
 
 import numpy as np
@@ -37,6 +38,7 @@ from analysis.discrepancy.selection import (
     choose,
     heldout_rms,
     information_criterion_delta,
+    paired_gain_z,
 )
 from analysis.discrepancy.term_proposal import ProposedTerm, propose_terms
 from analysis.dynamics.lines import FALSE_ALARM
@@ -219,17 +221,33 @@ class DecayFits:
         """The training part: the record's first ``n_train`` samples."""
         return self.data.head(self.n_train / self.data.t.size)
 
+    def heldout_error(self, prediction: np.ndarray) -> np.ndarray:
+        """A training fit's prediction minus the data on the held-out part (NaN elsewhere)."""
+        use = self.data.valid.copy()
+        use[:self.n_train] = False
+        return np.where(use, prediction - np.where(use, self.data.y, 0.0), np.nan)
+
+    def paired_z(self, against: np.ndarray, prediction: np.ndarray) -> float | None:
+        """The held-out judge's paired test of ``prediction`` against ``against``, block by
+        block over the held-out part (:func:`paired_gain_z`)."""
+        edges = np.linspace(self.n_train, self.data.t.size,
+                            self.policy.heldout_blocks + 1).astype(int)
+        return paired_gain_z(self.heldout_error(against), self.heldout_error(prediction),
+                             pairwise(edges))
+
 
 def assess_candidate(
     model: ModelSpec, fits: DecayFits, start: FitResult, against: FitResult,
-    against_heldout: float, *, rival: bool = True,
+    against_prediction: np.ndarray, *, rival: bool = True,
 ) -> CandidateOutcome:
     """Fit ``model`` on the training part from ``start``'s training solution (the causes it
     lacks neutral), predict the rest, fit the whole record, and judge it against
     ``against`` (the baseline, or in a forward step the model it extends by one cause) whose
-    held-out error is ``against_heldout``.  With ``rival``, a model that earns its keep also
-    refits ``start``'s model from its solution: is the gain the cause's, or only a better
-    basin of the baseline's own parameters?"""
+    training fit predicts ``against_prediction``: the information criterion over the
+    record, and the prediction of the rest (its error, and a paired test block by block).
+    With ``rival``, a model that earns its keep also refits ``start``'s model from its
+    solution: is the gain the cause's, or only a better basin of the baseline's own
+    parameters?"""
     data, head = fits.data, fits.head
     own = {s.name for c in model.causes for s in cause(c).parameters}
     hinted = {k: v for k, v in fits.hints.items() if k in own}
@@ -241,13 +259,13 @@ def assess_candidate(
         if second.rms < train.rms:
             train = second
     prediction, _ = predict(data, model, train.values)
-    heldout = heldout_rms(prediction, data.y, data.valid, fits.n_train)
     full = fit(data, model, train.values, fits.scale)
     verdict = Verdict(
         model=model,
         information_criterion_delta=information_criterion_delta(against, full, data.noise_rad),
-        heldout_rms_baseline=against_heldout,
-        heldout_rms_extended=heldout,
+        heldout_rms_baseline=heldout_rms(against_prediction, data.y, data.valid, fits.n_train),
+        heldout_rms_extended=heldout_rms(prediction, data.y, data.valid, fits.n_train),
+        forecast_z=fits.paired_z(against_prediction, prediction),
         rms_baseline=against.rms,
         rms_extended=full.rms,
         noise_rad=data.noise_rad,
@@ -266,15 +284,20 @@ def assess_candidate(
 
 
 def rejudge(
-    outcome: CandidateOutcome, baseline: FitResult, baseline_heldout: float, data: FitData
+    outcome: CandidateOutcome, baseline: FitResult, baseline_prediction: np.ndarray,
+    fits: DecayFits,
 ) -> CandidateOutcome:
-    """The same candidate judged against a new baseline fit."""
+    """The same candidate judged against a new baseline fit (whose training fit predicts
+    ``baseline_prediction``)."""
+    data = fits.data
     verdict = replace(
         outcome.verdict,
         information_criterion_delta=information_criterion_delta(
             baseline, outcome.full, data.noise_rad
         ),
-        heldout_rms_baseline=baseline_heldout,
+        heldout_rms_baseline=heldout_rms(baseline_prediction, data.y, data.valid,
+                                         fits.n_train),
+        forecast_z=fits.paired_z(baseline_prediction, outcome.prediction),
         rms_baseline=baseline.rms,
     )
     return replace(outcome, verdict=verdict, rival=None)
@@ -287,13 +310,13 @@ class _Assessment:
     model: ModelSpec
     start: FitResult
     against: FitResult
-    against_heldout: float
+    against_prediction: np.ndarray
     rival: bool = True
 
 
 def _assess_job(args: tuple[DecayFits, _Assessment]) -> CandidateOutcome:
     fits, job = args
-    return assess_candidate(job.model, fits, job.start, job.against, job.against_heldout,
+    return assess_candidate(job.model, fits, job.start, job.against, job.against_prediction,
                             rival=job.rival)
 
 
@@ -332,7 +355,7 @@ class DecaySteps:
 
     def screen(self, current: CandidateOutcome) -> dict[str, float]:
         jobs = [_Assessment(current.model.plus(name), current.train, current.full,
-                            current.verdict.heldout_rms_extended, rival=False)
+                            current.prediction, rival=False)
                 for name in self.single if name not in current.model.causes]
         self.beside = {o.model.causes[-1]: o for o in _assessed(self.fits, jobs, self.pool)}
         return {name: o.verdict.information_criterion_delta for name, o in self.beside.items()}
@@ -343,7 +366,7 @@ class DecaySteps:
     def fit(self, current: CandidateOutcome, names: Sequence[str]
             ) -> tuple[CandidateOutcome, dict[str, CandidateOutcome]]:
         jobs = [_Assessment(current.model.plus(name), self.baseline_train, current.full,
-                            current.verdict.heldout_rms_extended, rival=False)
+                            current.prediction, rival=False)
                 for name in names]
         afresh = _assessed(self.fits, jobs, self.pool)
         return current, {name: min(self.beside[name], again, key=lambda o: o.full.rss)
@@ -438,7 +461,7 @@ def analyze_decay(
     # with one worker): its processes start once per record
     with ProcessPoolExecutor(max_workers=workers) if workers > 1 else nullcontext() as pool:
         outcomes = _assessed(fits, [
-            _Assessment(ModelSpec.of(n), baseline_train, baseline, baseline_heldout)
+            _Assessment(ModelSpec.of(n), baseline_train, baseline, baseline_prediction)
             for n in names], pool)
         for outcome in outcomes:
             say(f"  {outcome.model}: {outcome.verdict.why}")
@@ -452,7 +475,7 @@ def analyze_decay(
             baseline = fit(data, BASELINE, baseline_train.values, neutral)
             baseline_prediction, base_sim = predict(data, BASELINE, baseline_train.values)
             baseline_heldout = heldout_rms(baseline_prediction, data.y, data.valid, n_train)
-            outcomes = [rejudge(o, baseline, baseline_heldout, data) for o in outcomes]
+            outcomes = [rejudge(o, baseline, baseline_prediction, fits) for o in outcomes]
             _, full_sim = predict(data, BASELINE, baseline.values)
             localization = localize(data, baseline, *motion_of(data, full_sim))
         verdict = choose([o.verdict for o in outcomes])

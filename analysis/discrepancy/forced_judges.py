@@ -11,7 +11,7 @@ import numpy as np
 from analysis.discrepancy.forced_models import Layouts, ModelFits, as_fit_result
 from analysis.discrepancy.invariants import Invariants, invariant_distance, invariants
 from analysis.discrepancy.policy import DEFAULT_POLICY, SelectionPolicy
-from analysis.discrepancy.selection import Verdict, information_criterion_delta
+from analysis.discrepancy.selection import Verdict, information_criterion_delta, paired_gain_z
 from analysis.extensions import BASELINE, ModelSpec, cause, implausibility
 from analysis.identify.forced import ForcedData
 from analysis.identify.intervals import Z95
@@ -93,21 +93,9 @@ def model_invariants_distance(
 
 def forecast_z(base: ShootingFit, candidate: ShootingFit, train: Segments) -> float | None:
     """The drop of the mean-square forecast error from baseline to candidate, in standard
-    errors of its mean over the held-out stretches (a paired test: the same noise enters
-    both, so small real gains show)."""
-    gains = []
-    for a, b in zip(train.fit_stop, train.stop, strict=True):
-        rb, rc = base.forecast_residual[a:b], candidate.forecast_residual[a:b]
-        both = np.isfinite(rb) & np.isfinite(rc)
-        if np.count_nonzero(both) >= 2:
-            gains.append(float(np.mean(rb[both] ** 2) - np.mean(rc[both] ** 2)))
-    if len(gains) < 3:
-        return None
-    g = np.asarray(gains)
-    spread = float(np.std(g, ddof=1)) / math.sqrt(g.size)
-    if not spread > 0:
-        return math.inf if g.mean() > 0 else -math.inf
-    return float(g.mean() / spread)
+    errors of its mean over the held-out stretches (:func:`paired_gain_z`)."""
+    return paired_gain_z(base.forecast_residual, candidate.forecast_residual,
+                         zip(train.fit_stop, train.stop, strict=True))
 
 
 def verdict_of(

@@ -45,6 +45,9 @@ class SelectionPolicy:
         "invariant statistics at least 30 % closer to the record's")
     train_fraction: float = _rule(
         0.6, "decays: the first part fitted to predict the rest (the held-out judge)")
+    heldout_blocks: int = _rule(
+        12, "decays: the predicted rest cut into this many blocks for the paired test of "
+        "the prediction's error (``forecast_z`` standard errors over the blocks)")
     # -- the forward selection
     max_causes: int = _rule(3, "a forward selection stops at this many causes")
     indistinct_correlation: float = _rule(

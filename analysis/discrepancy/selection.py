@@ -12,6 +12,7 @@ parameter that only absorbs noise gains nothing.
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -169,6 +170,28 @@ def choose(verdicts: list[Verdict]) -> Verdict | None:
                 and verdict.information_criterion_delta > verdict.policy.bic_margin):
             return None
     return None
+
+
+def paired_gain_z(base: np.ndarray, candidate: np.ndarray,
+                  blocks: Iterable[tuple[int, int]]) -> float | None:
+    """The drop of the mean-square error from ``base`` to ``candidate`` (two models' errors
+    on the same held-out samples, NaN where none), in standard errors of its mean over the
+    ``blocks`` (index ranges) taken one by one: a paired test, since the same noise enters
+    both, so a small real gain shows where an unpaired one would drown in the noise's own
+    scatter.  None with fewer than 3 blocks that hold samples."""
+    gains = []
+    for a, b in blocks:
+        rb, rc = base[a:b], candidate[a:b]
+        both = np.isfinite(rb) & np.isfinite(rc)
+        if np.count_nonzero(both) >= 2:
+            gains.append(float(np.mean(rb[both] ** 2) - np.mean(rc[both] ** 2)))
+    if len(gains) < 3:
+        return None
+    g = np.asarray(gains)
+    spread = float(np.std(g, ddof=1)) / math.sqrt(g.size)
+    if not spread > 0:
+        return math.inf if g.mean() > 0 else -math.inf
+    return float(g.mean() / spread)
 
 
 def heldout_rms(prediction: np.ndarray, data: np.ndarray, valid: np.ndarray, start: int) -> float:
