@@ -44,14 +44,14 @@ from pyvisa.errors import VisaIOError
 
 from drivers.amplifier_registers import DEFAULT_RAMP_RATE_UM_S
 from drivers.interfaces import (
-    ActuatorStatus,
     DeviceError,
     DeviceNotFoundError,
     LimitError,
     WrongDeviceError,
 )
 from drivers.limits import ShakerLimits
-from drivers.shaker import MeasuredDrive, Setpoints, ShakerAmplifier
+from drivers.shaker import ShakerAmplifier
+from drivers.shaker_device import MeasuredDrive, Setpoints, ShakerDevice
 
 T = TypeVar("T")
 
@@ -177,7 +177,7 @@ class ScpiLink:
             ) from None
 
 
-class ScpiShaker:
+class ScpiShaker(ShakerDevice):
     """The shake table driven by a function generator: the ShakerAmplifier's interface over SCPI.
 
     Use as a context manager (or call ``connect`` and ``close``)::
@@ -304,17 +304,6 @@ class ScpiShaker:
                 "at the generator"
             ) from None
 
-    def __enter__(self) -> ScpiShaker:
-        return self.connect()
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
-
-    @property
-    def connected(self) -> bool:
-        """True between connect() and close(), while the link works."""
-        return self._connected and self._link_failure is None
-
     # ------------------------------------------------------------------ settings
 
     @property
@@ -431,47 +420,8 @@ class ScpiShaker:
         """Always empty: a generator latches no drive faults (its errors raise where they occur)."""
         return ()
 
-    def status(self) -> ActuatorStatus:
-        """Connection, output, read-back drive; never raises."""
-        if not self._connected:
-            return ActuatorStatus(connected=False, enabled=False)
-        if self._link_failure is not None:
-            return ActuatorStatus(
-                False, False, faults=(f"communication lost: {self._link_failure}",)
-            )
-        try:
-            m = self.measured()
-        except DeviceError as error:
-            return ActuatorStatus(False, False, faults=(f"communication lost: {error}",))
-        return ActuatorStatus(
-            connected=True,
-            enabled=m.enabled,
-            measured={"frequency_hz": m.frequency_hz, "amplitude_m": m.amplitude_m},
-        )
-
-    def wait_until(
-        self,
-        condition: Callable[[MeasuredDrive], bool],
-        timeout_s: float,
-        what: str,
-        poll_s: float = 0.02,
-    ) -> MeasuredDrive:
-        """Poll the read-back until ``condition`` holds; DeviceError after ``timeout_s``."""
-        deadline = time.monotonic() + timeout_s
-        while True:
-            m = self.measured()
-            if condition(m):
-                return m
-            if time.monotonic() > deadline:
-                raise DeviceError(
-                    f"{self.name}: waited {timeout_s} s but not {what} (generator holds "
-                    f"{m.amplitude_m:.6g} m at {m.frequency_hz:.6g} Hz)"
-                )
-            time.sleep(poll_s)
-
-    def wait_settled(self, timeout_s: float = 10.0) -> MeasuredDrive:
-        """Wait until no host ramp is running."""
-        return self.wait_until(lambda m: not m.ramping, timeout_s, "settled")
+    def _holds(self, m: MeasuredDrive) -> str:
+        return f"generator holds {m.amplitude_m:.6g} m at {m.frequency_hz:.6g} Hz"
 
     # ------------------------------------------------------------------ internals
 
@@ -617,29 +567,18 @@ class ScpiShaker:
                 f"{self.backend.description}: '{query}' answered {answer!r}, not a number"
             ) from None
 
-    def _io(self, what: str, operation: Callable[..., T], *args: Any) -> T:
-        """Run one exchange; on any DeviceError turn the output off and re-raise (one line)."""
-        if not self._connected:
-            raise DeviceError(f"{self.name}: not connected (call connect() first)")
-        if self._link_failure is not None:
-            raise DeviceError(
-                f"{self.name}: communication failed earlier ({self._link_failure}); "
-                "close and reconnect"
-            )
-        try:
-            with self._io_lock:
-                return operation(*args)
-        except DeviceError as error:
-            link_failed = isinstance(error, ScpiLinkError | DeviceNotFoundError)
-            if link_failed:
-                self._link_failure = error
-            self._make_safe()
-            off = (
-                "the output was commanded off (not confirmed: the link failed)"
-                if link_failed
-                else "the output was turned off"
-            )
-            raise type(error)(f"{error}; '{what}' failed, {off}") from None
+    def _failed(self, what: str, error: DeviceError) -> DeviceError:
+        """Turn the output off (blind after a link failure); the error, in one line."""
+        link_failed = isinstance(error, ScpiLinkError | DeviceNotFoundError)
+        if link_failed:
+            self._link_failure = error
+        self._make_safe()
+        off = (
+            "the output was commanded off (not confirmed: the link failed)"
+            if link_failed
+            else "the output was turned off"
+        )
+        return type(error)(f"{error}; '{what}' failed, {off}")
 
     def _make_safe(self) -> None:
         """Best effort: output off.  Confirmed while the link works; sent blind after a failure."""

@@ -13,10 +13,9 @@ from __future__ import annotations
 
 import atexit
 import threading
-import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Any, Protocol, TypeVar
+from typing import Any, Protocol
 
 from drivers.amplifier_registers import (
     MAP_VERSION,
@@ -31,10 +30,9 @@ from drivers.amplifier_registers import (
     join_u32,
     split_u32,
 )
-from drivers.interfaces import ActuatorStatus, DeviceError, WrongDeviceError
+from drivers.interfaces import DeviceError, WrongDeviceError
 from drivers.limits import ShakerLimits
-
-T = TypeVar("T")
+from drivers.shaker_device import MeasuredDrive, Setpoints, ShakerDevice
 
 # Exception codes that refuse one request on a working link (illegal function, address,
 # value).  Any other reply (device failure, busy ...) means the controller cannot be
@@ -83,28 +81,6 @@ class AmplifierIdentity:
     model_code: int
     firmware: str
     map_version: int
-
-
-@dataclass(frozen=True)
-class MeasuredDrive:
-    """The amplifier's measurement of its own output, and its state bits."""
-
-    frequency_hz: float
-    amplitude_m: float
-    enabled: bool
-    ramping: bool
-    at_zero: bool
-    faults: tuple[str, ...]
-
-
-@dataclass(frozen=True)
-class Setpoints:
-    """The amplifier's holding registers: what it is asked to do, by the host or anyone else."""
-
-    frequency_hz: float
-    amplitude_m: float
-    ramp_rate_m_s: float
-    enabled: bool
 
 
 class RegisterSetting:
@@ -160,7 +136,7 @@ class RegisterSetting:
         device._io(f"write {self.name}", device.backend.write_registers, int(self.register), regs)
 
 
-class ShakerAmplifier:
+class ShakerAmplifier(ShakerDevice):
     """The shake table's amplifier: setpoints, measured output, faults, safe stop.
 
     Use as a context manager (or call ``connect`` and ``close``)::
@@ -222,7 +198,7 @@ class ShakerAmplifier:
             )
         self.expected_model_code = expected_model_code
         self.name = name
-        self._lock = threading.RLock()
+        self._io_lock = threading.RLock()
         self._connected = False
         self._link_failure: DeviceError | None = None
         self._heartbeat_stop = threading.Event()
@@ -285,21 +261,10 @@ class ShakerAmplifier:
         beat = self._heartbeat_thread
         if beat is not None and beat is not threading.current_thread():
             beat.join(5.0)
-        with self._lock:
+        with self._io_lock:
             self.backend.close()
             self._connected = False
         atexit.unregister(self.close)
-
-    def __enter__(self) -> ShakerAmplifier:
-        return self.connect()
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
-
-    @property
-    def connected(self) -> bool:
-        """True between connect() and close(), while the link works."""
-        return self._connected and self._link_failure is None
 
     # ------------------------------------------------------------------ commands
 
@@ -380,80 +345,26 @@ class ShakerAmplifier:
         (bits,) = self._io("read faults", self.backend.read_input_registers, int(Input.FAULTS), 1)
         return fault_words(bits)
 
-    def status(self) -> ActuatorStatus:
-        """Connection, enable, measured output and faults; never raises."""
-        if not self._connected:
-            return ActuatorStatus(connected=False, enabled=False)
-        if self._link_failure is not None:
-            return ActuatorStatus(
-                False, False, faults=(f"communication lost: {self._link_failure}",)
-            )
-        try:
-            m = self.measured()
-        except DeviceError as error:
-            return ActuatorStatus(False, False, faults=(f"communication lost: {error}",))
-        return ActuatorStatus(
-            connected=True,
-            enabled=m.enabled,
-            measured={"frequency_hz": m.frequency_hz, "amplitude_m": m.amplitude_m},
-            faults=m.faults,
-        )
-
-    def wait_until(
-        self,
-        condition: Callable[[MeasuredDrive], bool],
-        timeout_s: float,
-        what: str,
-        poll_s: float = 0.02,
-    ) -> MeasuredDrive:
-        """Poll the measurements until ``condition`` holds; DeviceError after ``timeout_s``."""
-        deadline = time.monotonic() + timeout_s
-        while True:
-            m = self.measured()
-            if condition(m):
-                return m
-            if time.monotonic() > deadline:
-                raise DeviceError(
-                    f"{self.name}: waited {timeout_s} s but not {what} "
-                    f"(measured {m.amplitude_m:.6g} m at {m.frequency_hz:.6g} Hz, "
-                    f"faults: {', '.join(m.faults) or 'none'})"
-                )
-            time.sleep(poll_s)
-
-    def wait_settled(self, timeout_s: float = 10.0) -> MeasuredDrive:
-        """Wait until the output stopped ramping and settled on its setpoints."""
-        return self.wait_until(lambda m: not m.ramping, timeout_s, "settled")
-
     # ------------------------------------------------------------------ internals
 
-    def _io(self, what: str, operation: Callable[..., T], *args: Any) -> T:
-        """Run one backend operation; on failure make the drive safe and re-raise."""
-        if not self._connected:
-            raise DeviceError(f"{self.name}: not connected (call connect() first)")
-        if self._link_failure is not None:
-            raise DeviceError(
-                f"{self.name}: communication failed earlier ({self._link_failure}); "
-                "close and reconnect"
-            )
-        try:
-            with self._lock:
-                return operation(*args)
-        except DeviceError as error:
-            if not (isinstance(error, CommandRefusedError) and error.code in REFUSALS):
-                self._link_failure = error
-                self._heartbeat_stop.set()  # the amplifier's watchdog backs us up
-            self._make_safe()
-            error.add_note(
-                f"{self.name}: '{what}' failed; the drive was commanded to zero (if the link "
-                "is down, the amplifier's watchdog stops it)"
-            )
-            raise
+    def _failed(self, what: str, error: DeviceError) -> DeviceError:
+        """A refusal leaves the link trusted; any other failure stops the heartbeat (the
+        amplifier's watchdog backs us up).  Either way the drive is commanded to zero."""
+        if not (isinstance(error, CommandRefusedError) and error.code in REFUSALS):
+            self._link_failure = error
+            self._heartbeat_stop.set()  # the amplifier's watchdog backs us up
+        self._make_safe()
+        error.add_note(
+            f"{self.name}: '{what}' failed; the drive was commanded to zero (if the link "
+            "is down, the amplifier's watchdog stops it)"
+        )
+        return error
 
     def _make_safe(self) -> None:
         """Best effort: amplitude 0, drive off; errors swallowed (the watchdog is the backup)."""
         for register in (Holding.AMPLITUDE_UM, Holding.ENABLE):
             try:
-                with self._lock:
+                with self._io_lock:
                     self.backend.write_registers(int(register), [0])
             except DeviceError:
                 if self._link_failure is not None:
@@ -464,7 +375,7 @@ class ShakerAmplifier:
         while not self._heartbeat_stop.wait(self.heartbeat_period_s):
             counter = (counter + 1) & 0xFFFF
             try:
-                with self._lock:
+                with self._io_lock:
                     self.backend.write_registers(int(Holding.HEARTBEAT), [counter])
             except DeviceError as error:
                 self._link_failure = error

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 from typing import Protocol
 
 from drivers.interfaces import DeviceError
-from drivers.shaker import MeasuredDrive, Setpoints
+from drivers.shaker_device import MeasuredDrive, Setpoints
 from rig.config import DriveTolerance
 from rig.events import MEASURED
 from rig.logs import FILE_ONLY

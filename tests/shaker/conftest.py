@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterator
 from dataclasses import dataclass
 
@@ -25,6 +26,19 @@ LIMITS = ShakerLimits(
     min_ramp_rate_m_s=1e-5,
     max_ramp_rate_m_s=0.05,
 )
+# Settings every drive must refuse under LIMITS before anything is sent: (name, value).
+OUT_OF_LIMITS = [
+    ("amplitude_m", 0.0051),  # just above max_amplitude_m
+    ("amplitude_m", -1e-6),
+    ("amplitude_m", math.nan),
+    ("amplitude_m", "1e-3"),
+    ("frequency_hz", 40.001),
+    ("frequency_hz", 0.2),  # below min_frequency_hz
+    ("frequency_hz", math.inf),
+    ("ramp_rate_m_s", 0.0),
+    ("ramp_rate_m_s", 0.06),  # above max_ramp_rate_m_s
+    ("ramp_rate_m_s", True),
+]
 
 
 @dataclass

@@ -2,17 +2,13 @@
 
 from __future__ import annotations
 
-import os
 import signal
 import subprocess
-import sys
 import time
-from pathlib import Path
 
 from drivers.amplifier_registers import Fault
 from hardware_sim.amplifier_emulator import AmplifierEmulator
-
-ROOT = Path(__file__).resolve().parents[2]
+from tests.host_process import end, start_python
 
 HOST = """
 import sys, time
@@ -34,14 +30,7 @@ if sys.argv[2] == "hang":
 
 
 def _host(port: int, mode: str) -> subprocess.Popen[str]:
-    return subprocess.Popen(
-        [sys.executable, "-c", HOST, str(port), mode],
-        cwd=ROOT,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-        env={**os.environ, "PYTHONPATH": str(ROOT)},
-    )
+    return start_python("-c", HOST, str(port), mode)
 
 
 def _wait_at_zero(emulator: AmplifierEmulator, timeout_s: float) -> bool:
@@ -67,9 +56,7 @@ def test_killed_host_leaves_the_table_at_zero_through_the_watchdog(
         assert emulator.firmware.faults == Fault.WATCHDOG_EXPIRED
         assert not emulator.firmware.enabled
     finally:
-        if host.poll() is None:
-            host.kill()
-            host.wait(5)
+        end(host, 5)
 
 
 def test_host_exiting_without_close_stops_the_drive_itself(emulator: AmplifierEmulator) -> None:

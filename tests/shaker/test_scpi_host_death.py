@@ -3,15 +3,11 @@ and killed (only the emulator's disconnect watchdog can; a real generator keeps 
 
 from __future__ import annotations
 
-import os
 import signal
 import subprocess
-import sys
-from pathlib import Path
 
 from hardware_sim.scpi_generator import ScpiGeneratorEmulator
-
-ROOT = Path(__file__).resolve().parents[2]
+from tests.host_process import end, start_python
 
 HOST = """
 import sys, time
@@ -31,14 +27,7 @@ if sys.argv[2] == "hang":
 
 
 def _host(resource: str, mode: str) -> subprocess.Popen[str]:
-    return subprocess.Popen(
-        [sys.executable, "-c", HOST, resource, mode],
-        cwd=ROOT,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-        env={**os.environ, "PYTHONPATH": str(ROOT)},
-    )
+    return start_python("-c", HOST, resource, mode)
 
 
 def test_host_exiting_without_close_turns_the_output_off_itself() -> None:
@@ -64,9 +53,7 @@ def test_killed_host_the_emulators_watchdog_turns_the_output_off() -> None:
             assert generator.watchdog_trips == 1
             assert generator.received[-1] != "OUTP1 OFF;OUTP1?"  # not the host's doing
         finally:
-            if host.poll() is None:
-                host.kill()
-                host.wait(5)
+            end(host, 5)
 
 
 def test_killed_host_a_generator_without_that_watchdog_keeps_driving() -> None:
@@ -81,6 +68,4 @@ def test_killed_host_a_generator_without_that_watchdog_keeps_driving() -> None:
             assert generator.wait_for(lambda state: generator.connections == 0, 5.0)
             assert generator.state.output  # still on: nobody turned it off
         finally:
-            if host.poll() is None:
-                host.kill()
-                host.wait(5)
+            end(host, 5)

@@ -30,7 +30,7 @@ from drivers.scpi_shaker import (
     SettingNotConfirmedError,
 )
 from hardware_sim.scpi_generator import GeneratorFault, ScpiGeneratorEmulator
-from tests.shaker.conftest import LIMITS
+from tests.shaker.conftest import LIMITS, OUT_OF_LIMITS
 
 GAIN_M_PER_V = 1.0e-3  # 1 mm of table amplitude per volt of generator amplitude
 TIMEOUT_S = 0.3
@@ -110,20 +110,7 @@ def test_output_goes_on_at_the_smallest_amplitude_and_ramps_up_then_down(generat
         assert not generator.state.output and not shaker.enabled
 
 
-@pytest.mark.parametrize(
-    ("setting", "value"),
-    [
-        ("amplitude_m", 0.0051),  # just above max_amplitude_m
-        ("amplitude_m", -1e-6),
-        ("amplitude_m", math.nan),
-        ("amplitude_m", "1e-3"),
-        ("frequency_hz", 40.001),
-        ("frequency_hz", 0.2),  # below min_frequency_hz
-        ("frequency_hz", math.inf),
-        ("ramp_rate_m_s", 0.0),
-        ("ramp_rate_m_s", True),
-    ],
-)
+@pytest.mark.parametrize(("setting", "value"), OUT_OF_LIMITS)
 def test_a_setting_outside_the_limits_never_reaches_the_generator(
     generator, setting: str, value: object
 ) -> None:

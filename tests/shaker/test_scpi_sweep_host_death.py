@@ -4,17 +4,14 @@ docs/scpi_generator.md says what the lab must add)."""
 
 from __future__ import annotations
 
-import os
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
 
 from hardware_sim.sim_rig import SimRig
 from rig.config import default_config_path
+from tests.host_process import end, start_rig_cli
 
-ROOT = Path(__file__).resolve().parents[2]
 GAIN_M_PER_V = 2.0e-3
 BETA = 0.02  # amplitude = BETA * L_m = 0.92 mm: 0.92 Vpp at 2 mm/V
 
@@ -42,16 +39,10 @@ def test_a_sweep_host_killed_mid_sweep_leaves_the_emulated_generator_off(tmp_pat
         assert ends.daq_port is not None and ends.scpi is not None
         config = tmp_path / "scpi_rig.toml"
         config.write_text(real_rig_file(ends.daq_port, ends.scpi))
-        host = subprocess.Popen(
-            [sys.executable, "-m", "rig.cli", "sweep", "--config", str(config),
-             "--sweep", "frequency", "--start", "4", "--stop", "8", "--steps", "3",
-             "--beta", str(BETA), "--settle", "30", "--dwell", "1", "--quiet",
-             "--out", str(tmp_path / "sweep.h5")],
-            cwd=ROOT,
-            stdout=subprocess.PIPE,
-            stderr=subprocess.PIPE,
-            text=True,
-            env={**os.environ, "PYTHONPATH": str(ROOT)},
+        host = start_rig_cli(
+            "sweep", "--config", str(config), "--sweep", "frequency", "--start", "4",
+            "--stop", "8", "--steps", "3", "--beta", str(BETA), "--settle", "30",
+            "--dwell", "1", "--quiet", "--out", str(tmp_path / "sweep.h5"),
         )  # fmt: skip
         try:
             driving = sim.generator.wait_for(
@@ -64,6 +55,4 @@ def test_a_sweep_host_killed_mid_sweep_leaves_the_emulated_generator_off(tmp_pat
             assert sim.generator.wait_for(lambda state: not state.output, 5.0)
             assert sim.generator.watchdog_trips == 1
         finally:
-            if host.poll() is None:
-                host.kill()
-                host.wait(10)
+            end(host)

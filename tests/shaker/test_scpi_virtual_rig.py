@@ -3,21 +3,17 @@ the emulated amplifier's gain, move the simulated table; the rig file and `sim-r
 
 from __future__ import annotations
 
-import os
 import signal
-import subprocess
-import sys
 import time
 from collections.abc import Callable
-from pathlib import Path
 
 from drivers.limits import ShakerLimits
 from drivers.scpi_shaker import ScpiLink, ScpiShaker
 from hardware_sim.sim_rig import SimRig
 from rig.config import default_config_path, parse_config
 from rig.devices import open_rig
+from tests.host_process import end, read_endpoints, start_rig_cli
 
-ROOT = Path(__file__).resolve().parents[2]
 GAIN_M_PER_V = 2.0e-3
 
 
@@ -69,26 +65,14 @@ def test_a_virtual_scpi_rig_file_opens_the_rig_with_the_generator_drive() -> Non
 
 
 def test_sim_rig_command_serves_the_scpi_generator() -> None:
-    process = subprocess.Popen(
-        [sys.executable, "-m", "rig.cli", "sim-rig", "--drive", "scpi", "--scpi-port", "0",
-         "--gain", "2e-3", "--no-daq"],
-        cwd=ROOT,
-        stdin=subprocess.PIPE,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-        env={**os.environ, "PYTHONPATH": str(ROOT)},
-    )  # fmt: skip
+    process = start_rig_cli(
+        "sim-rig", "--drive", "scpi", "--scpi-port", "0", "--gain", "2e-3", "--no-daq", stdin=True
+    )
     try:
         assert process.stdout is not None and process.stdin is not None
-        endpoints = {}
-        for line in process.stdout:
-            if line.startswith("ready"):
-                break
-            name, _, value = line.partition(": ")
-            endpoints[name] = value.split()[0] if value.strip() else ""
+        endpoints = read_endpoints(process)
         assert "modbus-tcp" not in endpoints
-        resource = endpoints["scpi-generator"]
+        resource = endpoints["scpi-generator"].split()[0]  # then "(gain 0.002 m/V)"
         link = ScpiLink(resource, timeout_s=1.0)
         with ScpiShaker(link, ShakerLimits(), gain_m_per_v=GAIN_M_PER_V) as shaker:
             shaker.ramp_rate_m_s = 0.02
@@ -106,6 +90,4 @@ def test_sim_rig_command_serves_the_scpi_generator() -> None:
         out, _ = process.communicate(timeout=20)
         assert "stopped" in out
     finally:
-        if process.poll() is None:
-            process.kill()
-            process.wait(10)
+        end(process)

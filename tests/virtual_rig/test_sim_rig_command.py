@@ -2,15 +2,12 @@
 
 from __future__ import annotations
 
-import os
 import re
 import signal
 import socket
 import subprocess
-import sys
 import time
 from collections.abc import Iterator
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -19,48 +16,18 @@ from drivers.limits import ShakerLimits
 from drivers.modbus_shaker import ModbusRtuBackend, ModbusTcpBackend
 from drivers.serial_daq import SerialDaqBackend
 from drivers.shaker import ShakerAmplifier
-
-ROOT = Path(__file__).resolve().parents[2]
+from tests.host_process import end, read_endpoints, start_rig_cli
 
 
 @pytest.fixture
 def sim_rig() -> Iterator[tuple[subprocess.Popen[str], dict[str, str]]]:
-    process = subprocess.Popen(
-        [
-            sys.executable,
-            "-m",
-            "rig.cli",
-            "sim-rig",
-            "--port",
-            "0",
-            "--rtu",
-            "--angle-noise",
-            "0",
-            "--table-noise",
-            "0",
-        ],
-        cwd=ROOT,
-        stdin=subprocess.PIPE,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-        env={**os.environ, "PYTHONPATH": str(ROOT)},
+    process = start_rig_cli(
+        "sim-rig", "--port", "0", "--rtu", "--angle-noise", "0", "--table-noise", "0", stdin=True
     )
-    endpoints: dict[str, str] = {}
     try:
-        assert process.stdout is not None
-        for line in process.stdout:
-            if line.startswith("ready"):
-                break
-            name, _, value = line.partition(": ")
-            endpoints[name.strip()] = value.strip()
-        else:
-            pytest.fail(f"sim-rig ended before it was ready: {process.stderr.read()}")
-        yield process, endpoints
+        yield process, read_endpoints(process)
     finally:
-        if process.poll() is None:
-            process.kill()
-            process.wait(10)
+        end(process)
 
 
 def test_sim_rig_serves_its_endpoints_and_stops_on_ctrl_c(
