@@ -1,6 +1,6 @@
-"""A term to propose when no named cause explains a forced record (issue 15, item 6):
-a sparse regression of the residual acceleration on a library of candidate terms, in
-free flight and in contact separately.
+"""A term to propose when no named cause explains a record: a sparse regression of the
+residual acceleration on a library of candidate terms, in free flight and in contact
+separately (on a decay, the flight regression is in weak form: :func:`weak_flight`).
 
 The residual acceleration is the model's equation error at the data's states: the
 measured angle's Savitzky-Golay second derivative minus the model's acceleration
