@@ -160,6 +160,7 @@ class EquationError:
     window: int  # the smoother's, in samples
     lowpass: int  # the flight regression's extra low-pass, in samples
     angle: np.ndarray  # the data's angle, gaps filled (what the weak form integrates)
+    free: np.ndarray  # usable and clear of contacts by the smoother's reach (weak form)
     model_acceleration: np.ndarray  # the model's at (theta, rate), unfiltered [rad/s^2]
 
 
@@ -175,11 +176,12 @@ def propose_terms(t: np.ndarray, theta: np.ndarray, valid: np.ndarray, packed: n
     end = t[np.flatnonzero(span)[-1]]
     blocks = np.minimum((HELDOUT_BLOCKS * (t - t[0]) / (end - t[0] + 1e-300)).astype(int),
                         HELDOUT_BLOCKS - 1)
-    error = replace(error, flight=error.flight & span, contact=error.contact & span)
+    error = replace(error, flight=error.flight & span, contact=error.contact & span,
+                    free=error.free & span)
     flight = flight_library(t, error.theta, error.rate, packed)
     if not driven(packed):
         proposed = select_terms(*weak_flight(t, error, flight, base_frequency_hz(packed),
-                                             blocks))
+                                             blocks, bool(packed[P.BARRIER] != 0.0)))
         return proposed + _contact_terms(error, packed, blocks)
     columns = smoothed_like_acceleration(flight.columns, error.window)
     columns = savgol_filter(columns, error.lowpass, POLYORDER, axis=0)
@@ -202,10 +204,12 @@ def _contact_terms(error: EquationError, packed: np.ndarray,
 
 
 def weak_flight(t: np.ndarray, error: EquationError, flight: Library, base_hz: float,
-                blocks: np.ndarray) -> tuple[Library, np.ndarray, np.ndarray]:
+                blocks: np.ndarray, barrier: bool) -> tuple[Library, np.ndarray, np.ndarray]:
     """The flight regression in weak form (a decay's): the equation theta'' = f + sum of
-    terms, integrated against smooth windows phi = (1 - s^2)^4 one swing long (s from -1 to
-    1 across the window, windows a sixteenth apart, wholly in flight), with theta'' moved
+    terms, integrated against smooth windows phi = (1 - s^2)^4 one swing long (a quarter
+    with the barrier in, whose flights last about half a swing; s from -1 to 1 across the
+    window,
+    windows a sixteenth apart, wholly in flight), with theta'' moved
     onto phi'' by integrating by parts twice.  The data's second derivative, whose noise
     grows as the frequency squared, never enters: its noise is the angle's, averaged by
     phi'' (the weak SINDy of D. A. Messenger and D. M. Bortz, "Weak SINDy", Multiscale
@@ -215,12 +219,13 @@ def weak_flight(t: np.ndarray, error: EquationError, flight: Library, base_hz: f
     standard errors clear.  Returns the library over the windows, the weak residual and
     each window's block, for :func:`select_terms`."""
     dt = float(t[1] - t[0])
-    half = max(8, round(0.5 / (base_hz * dt)))
+    swings = 0.125 if barrier else 0.5  # the window's half-length, in periods
+    half = max(8, round(swings / (base_hz * dt)))
     s = np.arange(-half, half + 1) / half
     phi = (1.0 - s * s) ** 4
     phi2 = (-8.0 * (1.0 - s * s) ** 3 + 48.0 * s * s * (1.0 - s * s) ** 2) / (half * dt) ** 2
     centres = np.arange(half, t.size - half, max(1, half // 8))
-    inside = np.array([bool(error.flight[c - half:c + half + 1].all()) for c in centres],
+    inside = np.array([bool(error.free[c - half:c + half + 1].all()) for c in centres],
                       dtype=bool)
     centres = centres[inside]
     windows = centres[:, None] + np.arange(-half, half + 1)[None, :]
@@ -256,8 +261,9 @@ def equation_error(t: np.ndarray, theta: np.ndarray, valid: np.ndarray, packed: 
     reach = half + lowpass // 2
     flight = ~_widened(~usable | touching, reach)
     contact = usable & _widened(touching, half)
+    free = usable & ~_widened(touching, half)
     return EquationError(residual, theta_at, rate_at, flight, contact, window, lowpass,
-                         filled, model_acc)
+                         filled, free, model_acc)
 
 
 def large_swings(theta: np.ndarray) -> np.ndarray:
