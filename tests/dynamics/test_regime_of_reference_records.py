@@ -43,6 +43,17 @@ def _draw(seed: int, cause: str):
     return draw_forced_case(seed, cause, frequency_hz=DRIVE_HZ, duration_s=RECORD_S)
 
 
+def _premise(holds: bool, what: str) -> None:
+    """A hand-picked draw's truth is what the test is about, or the test cannot be run: on
+    another install the reference simulator's chaotic truths change in their last bits,
+    and a draw can stop being the case (with numpy 2.4.6 and scipy 1.17.1, as a fresh
+    install took them on 2026-11-29, three of these seeds are; the code these tests were
+    written with fails the same way there).  Reported as an expected failure naming the
+    premise, never as a pass; the seeds are to be drawn from a range instead (issue 39)."""
+    if not holds:
+        pytest.xfail(f"the draw's truth is no longer {what} on this install")
+
+
 def _band_period_of_truth(case) -> int:
     """The smallest m whose multiples all bring the noiseless section points at least twice
     as close as typical lags do (relative to the attractor's extent): the bands the true
@@ -64,9 +75,8 @@ def test_chaos_in_bands_about_a_periodic_orbit_is_judged_chaotic(seed, cause):
     """The section visits a few bands in turn and is chaotic within them: a periodic
     skeleton that once hid the chaos from the 0-1 test and from neighbours' divergence."""
     case = _draw(seed, cause)
-    assert case.regime == "chaotic"
     truth_bands = _band_period_of_truth(case)
-    assert truth_bands > 1  # the draw is chaos in bands
+    _premise(case.regime == "chaotic" and truth_bands > 1, "chaos in bands")
     regime = _judge(case)
     assert regime.kind == "chaotic", regime.label
     # the true bands, or groups of them that lie close together
@@ -81,9 +91,8 @@ def test_weak_chaos_is_judged_chaotic(seed, cause):
     """Exponents of 0.01 (the truth's margin for chaos) and 0.08 per drive period, in
     bands: neighbours leave the noise floor only after tens of periods."""
     case = _draw(seed, cause)
-    assert case.regime == "chaotic"
     truth_per_period = case.lyapunov_per_s / DRIVE_HZ
-    assert truth_per_period < 0.1
+    _premise(case.regime == "chaotic" and truth_per_period < 0.1, "weak chaos")
     regime = _judge(case)
     assert regime.kind == "chaotic", regime.label
     # the noise floor hides the start of the divergence: the estimate is low, not high
