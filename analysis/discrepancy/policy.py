@@ -33,10 +33,11 @@ class SelectionPolicy:
         0.95, "the extension predicts the held-out part at least 5 % better ...")
     heldout_excess_ratio: float = _rule(
         0.9, "... or shrinks the held-out error above the noise by 10 %, significantly; a "
-        "forward step must shrink it so on a forced record, not only significantly")
+        "forward step must shrink it so, not only significantly (every kind of record)")
     heldout_sigmas: float = _rule(
-        3.0, "a decay's held-out gain must stand this many standard errors of a noise "
-        "variance clear of the scatter a finite held-out part allows")
+        3.0, "where no paired test can be run (fewer than 3 held-out blocks hold samples), "
+        "the held-out gain must stand this many standard errors of a noise variance clear "
+        "of the scatter a finite held-out part allows")
     forecast_z: float = _rule(
         3.0, "forced records: the paired forecast test's error drop, in standard errors "
         "over the held-out stretches")
