@@ -19,10 +19,14 @@ from drivers.sensors import (
     Tachometer,
     TachometerCalibration,
 )
-from hardware_sim.daq_faults import CORRUPT_CRC, DaqFaults
+from hardware_sim.daq_faults import CORRUPT_CRC
 from hardware_sim.sample_source import CounterSource, expected_table_counts
 from hardware_sim.virtual_rig import VirtualRig, VirtualRigSettings, compile_physics
+from tests.daq.conftest import EMULATED_BACKENDS
 from tests.daq.test_stream import read_past_faults, read_until
+
+# Sources other than the counter exist only beside the Python firmware model.
+python_backends_only = pytest.mark.parametrize("backend_kind", EMULATED_BACKENDS, indirect=True)
 
 
 @pytest.mark.parametrize(
@@ -72,6 +76,7 @@ class PatternSource:
         }
 
 
+@python_backends_only
 def test_laser_flags_rail_and_out_of_range_samples(make_board):
     # +-10 mm measuring range at 5 mm/V: +-2 V, i.e. +-6553.6 counts.
     counts = [0, 6000, 7000, -7000, 32767, -32768, 100, 40000]  # 40000: the ADC saturates
@@ -91,6 +96,7 @@ def test_laser_flags_rail_and_out_of_range_samples(make_board):
     np.testing.assert_allclose(values[:800], 0.005 * expected_raw * 10.0 / 32768)
 
 
+@python_backends_only
 def test_laser_in_count_units_skips_the_volts(make_board):
     board = make_board(PatternSource([-1200, 0, 1200]))
     calibration = LaserCalibration(
@@ -112,10 +118,10 @@ def test_spare_input_reads_volts(make_board):
     np.testing.assert_allclose(block.values, block.raw * 10.0 / 32768)
 
 
-def test_tach_edge_right_after_a_gap_is_not_guessed(make_board):
+def test_tach_edge_right_after_a_gap_is_not_guessed(make_board, make_faults):
     # Every edge sits on the first sample of a frame (200 samples per frame at 20 kHz).
     source = CounterSource(tach_period=400, tach_width=100, tach_phase=0)
-    faults = DaqFaults()
+    faults = make_faults()
     board = make_board(source, faults=faults)
     tach = Tachometer(board)
     tach.start()
@@ -149,6 +155,7 @@ def test_a_role_nobody_reads_loses_its_oldest_samples_and_says_how_many(make_boa
     )
 
 
+@python_backends_only
 def test_stream_from_the_virtual_rig_matches_the_rig_itself(make_board):
     settings = VirtualRigSettings(theta0_rad=0.2, sample_rate_hz=2000.0)
     compile_physics(settings)  # before the board's clock runs

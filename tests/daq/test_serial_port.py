@@ -1,7 +1,8 @@
 """The serial backend against ports that are missing, silent, speak something else, or vanish.
 
 Real pseudo-terminals throughout: the driver opens the slave by path, as it would
-/dev/ttyACM0.
+/dev/ttyACM0.  The board behind it is the Python emulator or the C firmware core's host
+build (``make_pty_board``).
 """
 
 from __future__ import annotations
@@ -17,7 +18,6 @@ from drivers.daq import DaqBoard
 from drivers.interfaces import DeviceError, DeviceNotFoundError, LimitError, WrongDeviceError
 from drivers.sensors import PotentiometerAngleSensor, PotentiometerCalibration
 from drivers.serial_daq import SerialDaqBackend
-from hardware_sim.daq_emulator import DaqEmulator
 from hardware_sim.sample_source import CounterSource
 
 
@@ -91,21 +91,21 @@ def test_something_that_is_not_the_board_is_a_wrong_device(answer):
         other.close()
 
 
-def test_board_refusal_is_reported_with_its_reason():
-    with DaqEmulator(CounterSource(), speed=5) as emulator:
-        backend = SerialDaqBackend(emulator.port)
-        backend.connect()
-        with pytest.raises(DeviceError, match=r"refused CONF: rate 5 Hz out of range 10\.\.250000"):
-            backend.configure(5.0, (0,))
-        backend.start()
-        with pytest.raises(DeviceError, match="busy: STOP before CONF"):
-            backend.configure(1000.0, (0,))
-        backend.stop()
-        backend.close()
+def test_board_refusal_is_reported_with_its_reason(make_pty_board):
+    emulator = make_pty_board(CounterSource(), speed=5)
+    backend = SerialDaqBackend(emulator.port)
+    backend.connect()
+    with pytest.raises(DeviceError, match=r"refused CONF: rate 5 Hz out of range 10\.\.250000"):
+        backend.configure(5.0, (0,))
+    backend.start()
+    with pytest.raises(DeviceError, match="busy: STOP before CONF"):
+        backend.configure(1000.0, (0,))
+    backend.stop()
+    backend.close()
 
 
-def test_emulator_closing_mid_stream_fails_the_stream_without_a_hang():
-    emulator = DaqEmulator(CounterSource(), speed=5).start()
+def test_emulator_closing_mid_stream_fails_the_stream_without_a_hang(make_pty_board):
+    emulator = make_pty_board(CounterSource(), speed=5)
     board = DaqBoard(SerialDaqBackend(emulator.port), sample_rate_hz=20_000, analog_channels=(0,))
     angle = PotentiometerAngleSensor(board, 0, PotentiometerCalibration())
     angle.start()
@@ -118,29 +118,27 @@ def test_emulator_closing_mid_stream_fails_the_stream_without_a_hang():
     board.close()
 
 
-def test_a_board_left_streaming_is_stopped_and_identified():
-    with DaqEmulator(CounterSource(), speed=5) as emulator:
-        first = SerialDaqBackend(emulator.port)
-        first.connect()
-        first.configure(20_000, (0, 1))
-        first.start()
-        first.close()  # a host that crashed without STOP
-        time.sleep(0.1)
-        board = DaqBoard(
-            SerialDaqBackend(emulator.port), sample_rate_hz=20_000, analog_channels=(0,)
-        )
-        assert board.open().model == "IRDAQ-4"
-        angle = PotentiometerAngleSensor(board, 0, PotentiometerCalibration())
-        angle.start()
-        block = angle.read(1.0)
-        assert block is not None and block.first_index == 0
-        board.close()
+def test_a_board_left_streaming_is_stopped_and_identified(make_pty_board):
+    emulator = make_pty_board(CounterSource(), speed=5)
+    first = SerialDaqBackend(emulator.port)
+    first.connect()
+    first.configure(20_000, (0, 1))
+    first.start()
+    first.close()  # a host that crashed without STOP
+    time.sleep(0.1)
+    board = DaqBoard(SerialDaqBackend(emulator.port), sample_rate_hz=20_000, analog_channels=(0,))
+    assert board.open().model == "IRDAQ-4"
+    angle = PotentiometerAngleSensor(board, 0, PotentiometerCalibration())
+    angle.start()
+    block = angle.read(1.0)
+    assert block is not None and block.first_index == 0
+    board.close()
 
 
-def test_a_replugged_board_streams_again_after_close_and_open(tmp_path):
+def test_a_replugged_board_streams_again_after_close_and_open(tmp_path, make_pty_board):
     # The port path stays the same across the replug (like /dev/ttyACM0): a symlink.
     port = tmp_path / "ttyACM0"
-    first = DaqEmulator(CounterSource(), speed=5).start()
+    first = make_pty_board(CounterSource(), speed=5)
     port.symlink_to(first.port)
     board = DaqBoard(SerialDaqBackend(str(port)), sample_rate_hz=20_000, analog_channels=(0,))
     angle = PotentiometerAngleSensor(board, 0, PotentiometerCalibration())
@@ -153,24 +151,24 @@ def test_a_replugged_board_streams_again_after_close_and_open(tmp_path):
             angle.read(0.1)
     angle.stop()
     board.close()
-    with DaqEmulator(CounterSource(), speed=5) as second:
-        port.unlink()
-        port.symlink_to(second.port)
-        assert board.open().model == "IRDAQ-4"
-        angle.start()
-        block = angle.read(1.0)
-        assert block is not None and block.first_index == 0 and block.lost_before == 0
-        board.close()
+    second = make_pty_board(CounterSource(), speed=5)
+    port.unlink()
+    port.symlink_to(second.port)
+    assert board.open().model == "IRDAQ-4"
+    angle.start()
+    block = angle.read(1.0)
+    assert block is not None and block.first_index == 0 and block.lost_before == 0
+    board.close()
     first.close()
 
 
-def test_a_refused_configuration_leaves_the_port_closed():
-    with DaqEmulator(CounterSource(), speed=5) as emulator:
-        backend = SerialDaqBackend(emulator.port)
-        board = DaqBoard(backend, sample_rate_hz=1e6, analog_channels=(0,))
-        with pytest.raises(LimitError, match="outside the range"):
-            board.open()
-        assert backend._serial is None  # released: another program may open the port
+def test_a_refused_configuration_leaves_the_port_closed(make_pty_board):
+    emulator = make_pty_board(CounterSource(), speed=5)
+    backend = SerialDaqBackend(emulator.port)
+    board = DaqBoard(backend, sample_rate_hz=1e6, analog_channels=(0,))
+    with pytest.raises(LimitError, match="outside the range"):
+        board.open()
+    assert backend._serial is None  # released: another program may open the port
 
 
 def test_a_port_that_vanishes_while_connecting_is_not_called_a_wrong_device():
