@@ -12,15 +12,21 @@ of data.  Baseline, measured in the same run at the CPU-figure rate: a bare
 reader that only pulls the same bytes off the pty (select + os.read), so the
 ratio shows what parsing and calibration cost on top of moving the bytes.
 
-    python benchmarks/bench_daq_stream.py --seconds 5
+The board is the Python emulator and the C firmware core's host build (firmware/,
+compiled with gcc into a temporary directory), each on its own pty, the driver unchanged
+in front of both (``--boards`` picks); ``--json PATH`` also writes the figures.
+
+    python benchmarks/bench_daq_stream.py --seconds 5 --json daq_stream.json
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import select
 import sys
+import tempfile
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -39,6 +45,13 @@ from drivers.sensors import (  # noqa: E402
     Tachometer,
 )
 from drivers.serial_daq import SerialDaqBackend  # noqa: E402
+from tests.daq.firmware_host import (  # noqa: E402
+    HOST_IDENTITY,
+    FirmwareBoard,
+    build_host_firmware,
+)
+
+BOARDS = ("emulator", "firmware")
 
 CHANNELS = (0, 1, 2, 3)
 LADDER_HZ = (40_000, 100_000, 150_000, 200_000, 250_000)
@@ -67,8 +80,33 @@ class Result:
         return self.cpu_s / self.data_seconds if self.samples else float("nan")
 
 
-def stream(rate_hz: float, seconds: float) -> Result:
-    emulator = EmulatorProcess("--max-rate-hz", f"{max(BOARD_MAX_RATE_HZ, rate_hz):g}")
+class FirmwareProcess:
+    """The firmware core's host build in real time, as :class:`EmulatorProcess` is used."""
+
+    binary: Path | None = None
+
+    def __init__(self, *extra_args: str) -> None:
+        if FirmwareProcess.binary is None:
+            FirmwareProcess.binary = build_host_firmware(Path(tempfile.mkdtemp()))
+        max_rate = float(extra_args[1]) if extra_args[:1] == ("--max-rate-hz",) else None
+        identity = (
+            HOST_IDENTITY
+            if max_rate is None
+            else HOST_IDENTITY.__class__(**{**HOST_IDENTITY.__dict__, "max_rate_hz": max_rate})
+        )
+        self.board = FirmwareBoard(FirmwareProcess.binary, speed=1.0, identity=identity).start()
+        self.port = self.board.port
+
+    def close(self) -> None:
+        self.board.close()
+
+
+def start_board(kind: str, *args: str) -> EmulatorProcess | FirmwareProcess:
+    return FirmwareProcess(*args) if kind == "firmware" else EmulatorProcess(*args)
+
+
+def stream(rate_hz: float, seconds: float, board_kind: str = "emulator") -> Result:
+    emulator = start_board(board_kind, "--max-rate-hz", f"{max(BOARD_MAX_RATE_HZ, rate_hz):g}")
     try:
         board = DaqBoard(
             SerialDaqBackend(emulator.port), sample_rate_hz=rate_hz, analog_channels=CHANNELS
@@ -102,9 +140,11 @@ def stream(rate_hz: float, seconds: float) -> Result:
         emulator.close()
 
 
-def bare_read_cpu(rate_hz: float, seconds: float) -> tuple[float, int]:
+def bare_read_cpu(
+    rate_hz: float, seconds: float, board_kind: str = "emulator"
+) -> tuple[float, int]:
     """Baseline: CPU to pull the same stream off the pty without looking at it."""
-    emulator = EmulatorProcess("--max-rate-hz", f"{BOARD_MAX_RATE_HZ:g}")
+    emulator = start_board(board_kind, "--max-rate-hz", f"{BOARD_MAX_RATE_HZ:g}")
     try:
         backend = SerialDaqBackend(emulator.port)
         backend.connect()
@@ -138,15 +178,29 @@ def main(argv: list[str] | None = None) -> int:
         help=f"also try {', '.join(f'{r:,}' for r in HEADROOM_HZ)} Hz on an emulated faster "
         "board, to find where the host (or the Python emulator) gives out",
     )
+    parser.add_argument("--boards", nargs="+", choices=BOARDS, default=list(BOARDS))
+    parser.add_argument("--json", type=Path, default=None, help="also write the figures here")
     args = parser.parse_args(argv)
     if args.headroom:
         args.rates = [*args.rates, *HEADROOM_HZ]
-    print(f"4 channels + digital word, 256-sample frames, {args.seconds:g} s per rate")
+    figures = {"command": sys.argv, "seconds": args.seconds, "boards": {}}
+    for board_kind in args.boards:
+        figures["boards"][board_kind] = run_board(board_kind, args)
+    if args.json is not None:
+        args.json.write_text(json.dumps(figures, indent=2) + "\n")
+        print(f"\nfigures written to {args.json}")
+    return 0
+
+
+def run_board(board_kind: str, args: argparse.Namespace) -> dict:
+    """The ladder, the CPU figure and the goal for one board; its figures as data."""
+    print(f"\nboard: {board_kind}; 4 channels + digital word, 256-sample frames, "
+          f"{args.seconds:g} s per rate")  # fmt: skip
     print(f"{'rate/ch':>10} {'aggregate':>10} {'samples':>10} {'lost':>6} {'rejected':>8} "
           f"{'cpu s/data s':>12}")  # fmt: skip
     results = []
     for rate in args.rates:
-        result = stream(rate, args.seconds)
+        result = stream(rate, args.seconds, board_kind)
         results.append(result)
         print(
             f"{rate:>10,.0f} {4 * rate:>10,.0f} {result.samples:>10,} {result.lost:>6} "
@@ -159,24 +213,40 @@ def main(argv: list[str] | None = None) -> int:
 
     at_figure = next((r for r in results if r.rate_hz == CPU_FIGURE_RATE_HZ), None)
     if at_figure is None:
-        at_figure = stream(CPU_FIGURE_RATE_HZ, args.seconds)
-    base_cpu, base_bytes = bare_read_cpu(CPU_FIGURE_RATE_HZ, args.seconds)
+        at_figure = stream(CPU_FIGURE_RATE_HZ, args.seconds, board_kind)
+    base_cpu, base_bytes = bare_read_cpu(CPU_FIGURE_RATE_HZ, args.seconds, board_kind)
     base_per_data_s = base_cpu / args.seconds
+    ratio = at_figure.cpu_per_data_second / max(base_per_data_s, 1e-9)
     print(
         f"CPU at 4 x {CPU_FIGURE_RATE_HZ:,} Hz: driver stack {at_figure.cpu_per_data_second:.3f} "
         f"s per s of data; bare pty read {base_per_data_s:.3f} s/s ({base_bytes:,} bytes); "
-        f"ratio {at_figure.cpu_per_data_second / max(base_per_data_s, 1e-9):.1f}x"
+        f"ratio {ratio:.1f}x"
     )
     goal = next((r for r in results if r.rate_hz == GOAL_RATE_HZ), None)
+    goal_met = None
     if goal is not None:
-        verdict = (
-            "met" if goal.lost == 0 and goal.cpu_per_data_second < GOAL_CPU_FRACTION else "NOT met"
-        )
+        goal_met = goal.lost == 0 and goal.cpu_per_data_second < GOAL_CPU_FRACTION
         print(
             f"goal 4 x {GOAL_RATE_HZ:,} Hz, zero loss, < {GOAL_CPU_FRACTION:.0%} of a core: "
-            f"{verdict} (lost {goal.lost}, {goal.cpu_per_data_second:.1%} of a core)"
+            f"{'met' if goal_met else 'NOT met'} (lost {goal.lost}, "
+            f"{goal.cpu_per_data_second:.1%} of a core)"
         )
-    return 0
+    return {
+        "rates": [
+            {
+                "rate_hz": r.rate_hz,
+                "samples": r.samples,
+                "lost": r.lost,
+                "rejected": r.rejected,
+                "cpu_s_per_data_s": r.cpu_per_data_second,
+            }
+            for r in results
+        ],
+        "highest_zero_loss_rate_hz": best,
+        "cpu_s_per_data_s_at_figure_rate": at_figure.cpu_per_data_second,
+        "bare_read_cpu_s_per_s": base_per_data_s,
+        "goal_met": goal_met,
+    }
 
 
 if __name__ == "__main__":
