@@ -293,7 +293,7 @@ def open_hdf5(path: str | Path) -> h5py.File:
         if live:
             return h5py.File(_open_swmr_reader(path))
         return h5py.File(path, "r")
-    except OSError as error:
+    except (OSError, RuntimeError) as error:  # RuntimeError: a superblock HDF5 cannot decode
         raise RecordingDamagedError(
             f"{path}: HDF5 cannot open it ({_first_line(error)}); " + REPAIR_HINT.format(path=path)
         ) from None

@@ -1,7 +1,7 @@
 """The program's input boundaries under generated input: what each must answer, and how to tell.
 
 Each ``check_*`` function gives one generated input to one boundary and raises
-:class:`BadAnswer` when the answer is not one the boundary may give: either a correct
+:class:`BadAnswerError` when the answer is not one the boundary may give: either a correct
 result, or one line (no newline) naming the file and what was wrong, raised as that
 boundary's own error type.  Anything else (another exception, i.e. a traceback for the
 user; a message of several lines or one that does not name the file; a result that is
@@ -38,7 +38,7 @@ from rig.config import ConfigError, default_config_path, parse_config
 SLOW_S = 5.0  # the issue's bound: every answer within 5 s
 
 
-class BadAnswer(AssertionError):
+class BadAnswerError(AssertionError):
     """A boundary answered in a way it must not; the message says how."""
 
 
@@ -46,18 +46,18 @@ def one_line_naming(error: BaseException, *names: str) -> None:
     """The error's text is one line and names one of ``names`` (the file)."""
     text = str(error)
     if "\n" in text or not text.strip():
-        raise BadAnswer(f"{type(error).__name__} of several lines (or none): {text!r}")
+        raise BadAnswerError(f"{type(error).__name__} of several lines (or none): {text!r}")
     if names and not any(name in text for name in names):
-        raise BadAnswer(f"{type(error).__name__} names none of {names}: {text!r}")
+        raise BadAnswerError(f"{type(error).__name__} names none of {names}: {text!r}")
 
 
 def timed(call: Callable[[], object]) -> float:
-    """Run ``call``; its duration, or BadAnswer when it took longer than SLOW_S."""
+    """Run ``call``; its duration, or BadAnswerError when it took longer than SLOW_S."""
     started = time.perf_counter()
     call()
     took = time.perf_counter() - started
     if took > SLOW_S:
-        raise BadAnswer(f"answered after {took:.1f} s (limit {SLOW_S:g} s)")
+        raise BadAnswerError(f"answered after {took:.1f} s (limit {SLOW_S:g} s)")
     return took
 
 
@@ -129,10 +129,10 @@ def check_frames(data: bytes, sent: dict[int, np.ndarray], cuts: list[int]) -> N
 
     at_once, in_pieces = samples(whole.runs), samples(runs)
     if at_once != in_pieces or whole.replies != replies:
-        raise BadAnswer("the frames found depend on how the bytes were cut into reads")
+        raise BadAnswerError("the frames found depend on how the bytes were cut into reads")
     for index, row in at_once:
         if index not in sent or tuple(sent[index]) != row:
-            raise BadAnswer(f"sample {index} decoded as {row}, which was never sent")
+            raise BadAnswerError(f"sample {index} decoded as {row}, which was never sent")
 
 
 # -- the exchange CSV and its sidecar ------------------------------------------------------
@@ -227,11 +227,11 @@ def check_exchange(csv_bytes: bytes, sidecar_bytes: bytes, folder: Path) -> None
     t, angle = answer.time_s, answer.angle_rad
     steps = np.diff(t)
     if not (t.size >= 2 and angle.size == t.size and np.all(np.isfinite(t)) and steps.min() > 0):
-        raise BadAnswer(f"accepted a record whose time is not usable: {t[:5]}")
+        raise BadAnswerError(f"accepted a record whose time is not usable: {t[:5]}")
     if not (np.all(np.isfinite(angle)) and np.abs(angle).max() <= math.pi):
-        raise BadAnswer(f"accepted angles no pendulum here reaches: max {np.abs(angle).max()}")
+        raise BadAnswerError(f"accepted angles no pendulum here reaches: max {np.abs(angle).max()}")
     if not 0 < answer.sample_rate_hz < math.inf:
-        raise BadAnswer(f"sample rate {answer.sample_rate_hz}")
+        raise BadAnswerError(f"sample rate {answer.sample_rate_hz}")
 
 
 # -- the rig file --------------------------------------------------------------------------
@@ -399,7 +399,7 @@ def check_damaged_recording(original: Path, damage: Damage, folder: Path) -> Non
         if key == "info":
             continue  # attributes are compared below, field by field
         if not same(value, answer[key]):
-            raise BadAnswer(f"damaged file read without error, but its {key!r} differs")
+            raise BadAnswerError(f"damaged file read without error, but its {key!r} differs")
     if answer["info"] != good["info"]:
-        raise BadAnswer("damaged file read without error, but its metadata differs")
+        raise BadAnswerError("damaged file read without error, but its metadata differs")
 

@@ -15,6 +15,7 @@ from pathlib import Path
 import pytest
 from hypothesis import HealthCheck, given, settings
 
+from analysis.recording_file import RecordingFormatError
 from tests.fuzz.boundaries import (
     DAMAGES,
     check_damaged_recording,
@@ -23,9 +24,11 @@ from tests.fuzz.boundaries import (
     check_rig_file,
     exchange_files,
     frame_streams,
+    read_everything,
     rig_files,
     write_small_recording,
 )
+
 
 def bounded(examples: int) -> settings:
     """Deterministic settings with a fixed number of examples."""
@@ -73,3 +76,21 @@ def small_recording(tmp_path_factory):
 def test_a_damaged_recording_reads_as_written_or_is_refused_in_one_line(small_recording, damage):
     with tempfile.TemporaryDirectory() as folder:
         check_damaged_recording(small_recording, damage, Path(folder))
+
+
+@pytest.mark.parametrize("size_byte", [9, 10])
+def test_a_live_recording_whose_superblock_sizes_are_damaged_is_refused_in_one_line(
+    small_recording, tmp_path, size_byte
+):
+    # found by benchmarks/fuzz.py: with the writer flags set, HDF5's SWMR open raised
+    # RuntimeError ("Can't decode file superblock prefix"), which escaped as a traceback
+    data = bytearray(small_recording.read_bytes())
+    data[11] = 0x05  # the writer's flags: opened for SWMR reading
+    data[size_byte] = 0  # the size of offsets (9) or of lengths (10)
+    damaged = tmp_path / "live.h5"
+    damaged.write_bytes(bytes(data))
+    with pytest.raises(RecordingFormatError) as refused:
+        read_everything(damaged)
+    assert "\n" not in str(refused.value) and str(damaged) in str(
+        refused.value
+    )
