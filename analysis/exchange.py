@@ -26,6 +26,9 @@ RIG_KEYS = ("m_kg", "l_m", "R_m", "g")
 OPTIONAL_RIG_KEYS = ("L_m",)  # the rig's equivalent length when the lab measured it
 # the sidecar's layout; 1 is also what a sidecar without the key is read as
 FORMAT_VERSION = 1
+# A pendulum that strikes a barrier never passes the top: an angle beyond pi rad is not an
+# angle in radians (degrees read as radians, most often)
+MAX_ANGLE_RAD = math.pi
 UNIFORM_TOLERANCE = 1e-3  # allowed deviation of a time step, as a fraction of the mean step
 
 
@@ -202,6 +205,7 @@ def read_exchange(csv_path: str | Path, meta_path: str | Path | None = None) -> 
                 f"{csv_path}: line {row}: {name} is {float(values[row - 2])}, not a finite number; "
                 "remove the row or mark the sample some other way (a gap is not allowed here)"
             )
+    _check_angle_range(csv_path, columns["angle_rad"])
     return ExchangeRecord(
         time_s=time_s,
         angle_rad=columns["angle_rad"],
@@ -211,7 +215,44 @@ def read_exchange(csv_path: str | Path, meta_path: str | Path | None = None) -> 
     )
 
 
+def _check_angle_range(path: Path, angle_rad: np.ndarray) -> None:
+    """An angle no pendulum on this rig can reach is refused, asking whether it is in degrees."""
+    largest = int(np.argmax(np.abs(angle_rad)))
+    value = float(angle_rad[largest])
+    if abs(value) <= MAX_ANGLE_RAD:
+        return
+    swing = float(np.max(angle_rad) - np.min(angle_rad))
+    hint = (
+        f"is the column in degrees? ({value:.6g} degrees would be "
+        f"{math.radians(value):.6g} rad; convert it with radians())"
+        if abs(value) <= 360
+        else "the column does not hold angles in radians"
+    )
+    raise ExchangeFormatError(
+        f"{path}: line {largest + 2}: angle_rad is {value:.6g} (a swing of {swing:.6g}); a "
+        f"pendulum that strikes a barrier never passes {MAX_ANGLE_RAD:.4f} rad: {hint}"
+    )
+
+
+def _check_utf8(path: Path) -> None:
+    """The exchange CSV is UTF-8: name the first line that is not, and the byte."""
+    with path.open("rb") as handle:
+        for number, line in enumerate(handle, start=1):
+            try:
+                line.decode("utf-8")
+            except UnicodeDecodeError as error:
+                raise ExchangeFormatError(
+                    f"{path}: line {number}: byte 0x{line[error.start]:02X} is not UTF-8 text; "
+                    "the exchange CSV is UTF-8 (saved as Latin-1 or Windows-1252? save it "
+                    "again as UTF-8)"
+                ) from None
+
+
 def _read_columns(path: Path) -> dict[str, np.ndarray]:
+    try:
+        _check_utf8(path)
+    except FileNotFoundError:
+        raise ExchangeFormatError(f"{path}: file not found") from None
     try:
         with path.open(newline="", encoding="utf-8") as handle:
             header = next(csv.reader(handle), None)

@@ -89,7 +89,19 @@ STATUS_DTYPE = np.dtype(
         ("stop_reason", f"S{STOP_REASON_BYTES}"),
     ]
 )
+OUTAGE_CHANNEL_BYTES = 64
+OUTAGE_DTYPE = np.dtype(
+    [
+        ("channel", f"S{OUTAGE_CHANNEL_BYTES}"),
+        ("start_index", "<i8"),
+        ("length", "<i8"),
+        ("outage_s", "<f8"),
+        ("host_time_s", "<f8"),
+    ]
+)
 ROOT_TABLES = {"drive": DRIVE_DTYPE, "sweep_steps": STEP_DTYPE, "status": STATUS_DTYPE}
+# added within format version 3: a file written before it has none (read as empty)
+OPTIONAL_ROOT_TABLES = {"outages": OUTAGE_DTYPE}
 REPAIR_HINT = "'impact-rig repair {path}' recovers what can still be read"
 # A SWMR reader's retries of a metadata block sleep 1 ns, 2 ns, 4 ns, ...: 30 attempts wait
 # about a second in all (a live writer's flush takes milliseconds), 36 over a minute.
@@ -281,7 +293,7 @@ def open_hdf5(path: str | Path) -> h5py.File:
         if live:
             return h5py.File(_open_swmr_reader(path))
         return h5py.File(path, "r")
-    except OSError as error:
+    except (OSError, RuntimeError) as error:  # RuntimeError: a superblock HDF5 cannot decode
         raise RecordingDamagedError(
             f"{path}: HDF5 cannot open it ({_first_line(error)}); " + REPAIR_HINT.format(path=path)
         ) from None
@@ -444,6 +456,7 @@ class RecordingWriter:
             _table(group, "gaps", GAP_DTYPE)
         _table(f, "drive", DRIVE_DTYPE)
         _table(f, "sweep_steps", STEP_DTYPE)
+        _table(f, "outages", OUTAGE_DTYPE)
         f.create_dataset("status", (1,), dtype=STATUS_DTYPE, chunks=(1,), fletcher32=True)
         f.swmr_mode = True
 
@@ -475,6 +488,10 @@ class RecordingWriter:
     def append_steps(self, rows: list[tuple]) -> None:
         """Append sweep step marks (STEP_DTYPE rows)."""
         append_rows(self._file["sweep_steps"], rows, STEP_DTYPE)
+
+    def append_outages(self, rows: list[tuple]) -> None:
+        """Append device outages (OUTAGE_DTYPE rows: channel name as bytes first)."""
+        append_rows(self._file["outages"], rows, OUTAGE_DTYPE)
 
     def write_status(self, status: RecordingStatus) -> None:
         """Rewrite the status row."""
@@ -578,8 +595,7 @@ class Recording:
         for top in ("channels", "pulses"):
             if not isinstance(self._node(top), h5py.Group):
                 raise self._fail(f"/{top} is not a group")
-        for name, dtype in ROOT_TABLES.items():
-            self._check_dataset(self._node(name), dtype)
+        self._check_root_tables()
         for name in self.channel_names:
             group = self._node(f"channels/{name}")
             self._check_channel_attrs(group)
@@ -617,6 +633,13 @@ class Recording:
             extra=self._json(attrs, "extra_json", {}),
             provenance=self._json(attrs, "provenance_json", {}),
         )
+
+    def _check_root_tables(self) -> None:
+        for name, dtype in ROOT_TABLES.items():
+            self._check_dataset(self._node(name), dtype)
+        for name, dtype in OPTIONAL_ROOT_TABLES.items():
+            if name in self._file:
+                self._check_dataset(self._node(name), dtype)
 
     def _node(self, name: str) -> Any:
         """The object at ``name``: missing is a format error, present but unreadable (h5py
@@ -694,6 +717,9 @@ class Recording:
                 yield from (d for d in group.values() if isinstance(d, h5py.Dataset))
         for name in ROOT_TABLES:
             yield self._file[name]
+        for name in OPTIONAL_ROOT_TABLES:
+            if name in self._file:
+                yield self._file[name]
 
     def _group(self, top: str, name: str) -> h5py.Group:
         try:
@@ -854,6 +880,14 @@ class Recording:
     def sweep_steps(self) -> np.ndarray:
         """Sweep step marks (structured: step, direction, frequency_hz, amplitude_m, ...)."""
         return self.read(self._file["sweep_steps"])
+
+    def outages(self) -> np.ndarray:
+        """Times a device went away and came back (structured: channel, start_index, length,
+        outage_s, host_time_s); each is also in its channel's gaps.  Empty for files
+        written before outages were recorded."""
+        if "outages" not in self._file:
+            return np.zeros(0, OUTAGE_DTYPE)
+        return self.read(self._file["outages"])
 
     def status(self) -> RecordingStatus:
         """The writer's running totals as of its last flush."""
@@ -1064,6 +1098,7 @@ def _salvage(
                                   rows, gaps)
         writer.append_drive([tuple(r) for r in tables["drive"]])
         writer.append_steps([tuple(r) for r in tables["sweep_steps"]])
+        writer.append_outages([tuple(r) for r in tables["outages"]])
         writer.write_status(
             RecordingStatus(
                 end_host_time_s=0.0,
@@ -1127,9 +1162,14 @@ def _salvaged_channels(damaged: h5py.File, findings: list[str]) -> tuple[
 
 
 def _salvaged_tables(damaged: h5py.File, findings: list[str]) -> dict[str, np.ndarray]:
-    """The readable rows of the drive and sweep-step tables (empty where a table is lost)."""
+    """The readable rows of the drive, sweep-step and outage tables (empty where a table is
+    lost, or absent from an older file)."""
     tables = {}
-    for name, dtype in (("drive", DRIVE_DTYPE), ("sweep_steps", STEP_DTYPE)):
+    for name, dtype in (("drive", DRIVE_DTYPE), ("sweep_steps", STEP_DTYPE),
+                        ("outages", OUTAGE_DTYPE)):
+        if name in OPTIONAL_ROOT_TABLES and name not in damaged:
+            tables[name] = np.zeros(0, dtype)
+            continue
         try:
             rows, good = _readable(damaged[name], TABLE_CHUNK_ROWS)
             tables[name] = rows[good]

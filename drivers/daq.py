@@ -15,7 +15,7 @@ import math
 import threading
 import time
 from collections import deque
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Protocol, runtime_checkable
 
 import numpy as np
@@ -33,6 +33,9 @@ class RawChunk:
     first_index: int
     analog: np.ndarray  # (samples, configured channels) int16 counts
     digital: np.ndarray  # (samples,) uint16 digital lines, bit 0 = tachometer
+    # the board was away (disconnected, then reconnected) this long just before these
+    # samples; the samples lost before them are then estimated from it (DaqBoard)
+    outage_s: float = 0.0
 
     @property
     def n_samples(self) -> int:
@@ -137,6 +140,8 @@ class RoleQueue:
                 self.queued_samples -= dropped.n_samples
                 self.samples_lost += dropped.n_samples
                 head, head_lost = self.chunks.popleft()
+                if dropped.outage_s and not head.outage_s:  # the outage stays marked
+                    head = replace(head, outage_s=dropped.outage_s)
                 self.chunks.appendleft((head, head_lost + lost + dropped.n_samples))
             self.condition.notify_all()
 
@@ -162,6 +167,7 @@ class RoleQueue:
                 parts[0].first_index,
                 np.concatenate([p.analog for p in parts]),
                 np.concatenate([p.digital for p in parts]),
+                parts[0].outage_s,
             )
         self.samples_received += chunk.n_samples
         return chunk, lost
@@ -176,6 +182,16 @@ class DaqBoard:
     lost; ``'wait'`` holds the reader back instead, so the device side drops (and
     the index gap says how many) or, for a simulation run as fast as possible,
     simply waits: nothing is lost.
+
+    When the board goes away while streaming (a USB cable knocked, a board reset: the
+    port fails), ``reconnect_for_s > 0`` keeps the stream alive: the board is
+    ``reconnecting`` (status says so, role reads return nothing) while the port is
+    reopened every ``reconnect_interval_s``; once the same board answers (same identity,
+    same rate) it is configured and started again, and its new stream (which counts
+    from 0) continues the running index after a gap as long as the outage (outage time
+    x sample rate, an estimate: the board restarted its count).  The first chunk after
+    it carries ``outage_s``.  A different board there, or no board within
+    ``reconnect_for_s``, fails the stream as an unplugged board without reconnection does.
     """
 
     def __init__(
@@ -188,7 +204,13 @@ class DaqBoard:
         stall_timeout_s: float = 1.0,
         role_buffer_s: float = 10.0,
         when_role_full: str = "drop",
+        reconnect_for_s: float = 0.0,
+        reconnect_interval_s: float = 0.5,
     ) -> None:
+        if not (math.isfinite(reconnect_for_s) and reconnect_for_s >= 0):
+            raise LimitError(f"reconnect_for_s={reconnect_for_s} must be 0 (never) or more")
+        if not (math.isfinite(reconnect_interval_s) and reconnect_interval_s > 0):
+            raise LimitError(f"reconnect_interval_s={reconnect_interval_s} must be positive")
         if not (math.isfinite(sample_rate_hz) and sample_rate_hz > 0):
             raise LimitError(f"sample_rate_hz={sample_rate_hz} must be a positive number")
         channels = tuple(int(c) for c in analog_channels)
@@ -207,6 +229,10 @@ class DaqBoard:
         self.stall_timeout_s = stall_timeout_s
         self.role_buffer_s = role_buffer_s
         self.when_role_full = when_role_full
+        self.reconnect_for_s = float(reconnect_for_s)
+        self.reconnect_interval_s = float(reconnect_interval_s)
+        self.reconnecting = False  # the board went away; the reader is trying to reach it again
+        self.reconnections = 0
         self.identity: BoardIdentity | None = None
         self.configuration: BoardConfiguration | None = None
         self.failure = ""  # set when the device went away; role reads then raise
@@ -222,6 +248,8 @@ class DaqBoard:
         self._samples_lost = 0
         self._last_data = 0.0
         self._message = ""
+        self._index_offset = 0  # running index of the current connection's sample 0
+        self._outage_s = 0.0  # the outage to mark on the next chunk
 
     # --- set-up ---------------------------------------------------------------------------
     def open(self) -> BoardIdentity:
@@ -335,6 +363,9 @@ class DaqBoard:
         self.failure = ""
         self._message = ""
         self._expected_index = 0
+        self._index_offset = 0
+        self._outage_s = 0.0
+        self.reconnecting = False
         self.backend.start()
         self._streaming = True
         self._last_data = time.monotonic()
@@ -345,7 +376,7 @@ class DaqBoard:
     def _stop_locked(self) -> None:
         self._streaming = False
         try:
-            if not self.failure:
+            if not self.failure and not self.reconnecting:  # the reader owns a reconnecting port
                 self.backend.stop()
         finally:
             self._stop_reading.set()
@@ -375,7 +406,8 @@ class DaqBoard:
             try:
                 chunk = self.backend.read_chunk(0.05)
             except DeviceError as error:
-                self._fail(str(error))
+                if self._reconnect(str(error)):
+                    continue
                 return
             now = time.monotonic()
             if chunk is None:
@@ -387,20 +419,99 @@ class DaqBoard:
                     )
                 continue
             self._last_data = now
+            if self._index_offset or self._outage_s:
+                chunk = RawChunk(
+                    chunk.first_index + self._index_offset,
+                    chunk.analog,
+                    chunk.digital,
+                    self._outage_s,
+                )
+                self._outage_s = 0.0
             if self._message.startswith("no data"):
                 self._message = ""
-            lost = chunk.first_index - self._expected_index
-            if lost < 0:  # backends never go backwards; guard so we can never double-count
+            self._deliver(chunk)
+
+    def _deliver(self, chunk: RawChunk) -> None:
+        lost = chunk.first_index - self._expected_index
+        if lost < 0:  # backends never go backwards; guard so we can never double-count
+            return
+        if lost:
+            self._message = f"lost {lost} samples before index {chunk.first_index}"
+            if chunk.outage_s:
+                self._message += f" (the board was away for {chunk.outage_s:.1f} s)"
+        self._samples_lost += lost
+        self._samples_received += chunk.n_samples
+        self._expected_index = chunk.end_index
+        chunk.analog.setflags(write=False)  # shared by every role: nobody may edit it
+        chunk.digital.setflags(write=False)
+        for subscription in self._subscriptions:
+            subscription.push(chunk, lost)
+
+    def _reconnect(self, reason: str) -> bool:
+        """The board went away: reach it again (True), or fail the stream (False).
+
+        Runs in the reader thread, which alone touches the backend meanwhile (``stop``
+        does not, while ``reconnecting``).
+        """
+        if self.reconnect_for_s <= 0 or self.identity is None or self.configuration is None:
+            self._fail(reason)
+            return False
+        self.reconnecting = True
+        self._message = f"{reason}; reconnecting"
+        deadline = time.monotonic() + self.reconnect_for_s
+        while not self._stop_reading.is_set():
+            self.backend.close()
+            try:
+                started = self._restart_stream()
+            except _DifferentBoardError as error:
+                self._fail(str(error))
+                return False
+            except DeviceError as error:
+                if time.monotonic() >= deadline:
+                    self._fail(
+                        f"{reason}; no board answered within {self.reconnect_for_s:g} s "
+                        f"(last try: {error})"
+                    )
+                    return False
+                self._message = f"{reason}; reconnecting (last try: {error})"
+                self._stop_reading.wait(self.reconnect_interval_s)
                 continue
-            if lost:
-                self._message = f"lost {lost} samples before index {chunk.first_index}"
-            self._samples_lost += lost
-            self._samples_received += chunk.n_samples
-            self._expected_index = chunk.end_index
-            chunk.analog.setflags(write=False)  # shared by every role: nobody may edit it
-            chunk.digital.setflags(write=False)
-            for subscription in self._subscriptions:
-                subscription.push(chunk, lost)
+            if self._stop_reading.is_set():  # stopped while we reconnected: leave it stopped
+                with contextlib.suppress(DeviceError):
+                    self.backend.stop()
+                return False
+            outage_s = max(0.0, started - self._last_data)
+            self._index_offset = self._expected_index + round(outage_s * self.sample_rate_hz)
+            self._outage_s = outage_s
+            self._last_data = time.monotonic()
+            self.reconnections += 1
+            self.reconnecting = False
+            self._message = (
+                f"the DAQ board on {self.backend.description} is back after {outage_s:.1f} s"
+            )
+            return True
+        return False
+
+    def _restart_stream(self) -> float:
+        """Connect, check it is the same board at the same rate, START; the host time of START."""
+        identity = self.backend.connect()
+        if identity != self.identity:
+            self.backend.close()
+            raise _DifferentBoardError(
+                f"a different board answered on {self.backend.description} after it went away "
+                f"({identity.model} serial {identity.serial}, was {self.identity.model} serial "
+                f"{self.identity.serial}): the stream stops rather than mix two boards"
+            )
+        configuration = self.backend.configure(self.requested_rate_hz, self.analog_channels)
+        if configuration != self.configuration:
+            self.backend.close()
+            raise _DifferentBoardError(
+                f"the DAQ board on {self.backend.description} came back configured as "
+                f"{configuration}, not {self.configuration}: the stream stops"
+            )
+        started = time.monotonic()
+        self.backend.start()
+        return started
 
     def _fail(self, message: str) -> None:
         self.failure = message
@@ -417,4 +528,9 @@ class DaqBoard:
             samples_lost=self._samples_lost,
             frames_rejected=self.backend.frames_rejected,
             message=self._message,
+            reconnecting=self.reconnecting and not self.failure,
         )
+
+
+class _DifferentBoardError(DeviceError):
+    """Something other than the board that went away answered in its place."""

@@ -47,6 +47,8 @@ class SampleBlock:
     values: np.ndarray  # calibrated, SI units of the channel
     lost_before: int = 0
     flags: np.ndarray | None = None  # per-sample status bits (e.g. laser out of range)
+    outage_s: float = 0.0  # the device was away this long before the block (lost_before
+    # is then estimated from it: a reconnected device restarts its own count)
 
     def __len__(self) -> int:
         return int(self.values.size)
@@ -72,6 +74,7 @@ class PulseBlock:
     edge_indices: np.ndarray  # running sample index of each rising edge
     edge_times_s: np.ndarray  # device time of each edge
     lost_before: int = 0
+    outage_s: float = 0.0  # as SampleBlock.outage_s
 
 
 @dataclass(frozen=True)
@@ -83,6 +86,7 @@ class StreamStatus:
     samples_lost: int
     frames_rejected: int = 0  # frames discarded for a bad CRC, framing or sequence
     message: str = ""  # plain words: last fault, or '' when healthy
+    reconnecting: bool = False  # the device went away; the driver is trying to reach it again
 
 
 @runtime_checkable

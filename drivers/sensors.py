@@ -166,6 +166,7 @@ class _BoardRole:
             samples_lost=0 if mine is None else mine.samples_lost,
             frames_rejected=board.frames_rejected,
             message=board.message,
+            reconnecting=board.reconnecting,
         )
 
 
@@ -192,6 +193,7 @@ class _AnalogRole(_BoardRole):
             values=values,
             lost_before=lost,
             flags=flags,
+            outage_s=chunk.outage_s,
         )
 
     def _convert(self, counts: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
@@ -300,4 +302,5 @@ class Tachometer(_BoardRole):
             edge_indices=edges,
             edge_times_s=edges / self.board.sample_rate_hz,
             lost_before=lost,
+            outage_s=chunk.outage_s,
         )

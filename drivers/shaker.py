@@ -6,7 +6,9 @@ moves raw registers of docs/amplifier_registers.md and raises DeviceError on
 failure.  Safety lives here: a value outside the configured limits raises
 LimitError before any byte is sent; a background thread writes the heartbeat;
 any communication error, ``close``, leaving a ``with`` block or interpreter exit
-ramps the drive to zero.
+ramps the drive to zero.  With ``reconnect=True`` a lost link is reached again in the
+heartbeat's thread; the drive is commanded off before the link is trusted again (what it
+did meanwhile is unknown: the amplifier's watchdog stopped it), and stays off until asked.
 """
 
 from __future__ import annotations
@@ -181,6 +183,7 @@ class ShakerAmplifier(ShakerDevice):
         heartbeat_period_s: float | None = None,
         expected_model_code: int = MODEL_CODE,
         name: str = "shaker amplifier",
+        reconnect: bool = False,
     ) -> None:
         if not WATCHDOG_MIN_MS <= watchdog_s * 1000 <= WATCHDOG_MAX_MS:
             raise ValueError(
@@ -198,6 +201,8 @@ class ShakerAmplifier(ShakerDevice):
             )
         self.expected_model_code = expected_model_code
         self.name = name
+        self.reconnect = reconnect
+        self.reconnections = 0  # times a lost link was reached again
         self._io_lock = threading.RLock()
         self._connected = False
         self._link_failure: DeviceError | None = None
@@ -226,18 +231,7 @@ class ShakerAmplifier(ShakerDevice):
             return self
         self.backend.open()
         try:
-            regs = self.backend.read_input_registers(int(Input.MODEL_CODE), 3)
-            model, firmware, map_version = regs
-            if model != self.expected_model_code or map_version != MAP_VERSION:
-                raise WrongDeviceError(
-                    f"{self.backend.description} answered model code 0x{model:04X}, register "
-                    f"map {map_version}; expected the shaker amplifier 0x"
-                    f"{self.expected_model_code:04X}, map {MAP_VERSION} "
-                    "(check the address, port and device id)"
-                )
-            version = f"{firmware >> 8}.{firmware & 0xFF}"
-            self.identity = AmplifierIdentity(model, version, map_version)
-            self.backend.write_registers(int(Holding.WATCHDOG_MS), [round(self.watchdog_s * 1000)])
+            self._identify_and_arm()
         except DeviceError:
             self.backend.close()
             raise
@@ -250,6 +244,26 @@ class ShakerAmplifier(ShakerDevice):
         self._heartbeat_thread.start()
         atexit.register(self.close)
         return self
+
+    def _identify_and_arm(self) -> None:
+        """Check the identity and set the watchdog (on a freshly opened backend)."""
+        regs = self.backend.read_input_registers(int(Input.MODEL_CODE), 3)
+        model, firmware, map_version = regs
+        if model != self.expected_model_code or map_version != MAP_VERSION:
+            raise WrongDeviceError(
+                f"{self.backend.description} answered model code 0x{model:04X}, register "
+                f"map {map_version}; expected the shaker amplifier 0x"
+                f"{self.expected_model_code:04X}, map {MAP_VERSION} "
+                "(check the address, port and device id)"
+            )
+        version = f"{firmware >> 8}.{firmware & 0xFF}"
+        self.identity = AmplifierIdentity(model, version, map_version)
+        self.backend.write_registers(int(Holding.WATCHDOG_MS), [round(self.watchdog_s * 1000)])
+
+    @property
+    def reconnecting(self) -> bool:
+        """The link failed and the driver is trying to reach the amplifier again."""
+        return self._connected and self.reconnect and self._link_failure is not None
 
     def close(self) -> None:
         """Ramp the drive to zero (best effort), stop the heartbeat, release the connection."""
@@ -351,8 +365,9 @@ class ShakerAmplifier(ShakerDevice):
         """A refusal leaves the link trusted; any other failure stops the heartbeat (the
         amplifier's watchdog backs us up).  Either way the drive is commanded to zero."""
         if not (isinstance(error, CommandRefusedError) and error.code in REFUSALS):
-            self._link_failure = error
-            self._heartbeat_stop.set()  # the amplifier's watchdog backs us up
+            self._link_failure = error  # the heartbeat stops: the amplifier's watchdog backs us up
+            if not self.reconnect:
+                self._heartbeat_stop.set()
         self._make_safe()
         error.add_note(
             f"{self.name}: '{what}' failed; the drive was commanded to zero (if the link "
@@ -373,6 +388,11 @@ class ShakerAmplifier(ShakerDevice):
     def _heartbeat(self) -> None:
         counter = 0
         while not self._heartbeat_stop.wait(self.heartbeat_period_s):
+            if self._link_failure is not None:  # no heartbeat: the watchdog stops the drive
+                if not self.reconnect:
+                    return
+                self._relink()
+                continue
             counter = (counter + 1) & 0xFFFF
             try:
                 with self._io_lock:
@@ -380,4 +400,20 @@ class ShakerAmplifier(ShakerDevice):
             except DeviceError as error:
                 self._link_failure = error
                 self._make_safe()
-                return
+                if not self.reconnect:
+                    return
+
+    def _relink(self) -> None:
+        """One try at reaching the amplifier again: reopen, identify, arm the watchdog and
+        command the drive off; only then is the link trusted again."""
+        with self._io_lock:
+            try:
+                self.backend.close()
+                self.backend.open()
+                self._identify_and_arm()
+                for register in (Holding.AMPLITUDE_UM, Holding.ENABLE):
+                    self.backend.write_registers(int(register), [0])
+            except DeviceError:
+                return  # still away (or something else answers): try again next beat
+            self._link_failure = None
+            self.reconnections += 1

@@ -76,13 +76,19 @@ class ShakerDevice:
         """True between connect() and close(), while the link works."""
         return self._connected and self._link_failure is None
 
+    @property
+    def reconnecting(self) -> bool:
+        """The link failed and the drive is trying to reach the device again (if it can)."""
+        return False
+
     def status(self) -> ActuatorStatus:
         """Connection, enable, measured output and faults; never raises."""
         if not self._connected:
             return ActuatorStatus(connected=False, enabled=False)
         if self._link_failure is not None:
+            again = "; reconnecting" if self.reconnecting else ""
             return ActuatorStatus(
-                False, False, faults=(f"communication lost: {self._link_failure}",)
+                False, False, faults=(f"communication lost: {self._link_failure}{again}",)
             )
         try:
             m = self.measured()

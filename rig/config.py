@@ -56,6 +56,9 @@ class RigConstants:
         }
 
 
+DEFAULT_RECONNECT_FOR_S = 600.0
+
+
 @dataclass(frozen=True)
 class DaqConfig:
     """The DAQ board: where it is, how fast it samples and which input carries what."""
@@ -66,6 +69,9 @@ class DaqConfig:
     angle_input: int
     table_input: int
     tach_bit: int
+    # how long a board that went away (cable knocked, board reset) is waited for while
+    # streaming; 0: the run stops at once, as it did before reconnection existed
+    reconnect_for_s: float = DEFAULT_RECONNECT_FOR_S
 
 
 @dataclass(frozen=True)
@@ -396,6 +402,9 @@ def parse_config(text: str, source: str = "<rig file>") -> RigConfig:
         angle_input=daq_section.integer("angle_input", low=0, high=3),
         table_input=daq_section.integer("table_input", low=0, high=3),
         tach_bit=daq_section.integer("tach_bit", low=0, high=15),
+        reconnect_for_s=daq_section.number("reconnect_for_s", low=0, high=86_400)
+        if "reconnect_for_s" in daq_section.table
+        else DEFAULT_RECONNECT_FOR_S,
     )
     if daq.angle_input == daq.table_input:
         raise ConfigError(

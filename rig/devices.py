@@ -168,6 +168,7 @@ def open_rig(
             SerialDaqBackend(daq_port, baudrate=config.daq.baudrate),
             sample_rate_hz=fs,
             analog_channels=(config.daq.angle_input, config.daq.table_input),
+            reconnect_for_s=config.daq.reconnect_for_s,
         )
         board.open()
         angle = PotentiometerAngleSensor(board, config.daq.angle_input, config.angle_calibration)
@@ -212,7 +213,9 @@ def open_shaker(config: RigConfig, sim: Any = None) -> Shaker:
             backend = ModbusRtuBackend(s.serial_port, device_id=s.unit_id)
         else:
             backend = ModbusTcpBackend(s.host, s.port, device_id=s.unit_id)
-        shaker = ShakerAmplifier(backend, config.limits, watchdog_s=config.watchdog_s)
+        shaker = ShakerAmplifier(
+            backend, config.limits, watchdog_s=config.watchdog_s, reconnect=True
+        )
     shaker.connect()
     return shaker
 

@@ -6,11 +6,15 @@ The recorder subscribes as *privileged*: it is never dropped from; if it falls t
 behind, the engine fails loudly (``SubscriberOverrunError``) instead of losing samples.
 Gaps (samples the device sent but the host lost, whether the driver reported them or
 the index jumped) are counted and published as ``Gap`` events before the next block.
+A stream whose device went away and is being reached again says so in its status; the
+engine shows it (``EngineStats.reconnecting``), logs it, and the first block after the
+outage comes with a ``Gap`` that carries the outage's length.
 """
 
 from __future__ import annotations
 
 import contextlib
+import logging
 import threading
 import time
 from collections import deque
@@ -26,6 +30,8 @@ Delivery = tuple[float, Event]  # (host time since the engine started, event)
 DEFAULT_VIEW_ITEMS = 2000
 DEFAULT_PRIVILEGED_BACKLOG_SAMPLES = 20_000_000  # about 25 s of 4 channels at 200 kHz
 RATE_WINDOW_S = 2.0
+
+log = logging.getLogger("impact_rig.acquisition")
 
 
 class AcquisitionError(RuntimeError):
@@ -139,6 +145,9 @@ class ChannelStats:
     edges: int = 0
     last_edge_times_s: tuple[float, ...] = ()
     pulse: bool = False  # a pulse (tach) stream: its lost indices are not samples
+    reconnecting: bool = False  # its device went away; the driver is reaching it again
+    outages: int = 0  # times its device went away and came back
+    message: str = ""  # the stream's own last word on its health
 
     @property
     def tach_frequency_hz(self) -> float | None:
@@ -171,6 +180,11 @@ class EngineStats:
     latest_index: int | None
     aligned_end_index: int | None
     error: str = ""
+
+    @property
+    def reconnecting(self) -> tuple[str, ...]:
+        """Channels whose device went away and is being reached again (empty when none)."""
+        return tuple(name for name, c in self.channels.items() if c.reconnecting)
 
     @property
     def samples_lost(self) -> int:
@@ -338,15 +352,20 @@ class AcquisitionEngine:
                 self.fail(AcquisitionError(f"{stream.channel}: read failed ({error})"))
                 return
             if block is None:
+                self._watch_connection(stream, stats)
                 continue
             now = self.host_time_s()
             gap = None
             start = block.first_index
             if expected is None:
                 if block.lost_before > 0:
-                    gap = Gap(block.channel, start - block.lost_before, block.lost_before)
+                    gap = Gap(
+                        block.channel, start - block.lost_before, block.lost_before, block.outage_s
+                    )
             elif start > expected:
-                gap = Gap(block.channel, expected, start - expected)
+                gap = Gap(block.channel, expected, start - expected, block.outage_s)
+            if stats.reconnecting or block.outage_s:
+                self._back(stream, stats, block.outage_s, gap)
             with self._lock:
                 if expected is not None and start < expected:
                     stats.index_regressions += 1
@@ -370,6 +389,28 @@ class AcquisitionEngine:
             if gap is not None:
                 self._publish(now, gap)
             self._publish(now, block)
+
+    def _watch_connection(self, stream: InputStream, stats: ChannelStats) -> None:
+        """A stream that gives nothing: is its device away?  Say so once when it is."""
+        status = stream.status()
+        if status.reconnecting and not stats.reconnecting:
+            with self._lock:
+                stats.reconnecting = True
+                stats.message = status.message
+            log.warning("%s: %s", stream.channel, status.message)
+
+    def _back(
+        self, stream: InputStream, stats: ChannelStats, outage_s: float, gap: Gap | None
+    ) -> None:
+        """Data flow again after an outage: say how long it was and what it cost."""
+        lost = 0 if gap is None else gap.length
+        with self._lock:
+            stats.reconnecting = False
+            stats.outages += 1
+            stats.message = (
+                f"reconnected after {outage_s:.1f} s away; gap of {lost} samples recorded"
+            )
+        log.warning("%s: %s", stream.channel, stats.message)
 
     def _publish(self, host_time_s: float, event: Event) -> None:
         with self._lock:

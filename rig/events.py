@@ -17,11 +17,16 @@ MEASURED = 1  # a setting read back from the amplifier
 
 @dataclass(frozen=True)
 class Gap:
-    """Samples ``[start_index, start_index + length)`` of ``channel`` were sent but lost."""
+    """Samples ``[start_index, start_index + length)`` of ``channel`` were sent but lost.
+
+    ``outage_s > 0``: the device was away (disconnected, then reconnected) this long, and
+    ``length`` is estimated from it (the device restarted its own count).
+    """
 
     channel: str
     start_index: int
     length: int
+    outage_s: float = 0.0
 
 
 @dataclass(frozen=True)

@@ -27,6 +27,7 @@ from analysis.output_paths import HDF5_SUFFIXES, OutputPathError, check_suffix
 from analysis.recording_file import (
     FORMAT_NAME,
     FORMAT_VERSION,
+    OUTAGE_CHANNEL_BYTES,
     ChannelSpec,
     RecordingMetadata,
     RecordingStatus,
@@ -165,6 +166,7 @@ class Recorder:
         self._pulses_before_samples: list[tuple[PulseBlock, float]] = []
         self._drive: list[tuple] = []
         self._steps: list[tuple] = []
+        self._outages: list[tuple] = []
         self._last_host_time_s = 0.0
         self._flushes = 0
         self._last_flush = time.monotonic()
@@ -275,6 +277,11 @@ class Recorder:
             buffer = self._channel(event.channel, None)
             buffer.gaps.append((event.start_index, event.length))
             buffer.lost += event.length
+            if event.outage_s > 0:
+                name = event.channel.encode("utf-8")[:OUTAGE_CHANNEL_BYTES]
+                self._outages.append(
+                    (name, event.start_index, event.length, event.outage_s, host_time_s)
+                )
         elif isinstance(event, DriveSetting | StepMark):
             self._add_annotation(event)
         elif not isinstance(event, StepBegun):  # the step's StepMark, at its end, says it all
@@ -366,7 +373,7 @@ class Recorder:
         for buffer in self._buffers.values():
             total += sum(a.nbytes for a in buffer.raw) + sum(a.nbytes for a in buffer.values)
             total += sum(a.nbytes for a in buffer.edges) * 2 + 64 * len(buffer.blocks)
-        return total + 64 * (len(self._drive) + len(self._steps))
+        return total + 64 * (len(self._drive) + len(self._steps)) + 96 * len(self._outages)
 
     def _check_room(self) -> None:
         """Stop cleanly while there is still room, rather than let HDF5 fail mid-write."""
@@ -389,8 +396,10 @@ class Recorder:
                 self._write_channel(buffer)
             self._file.append_drive(self._drive)
             self._file.append_steps(self._steps)
+            self._file.append_outages(self._outages)
             self._drive.clear()
             self._steps.clear()
+            self._outages.clear()
             self._flushes += 1
             self._write_status(closed=False, reason="recording")
             self._file.flush()
@@ -464,6 +473,7 @@ class Recorder:
         try:
             self._file.append_drive(self._drive)
             self._file.append_steps(self._steps)
+            self._file.append_outages(self._outages)
             self._write_status(closed=True, reason=str(self._failed))
             self._file.flush()
             self._file.close()

@@ -61,6 +61,12 @@ class StatusPanel(QGroupBox):
             "all data drawn" if view_lost == 0 else f"skipped {view_lost:,} samples (display only)"
         )
         messages = sorted({s.message for _, s in streams if s.message})
+        if stats.reconnecting:  # the board went away: say it first, and that the run goes on
+            messages.insert(
+                0,
+                "reconnecting to the DAQ board (" + ", ".join(stats.reconnecting) + "): the "
+                "run goes on, the outage will be a gap in the data",
+            )
         if stats.error:
             messages.insert(0, f"acquisition stopped: {stats.error}")
         self.fields["daq"].setText("; ".join(messages) if messages else "streaming, healthy")
@@ -73,7 +79,8 @@ class StatusPanel(QGroupBox):
                 self.fields[key].setText("-")
             return
         if not status.connected:
-            state = "not connected"
+            again = any("reconnecting" in fault for fault in status.faults)
+            state = "reconnecting (drive off until asked again)" if again else "not connected"
         else:
             state = "connected, drive on" if status.enabled else "connected, drive off"
         self.fields["shaker"].setText(state)

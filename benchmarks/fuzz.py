@@ -1,0 +1,156 @@
+"""Generated input at the program's boundaries for as long as asked: bad answers found.
+
+The same checks and strategies as the suite's ``tests/fuzz`` (``tests.fuzz.boundaries``):
+the DAQ frame decoder, the exchange CSV and sidecar, the rig file and damaged recordings.
+Each answer must be a correct result or one line naming what was wrong, within 5 s.
+Hypothesis runs in rounds of ``--round`` examples with fresh random seeds until the
+time is up; a failure is shrunk, counted by its kind (exception type and first words),
+and the run goes on.
+
+Printed per boundary: inputs tried, distinct failures (with one example each), the
+slowest answer; the figures also as one JSON line at the end (``--json FILE`` writes it).
+
+    python benchmarks/fuzz.py --minutes 10                      (every boundary, 10 min each)
+    python benchmarks/fuzz.py --minutes 1 --boundary exchange
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import tempfile
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from hypothesis import HealthCheck, given, settings
+from hypothesis.errors import HypothesisException
+
+from tests.fuzz import boundaries as b
+
+
+class Boundary:
+    """One boundary: how to run one generated input, and what was seen."""
+
+    def __init__(self, name: str, strategy, check: Callable[..., None]) -> None:
+        self.name = name
+        self.strategy = strategy
+        self.check = check
+        self.tried = 0
+        self.slowest_s = 0.0
+        self.failures: dict[str, str] = {}  # kind -> one shrunk example's message
+
+    def run_one(self, value) -> None:
+        self.tried += 1
+        started = time.perf_counter()
+        try:
+            self.check(value)
+        finally:
+            self.slowest_s = max(self.slowest_s, time.perf_counter() - started)
+
+    def figures(self) -> dict[str, object]:
+        return {
+            "boundary": self.name,
+            "inputs_tried": self.tried,
+            "distinct_failures": len(self.failures),
+            "slowest_answer_s": round(self.slowest_s, 4),
+            "failures": self.failures,
+        }
+
+
+def boundaries(folder: Path) -> dict[str, Boundary]:
+    recording = folder / "small.h5"
+    b.write_small_recording(recording)
+
+    def in_scratch(check: Callable[..., None]) -> Callable[..., None]:
+        def run(value) -> None:
+            with tempfile.TemporaryDirectory(dir=folder) as scratch:
+                check(value, Path(scratch))
+
+        return run
+
+    return {
+        "frames": Boundary("frames", b.frame_streams(), lambda v: b.check_frames(*v)),
+        "exchange": Boundary(
+            "exchange", b.exchange_files(), in_scratch(lambda v, d: b.check_exchange(*v, d))
+        ),
+        "rig_file": Boundary("rig_file", b.rig_files(), b.check_rig_file),
+        "recording": Boundary(
+            "recording",
+            b.DAMAGES,
+            in_scratch(lambda v, d: b.check_damaged_recording(recording, v, d)),
+        ),
+    }
+
+
+def kind_of(error: BaseException) -> str:
+    """A failure's kind: its type and the first words of its message (numbers dropped)."""
+    words = "".join(c if not c.isdigit() else "#" for c in str(error).split("\n")[0])[:90]
+    return f"{type(error).__name__}: {words}"
+
+
+def fuzz(boundary: Boundary, seconds: float, round_size: int) -> None:
+    deadline = time.monotonic() + seconds
+    while time.monotonic() < deadline:
+
+        @settings(
+            max_examples=round_size,
+            derandomize=False,
+            database=None,
+            deadline=None,
+            suppress_health_check=list(HealthCheck),
+            report_multiple_bugs=False,
+        )
+        @given(boundary.strategy)
+        def one_round(value) -> None:
+            boundary.run_one(value)
+
+        try:
+            one_round()
+        except HypothesisException as error:  # Hypothesis itself (e.g. flaky): count it too
+            boundary.failures.setdefault(kind_of(error), str(error)[:400])
+        except Exception as error:  # a bad answer, shrunk: one of each kind is kept
+            boundary.failures.setdefault(kind_of(error), str(error)[:400])
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--minutes", type=float, default=1.0, help="per boundary (1)")
+    parser.add_argument(
+        "--boundary",
+        action="append",
+        choices=("frames", "exchange", "rig_file", "recording"),
+        help="only this boundary (repeat for several; default: all)",
+    )
+    parser.add_argument("--round", type=int, default=200, help="examples per Hypothesis round")
+    parser.add_argument("--json", type=Path, help="also write the figures to this file")
+    args = parser.parse_args(argv)
+    results = []
+    with tempfile.TemporaryDirectory(prefix="impact-rig-fuzz-") as folder:
+        known = boundaries(Path(folder))
+        for name in args.boundary or list(known):
+            boundary = known[name]
+            fuzz(boundary, args.minutes * 60.0, args.round)
+            figures = boundary.figures()
+            results.append(figures)
+            print(
+                f"{name}: {figures['inputs_tried']:,} inputs tried, "
+                f"{figures['distinct_failures']} distinct failures, slowest answer "
+                f"{figures['slowest_answer_s']:.3f} s",
+                flush=True,
+            )
+            for kind, example in boundary.failures.items():
+                print(f"  {kind}\n    {example[:300]}", flush=True)
+    summary = {"minutes_per_boundary": args.minutes, "boundaries": results}
+    text = json.dumps(summary)
+    print(text)
+    if args.json is not None:
+        args.json.write_text(text + "\n", encoding="utf-8")
+    return 1 if any(r["distinct_failures"] for r in results) else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
