@@ -92,8 +92,8 @@ class AmplifierEmulator:
         self._requested_port = port
         self._tcp, self._rtu = tcp, rtu
         self._baudrate = rtu_baudrate
-        self.port: int | None = None
-        self.rtu_path: str | None = None
+        self.port: int | None = None  #: the TCP port served, once started
+        self.rtu_path: str | None = None  #: the RTU pseudo-terminal's path, once started
         self.fault = TransportFault.NONE
         # bounded: a sim-rig left running for days must not grow without end
         self._requests: deque[ReceivedRequest] = deque(maxlen=LOG_LENGTH)

@@ -82,7 +82,8 @@ class _CommandError(Exception):
 
 
 class ScpiGeneratorEmulator:
-    """A function generator on ``host:port`` (``port=0``: a free port, read :attr:`port`).
+    """A function generator on ``host:port`` (``port=0``: a free port, read
+    :attr:`~ScpiGeneratorEmulator.port`).
 
     ``on_change`` is called with the new :class:`GeneratorState` after every change (the
     virtual rig moves its shaker with it).  ``output_off_on_disconnect`` is the emulator's
@@ -103,7 +104,7 @@ class ScpiGeneratorEmulator:
     ) -> None:
         self.host = host
         self._requested_port = port
-        self.port: int | None = None
+        self.port: int | None = None  #: the TCP port served, once started
         self.identity = identity
         self.max_frequency_hz = max_frequency_hz
         self.min_vpp, self.max_vpp = min_vpp, max_vpp

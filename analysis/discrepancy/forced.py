@@ -336,7 +336,7 @@ class ForcedSteps:
     continued to its optimum (:func:`screened_beside`; a cause the first one masked gains
     here, where it could not against the baseline); a drive cause whose screened size the
     table channel found absent is not fitted on.  The best are fitted over the record from
-    the current model's optimum and afresh as every single cause is (:func:`_fit_afresh`),
+    the current model's optimum and afresh as every single cause is (``_fit_afresh``),
     the closer kept, against the current model continued as long; the judges are the
     information criterion, the forecasts, and on a chaotic record the invariants' veto.
     A step is tried while the current model's residual is not white noise, not even

@@ -62,7 +62,7 @@ class Pending(Generic[Fit]):
 
 class SideBySide:
     """Independent fits run at once, a thread each, as many at a time as ``threads`` allows,
-    each called where it is added, with the threads it may use as its keyword ``threads``:
+    each called where it is added, with the threads it may use as its keyword ``threads``::
 
         with SideBySide(threads) as batch:
             parent = batch.add(refit, data, model, fit, lay)

@@ -1,6 +1,6 @@
 """A term to propose when no named cause explains a record: a sparse regression of the
 residual acceleration on a library of candidate terms, in free flight and in contact
-separately (on a decay, the flight regression is in weak form: :func:`weak_flight`).
+separately (on a decay, the flight regression is in weak form: :func:`.weak_flight`).
 
 The residual acceleration is the model's equation error at the data's states: the
 measured angle's Savitzky-Golay second derivative minus the model's acceleration
@@ -18,7 +18,7 @@ the frequency to the fourth), then decimated.
 
 Libraries, each column scaled to unit rms before the regression:
   flight: a constant (see :func:`flight_library`), theta, theta', sign(theta'),
-  theta'|theta'|, theta^3, and sin, cos of the drive harmonics 1..3 of the model's drive;
+  ``theta'|theta'|``, theta^3, and sin, cos of the drive harmonics 1..3 of the model's drive;
   contact: delta^n and delta^n delta' for n = 0.5, 1, 1.5, 2 (delta the penetration).
 
 Selection: sequentially thresholded least squares (pysindy's STLSQ, a published, tested
@@ -328,11 +328,11 @@ def penetration(theta: np.ndarray, packed: np.ndarray) -> np.ndarray:
 
 def flight_library(t: np.ndarray, theta: np.ndarray, rate: np.ndarray,
                    packed: np.ndarray) -> Library:
-    """The flight terms: a constant, theta, theta', sign(theta'), theta'|theta'|, theta^3;
+    """The flight terms: a constant, theta, theta', sign(theta'), ``theta'|theta'|``, theta^3;
     when the table moves, the drive harmonics' sines and cosines (phase of the model's
     drive); when it does not (a decay), the products theta'^3 and theta^2 theta' (a damping
     that grows with the rate or the angle).  Over swings of one size theta'^3 and
-    theta'|theta'| correlate by 0.98 and a record cannot tell them apart (a hidden drag was
+    ``theta'|theta'|`` correlate by 0.98 and a record cannot tell them apart (a hidden drag was
     proposed as theta'^3); a decay's swing shrinks, and they scale apart (A^3 against A^2).
 
     The constant is not in issue 15's list: a model that compromised on its sensor zero

@@ -9,7 +9,7 @@ P^k(x) = x and the pseudo-arclength condition t . (u - u_predicted) = 0 (Keller)
 grows after easy corrections (<= 2 iterations) and halves after a failed one (no
 convergence, the integrator stopped) or one that turns the tangent by more than
 ``MAX_TURN_RAD``.  Tangents and multipliers come from Richardson's Jacobians.  On a
-strongly unstable orbit (|multiplier| in the thousands, e.g. period 8 in the chaotic
+strongly unstable orbit (``|multiplier|`` in the thousands, e.g. period 8 in the chaotic
 range) the bordered system is so ill-conditioned that the plain differences' error stalls
 Newton's method: once a correction shrinks the residual less than ``SLOW_CONVERGENCE``-fold,
 the branch is corrected with Richardson's Jacobians, and the residual tolerance grows with

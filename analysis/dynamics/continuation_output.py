@@ -1,6 +1,6 @@
 """What a continuation leaves behind: the HDF5 file of its branches and events, and its figure.
 
-File layout (all float64 unless said):
+File layout (all float64 unless said)::
 
     /branches/<i>/parameter           (n,)  value of the varied parameter
     /branches/<i>/theta, theta_dot    (n,)  state at drive phase 0 [rad, rad/s]

@@ -71,7 +71,7 @@ class Divergence:
 
 def bands_from_recurrence(recurrence: np.ndarray) -> Bands:
     """The bands a motion visits, from its recurrence (median RMS difference of points
-    k = 1, 2, ... periods apart, in noise units, as :func:`judge_regime` gives it).
+    k = 1, 2, ... periods apart, in noise units, as :func:`.judge_regime` gives it).
 
     Bands of period m show as a dip at every multiple of m tested, at least two of
     them: one lag that happens to recur well is no skeleton.

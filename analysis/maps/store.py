@@ -2,7 +2,7 @@
 
 Layout (root attributes ``format`` = "impact-rig map", ``kind``, ``settings`` and
 ``provenance`` as JSON, ``runs``: the provenance of every run that worked on the file,
-``complete``):
+``complete``)::
 
     points/packed (points, P.SIZE), points/<axis> (points,)   one model per point
     axes/<name> (count,)                                       the values of each axis
