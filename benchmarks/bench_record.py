@@ -133,6 +133,8 @@ def run(seconds: float, path: Path | None, compression: str | None = "auto") -> 
                 stats.channels[c].samples_received for c in ("angle", "table", "ai2", "ai3")
             ),
             "lost": stats.samples_lost,
+            # the live rate estimate (status panel, tests assert only that there is one)
+            "estimated_rate_hz": stats.channels["angle"].sample_rate_hz,
             "board_lost": board.status().samples_lost,
             "error": stats.error,
         }
@@ -257,6 +259,10 @@ def main(argv: list[str] | None = None) -> int:
         f"recording:                CPU {rec['cpu_share']:.1%} of a core, "
         f"{rec['samples']:,} samples, {rec['lost']} lost (board: {rec['board_lost']})"
         + (f", error: {rec['error']}" if rec["error"] else "")
+    )
+    print(
+        f"live rate estimate while recording: {rec['estimated_rate_hz']:,.0f} Hz of "
+        f"{RATE_HZ:,.0f} Hz ({rec['estimated_rate_hz'] / RATE_HZ - 1:+.1%})"
     )
     print(f"recording / baseline CPU: {rec['cpu_share'] / max(base['cpu_share'], 1e-9):.2f}x")
     print(

@@ -72,6 +72,7 @@ class OtherDevice:
         os.close(self.slave)
 
 
+@pytest.mark.timeout(60)
 @pytest.mark.parametrize(
     "answer",
     [None, b"HELLO from a GPS receiver\r\n", b"$GPGGA,123519,4807.038,N\r\n" * 40],
@@ -82,11 +83,8 @@ def test_something_that_is_not_the_board_is_a_wrong_device(answer):
     try:
         backend = SerialDaqBackend(other.port, reply_timeout_s=0.3)
         board = DaqBoard(backend, sample_rate_hz=1000, analog_channels=(0,))
-        started = time.monotonic()
         with pytest.raises(WrongDeviceError, match=rf"nothing on serial port {other.port}"):
-            board.open()
-        # a hang check, not a speed figure: two 0.3 s reply timeouts, margin for a busy machine
-        assert time.monotonic() - started < 5.0
+            board.open()  # a hang here trips the test's timeout mark, not a timed assert
     finally:
         other.close()
 

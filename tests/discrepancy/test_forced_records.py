@@ -108,15 +108,26 @@ def _check_the_command_output(case, report, tmp_path):
     assert "regime judged from the record" in page and "drive:" in page
 
 
-# two causes at once: the pair drawn from the seed among every registered cause (a 10 Hz
-# record without a laser, seed 5302, is a known miss: a 2 ms lag beside a drive harmonic is
-# named as a 1 % table amplitude error, see docs/benchmarks.md)
-PAIR_SEEDS = {"2 Hz": (5301, 2.0)}
+# two causes at once: the pair drawn from the seed among every registered cause.  The seeds
+# are the range 5301-5302, one record per paper drive frequency, every seed kept.  Miss
+# budget: one of the two, the known miss below, held as a strict expected failure (a fix
+# shows as XPASS, which fails the run, so the mark comes off with it); the rate over a
+# larger draw is the pairs benchmark's (docs/benchmarks.md: 9/10, goal >= 80 %)
+PAIR_MISS_5302 = (
+    "known miss: a 10 Hz record without a laser, a 2 ms sensor lag beside a drive harmonic, "
+    "is named the harmonic and a 1 % table amplitude error instead of the lag (the lag's "
+    "attenuation at the drive frequency; docs/benchmarks.md)"
+)
+PAIR_SEEDS = [
+    pytest.param(5301, 2.0, id="2 Hz"),
+    pytest.param(5302, 10.0, id="10 Hz",
+                 marks=pytest.mark.xfail(strict=True, raises=AssertionError,
+                                           reason=PAIR_MISS_5302)),
+]
 
 
-@pytest.mark.parametrize("name", list(PAIR_SEEDS))
-def test_two_causes_at_once_are_both_named_with_their_sizes(name, tmp_path):
-    seed, frequency = PAIR_SEEDS[name]
+@pytest.mark.parametrize(("seed", "frequency"), PAIR_SEEDS)
+def test_two_causes_at_once_are_both_named_with_their_sizes(seed, frequency, tmp_path):
     pair = draw_pair(seed)
     case = draw_forced_case(seed, pair, frequency_hz=frequency, duration_s=DURATION_S)
     report = analyze_record(load_record(write_forced_case(case, tmp_path)), workers=2).as_json()

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from drivers.interfaces import PulseBlock, SampleBlock
-from rig.engine import AcquisitionEngine, SubscriberOverrunError
+from rig.engine import RATE_WINDOW_S, AcquisitionEngine, SubscriberOverrunError, _RateWindow
 from rig.events import Gap
 from tests.rig.streams import CounterStream, TachStream
 
@@ -31,14 +31,21 @@ def _wait_until(predicate, timeout_s=10.0):
     return False
 
 
+def _taken_in(engine, **end_index):
+    """Whether the engine has taken in each named channel up to its end index."""
+    channels = engine.stats().channels
+    return all(channels[name].end_index == end for name, end in end_index.items())
+
+
 def test_every_sample_reaches_a_keeping_subscriber_and_gaps_are_reported_before_the_block():
     reported = CounterStream("angle", total=20_000, gaps={5_000: 700}, block=333)
     silent = CounterStream("table", total=20_000, gaps={12_000: 55}, report_gaps=False, gain=2e-3)
     engine = AcquisitionEngine([reported, silent])
     keeper = engine.subscribe("recorder", privileged=True)
     engine.start()
-    assert _wait_until(lambda: reported.next_index >= 20_000 and silent.next_index >= 20_000)
-    time.sleep(0.2)
+    # the engine's own state, not a delay: each stream's last block taken in (stop then
+    # lets every reader finish the block it holds)
+    assert _wait_until(lambda: _taken_in(engine, angle=20_000, table=20_000))
     engine.stop()
     deliveries = [event for _, event in _drain(keeper)]
     for channel, gap_at, gap_len in (("angle", 5_000, 700), ("table", 12_000, 55)):
@@ -65,8 +72,7 @@ def test_a_slow_viewer_loses_only_its_own_view_and_the_loss_is_counted():
     keeper = engine.subscribe("recorder", privileged=True)
     viewer = engine.subscribe("gui", max_items=10)  # never read while acquiring
     engine.start()
-    assert _wait_until(lambda: stream.next_index >= 50_000)
-    time.sleep(0.2)
+    assert _wait_until(lambda: _taken_in(engine, angle=50_000))
     engine.stop()
     kept = [e for _, e in _drain(keeper) if isinstance(e, SampleBlock)]
     seen = [e for _, e in _drain(viewer) if isinstance(e, SampleBlock)]
@@ -101,18 +107,38 @@ def test_a_privileged_subscriber_that_falls_behind_stops_acquisition_loudly():
         engine.raise_if_failed()
 
 
+def test_the_rate_estimate_is_the_index_advance_over_the_host_time_of_the_last_seconds():
+    # host arrival times given, not measured: the estimator itself, deterministically
+    window = _RateWindow()
+    assert window.add(0.0, 100) == 0.0  # one arrival: no rate yet
+    assert window.add(0.1, 600) == 0.0  # under 0.2 s of arrivals: none either
+    assert window.add(1.0, 5_100) == pytest.approx(5_000.0)
+    # the stream slows to 4 kHz: once the window holds only the last 2 s of arrivals the
+    # estimate is the new rate, whatever came before
+    for k in range(1, 11):
+        rate = window.add(1.0 + 0.5 * k, 5_100 + 2_000 * k)
+    assert rate == pytest.approx(4_000.0)
+    assert window.arrivals[0][0] >= 6.0 - RATE_WINDOW_S
+
+
 def test_live_quantities_rate_tach_and_drive():
     stream = CounterStream("angle", sample_rate_hz=5_000, block=100, realtime=True)
     tach = TachStream(sample_rate_hz=5_000, block=100, period=500)
     engine = AcquisitionEngine([stream, tach])
     engine.start()
-    # past the 2 s rate window, so a late first block on a loaded machine (the stream then
-    # catches up in a burst) no longer skews the estimated rate
-    time.sleep(2.5)
+    # wait on the state the live quantities need (a rate window, two tach edges), not a delay;
+    # how close the estimate comes to the board's rate under load is a benchmark figure
+    # (benchmarks/bench_record.py), not a test
+    assert _wait_until(
+        lambda: (lambda c: c["angle"].sample_rate_hz > 0 and c["tach"].edges >= 2)(
+            engine.stats().channels
+        )
+    )
     setting = engine.note_drive(10.0, 0.002, True)
     stats = engine.stats()
     engine.stop()
-    assert stats.channels["angle"].sample_rate_hz == pytest.approx(5_000, rel=0.1)
+    assert stats.channels["angle"].sample_rate_hz > 0
+    # the tach frequency comes from device time (edge indices / sample rate): exact
     assert stats.channels["tach"].tach_frequency_hz == pytest.approx(10.0)
     assert stats.drive == setting
     assert setting.sample_index > 0
@@ -123,8 +149,7 @@ def test_pulse_blocks_are_fanned_out_with_their_edges():
     engine = AcquisitionEngine([tach])
     sub = engine.subscribe("analysis", max_items=1000)
     engine.start()
-    assert _wait_until(lambda: tach.next_index >= 5_000)
-    time.sleep(0.1)
+    assert _wait_until(lambda: _taken_in(engine, tach=5_000))
     engine.stop()
     pulses = [e for _, e in _drain(sub) if isinstance(e, PulseBlock)]
     edges = np.concatenate([p.edge_indices for p in pulses])

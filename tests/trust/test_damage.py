@@ -6,7 +6,6 @@ from __future__ import annotations
 import shutil
 import subprocess
 import sys
-import time
 
 import h5py
 import numpy as np
@@ -21,7 +20,8 @@ COMMANDS = {
     "identify": lambda f, out: ["identify", str(f)],
     "replay": lambda f, out: ["replay", str(f), "--fast"],
 }
-WITHIN_S = 20.0
+HANG_S = 60.0  # a hang bound per command (run_cli's subprocess timeout), not a speed figure:
+# the fuzz benchmark (benchmarks/fuzz.py) carries how fast a damaged file is refused
 
 
 def _stored_byte_ranges(path):
@@ -80,15 +80,12 @@ def test_every_command_refuses_a_damaged_file_in_one_line(
 ):
     path = _damaged(kind, recording, killed_recording, tmp_path)
     for name, arguments in COMMANDS.items():
-        started = time.monotonic()
-        done = run_cli(*arguments(path, tmp_path), timeout_s=60)
-        elapsed = time.monotonic() - started
+        done = run_cli(*arguments(path, tmp_path), timeout_s=HANG_S)
         lines = done.stderr.strip().splitlines()
         assert done.returncode != 0, f"{name} used the damaged {kind} file: {done.stdout[-300:]}"
         assert "Traceback" not in done.stderr, f"{name}: {done.stderr}"
         error_lines = [line for line in lines if "error:" in line]
         assert len(error_lines) == 1 and str(path) in error_lines[0], f"{name}: {lines}"
-        assert elapsed < WITHIN_S, f"{name} took {elapsed:.1f} s on {kind}"
     assert not list(tmp_path.glob("x*.csv"))  # nothing was exported from it
 
 
@@ -166,9 +163,8 @@ def test_a_killed_recording_with_damaged_metadata_is_refused_within_seconds(
     assert heap > 0
     data[heap : heap + 512] = bytes(512)
     path.write_bytes(bytes(data))
-    started = time.monotonic()
-    done = run_cli("export", str(path), "--out", str(tmp_path / "x.csv"), timeout_s=60)
-    assert time.monotonic() - started < WITHIN_S
+    # the retries waited for days: run_cli's timeout fails the test (TimeoutExpired) on a hang
+    done = run_cli("export", str(path), "--out", str(tmp_path / "x.csv"), timeout_s=HANG_S)
     assert done.returncode == 2 and "Traceback" not in done.stderr
     assert f"{path}: / is damaged" in done.stderr
 

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from analysis.recording_file import open_recording
-from drivers.amplifier_registers import Holding, split_u32
+from drivers.amplifier_registers import Holding, Input, join_u32, split_u32
 from drivers.modbus_shaker import ModbusTcpBackend
 from hardware_sim.virtual_rig import VirtualRig, VirtualRigSettings, compile_physics
 from rig.config import load_config
@@ -32,6 +32,22 @@ def _set_drive(client, frequency_hz, amplitude_m, enable=1):
     client.write_registers(int(Holding.ENABLE), [enable])
 
 
+def _driving_at(client, frequency_hz: float, amplitude_m: float) -> bool:
+    """Whether the amplifier measures (over Modbus) the table driven as given."""
+    hi, lo, amplitude_um = client.read_input_registers(int(Input.MEASURED_FREQUENCY_MHZ_HI), 3)
+    return (abs(join_u32(hi, lo) / 1e3 - frequency_hz) < 0.05
+            and abs(amplitude_um * 1e-6 - amplitude_m) < 0.1 * amplitude_m)
+
+
+def _wait_for(condition, within_s: float, what: str) -> None:
+    """Poll ``condition`` until true; a hang bound, not a timing claim."""
+    deadline = time.monotonic() + within_s
+    while not condition():
+        if time.monotonic() > deadline:
+            pytest.fail(f"waited {within_s} s for {what}")
+        time.sleep(0.02)
+
+
 def test_a_conflicting_amplifier_setting_stops_the_run(tmp_path):
     devices = open_rig(virtual_config(load_config()), sample_rate_hz=1000)
     path = tmp_path / "forced.h5"
@@ -44,10 +60,17 @@ def test_a_conflicting_amplifier_setting_stops_the_run(tmp_path):
             outcome.append(error)
 
     worker = threading.Thread(target=run)
+    amplifier = devices.sim.amplifier
     try:
         worker.start()
-        time.sleep(3.0)  # driving at the asked 10 Hz, 1 mm
         intruder = _other_client(devices)
+        # the state the intrusion needs, not a guessed delay: the table driven at the asked
+        # 10 Hz, 1 mm, and the host's monitor having read that back (its FC3 setpoint reads
+        # after the log is cleared; the intruder reads only input registers, FC4)
+        _wait_for(lambda: _driving_at(intruder, 10.0, 1e-3), 30.0, "the table at 10 Hz, 1 mm")
+        amplifier.clear_log()
+        _wait_for(lambda: sum(r.function_code == 3 for r in amplifier.requests) >= 2, 30.0,
+                  "two read-backs of the settled drive by the host's monitor")
         _set_drive(intruder, 35.0, 20e-3)  # another client: 20 mm at 35 Hz
         intruder.close()
         worker.join(20.0)
@@ -62,7 +85,7 @@ def test_a_conflicting_amplifier_setting_stops_the_run(tmp_path):
     asked = drive[drive["source"] == COMMANDED]
     measured = drive[drive["source"] == MEASURED]
     assert asked["frequency_hz"][0] == 10.0 and asked["enabled"][-1] == 0
-    assert measured.size >= 5  # the read-back rows, about four a second
+    assert measured.size >= 3  # the settled read-backs waited for, and the mismatched one
     assert np.any(np.isclose(measured["frequency_hz"], 10.0, atol=0.05))
     assert "setpoints were changed" in status.stop_reason
 
@@ -72,8 +95,9 @@ def test_a_run_does_not_start_while_someone_else_drives_the_table(tmp_path):
     try:
         intruder = _other_client(devices)
         _set_drive(intruder, 5.0, 2e-3)
+        # the write is acknowledged, so the amplifier holds it: no delay stands in for that
+        assert intruder.read_holding_registers(int(Holding.ENABLE), 1) == [1]
         intruder.close()
-        time.sleep(0.3)
         with pytest.raises(DriveMismatchError, match="already driving before the run"):
             record_timed(devices, tmp_path / "decay.h5", TimedPlan("free_decay", 2.0))
     finally:
