@@ -27,6 +27,7 @@ CONTACT_TIME_CONSTANT = 3.2181
 FITTED = ("L_m", "zeta")
 FREE_SWING_RATIO = 3.0  # a barrier-free fit this close to the noise means no impacts
 MIN_SHORTFALL = 0.03  # impacts must stop the swing this fraction below its free height
+TROUGH_SPAN, TROUGH_DEGREE = 0.2, 6
 
 
 def _segments(
@@ -164,14 +165,14 @@ def _lower_turning_points(
         for k in range(cstarts.size - 1)
     ])
     spacing = float(np.median(np.diff(troughs))) if troughs.size > 1 else 0.0
-    half = max(3, int(0.1 * spacing))
+    half = max(4, int(TROUGH_SPAN * spacing))
     depth, curvature = [], []
     for i in troughs:
         if i - half < 0 or i + half >= t.size:
             continue
         window = slice(i - half, i + half + 1)
         tau = t[window] - t[i]
-        coeffs = np.polyfit(tau[good[window]], filled[window][good[window]], 4)
+        coeffs = np.polyfit(tau[good[window]], filled[window][good[window]], TROUGH_DEGREE)
         depth.append(filled[i])
         curvature.append(2.0 * coeffs[-3])
     return np.array(depth), np.array(curvature)
