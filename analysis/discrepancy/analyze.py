@@ -24,6 +24,7 @@ from typing import Any
 import numpy as np
 
 from analysis.discrepancy.candidates import candidates_for, excluded_for
+from analysis.discrepancy.constancy import constancy_finding
 from analysis.discrepancy.fitting import FitData, FitResult, fit, predict
 from analysis.discrepancy.forced import analyze_forced
 from analysis.discrepancy.forward import forward_selection
@@ -499,6 +500,10 @@ def analyze_decay(
         timings=timings, notes=notes, steps=steps, final=final, indistinct=indistinct,
         policy=policy,
     )
+    say("the final model refitted on the large swings and on the rest")
+    best = analysis.final_outcome
+    analysis.constancy = constancy_finding(data, best.full if best is not None else baseline,
+                                           scale)
     if data.barrier:
         say("constant coefficient of restitution against Hunt-Crossley")
         analysis.restitution = compare_restitution(data, n_train, baseline, baseline_heldout,

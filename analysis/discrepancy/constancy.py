@@ -42,7 +42,7 @@ from analysis.identify.intervals import Z95
 # impact decay is short (its swing falls fast): the penetration-proportional damping above
 # gave z = -2.1 there, -9.5 at 0.45.
 SPLIT_SHARE = 0.45
-MIN_SWINGS = 3  # each part holds at least this many of the model's swings
+MIN_SWINGS = 2  # each part lasts at least this many of the model's periods
 STATES = ("theta0_rad", "theta_dot0_rad_s")
 
 
@@ -70,13 +70,12 @@ class Comparison:
 def constancy_finding(data: FitData, final: FitResult, scale: RecordScale) -> Finding | None:
     """A ``constancy`` finding when the final model's parameters differ between the record's
     large swings and the rest (see the module's docstring); None when they agree, or when
-    either part holds fewer than MIN_SWINGS swings."""
+    either part lasts less than MIN_SWINGS periods."""
     _, sim = predict(data, final.model, final.values)
     theta = np.asarray(sim.theta, dtype=float)[:data.t.size]
     if theta.size < data.t.size:
         return None
-    centre = float(np.median(theta))
-    ahead = np.maximum.accumulate(np.abs(theta - centre)[::-1])[::-1]
+    ahead = np.maximum.accumulate(np.abs(theta)[::-1])[::-1]  # the true angle: 0 at rest
     split = int(np.argmax(ahead < SPLIT_SHARE * ahead[0]))
     period = 2.0 * math.pi / final.values["omega_rad_s"]
     if split == 0 or min(data.t[split], data.t[-1] - data.t[split]) < MIN_SWINGS * period:

@@ -79,6 +79,9 @@ class Analysis:
     proposed_terms: list[ProposedTerm] = field(default_factory=list)
     # the rules under which it was decided
     policy: SelectionPolicy = DEFAULT_POLICY
+    # decays: the final model's parameters on the large swings against the rest
+    # (analysis.discrepancy.constancy), None when they agree or were not compared
+    constancy: Finding | None = None
 
     @property
     def chosen_outcome(self) -> CandidateOutcome | None:
@@ -122,7 +125,8 @@ class Analysis:
         self.reading = read_residual(
             self.data.t, final.residual, self.data.valid, self.data.noise_rad,
             drive_frequency_hz=(self.drive or {}).get("frequency_hz"), subharmonic=period,
-            model_rad=curve, backbone=backbone)
+            model_rad=curve, backbone=backbone,
+            beside=[self.constancy] if self.constancy is not None else [])
         return self
 
     def warnings(self) -> list[str]:

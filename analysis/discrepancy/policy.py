@@ -13,7 +13,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field, fields, replace
 from typing import Any
 
-from analysis.discrepancy import residual_reading, term_proposal
+from analysis.discrepancy import constancy, residual_reading, term_proposal
 
 
 def _rule(value: float | int, why: str) -> Any:
@@ -144,13 +144,15 @@ class SelectionPolicy:
 
     def as_json(self) -> dict[str, Any]:
         """Each rule as ``{"value", "why"}``, and the residual reading's fixed rules under
-        ``residual_reading`` (they decide ``unexplained`` and the findings) and
-        ``term_proposal`` (what a proposed term must gain)."""
+        ``residual_reading`` (they decide ``unexplained`` and the findings), ``constancy``
+        (a decay's parameters on its parts) and ``term_proposal`` (what a proposed term
+        must gain)."""
         out: dict[str, Any] = {
             f.name: {"value": getattr(self, f.name), "why": f.metadata["why"]}
             for f in fields(self)
         }
         out["residual_reading"] = residual_reading.rules_json()
+        out["constancy"] = constancy.rules_json()
         out["term_proposal"] = term_proposal.rules_json()
         return out
 

@@ -40,7 +40,8 @@ from analysis.identify.preprocess import (
     tail_spikes,
 )
 
-KINDS = ("line", "drive_frequency", "trend", "timing", "outliers", "backbone")
+KINDS = ("line", "drive_frequency", "trend", "timing", "outliers", "backbone",
+         "constancy")
 
 Z_FINDING = float(stats.norm.isf(FALSE_ALARM / 2.0))  # two-sided: 3.89
 # Structure counts when its rms reaches this fraction of the noise's.  It then adds 2 %
@@ -156,6 +157,7 @@ def read_residual(
     t_s: np.ndarray, residual_rad: np.ndarray, valid: np.ndarray | None, noise_rad: float, *,
     drive_frequency_hz: float | None = None, subharmonic: int = 1,
     model_rad: np.ndarray | None = None, backbone: bool = False,
+    beside: Sequence[Finding] = (),
 ) -> ResidualReading:
     """Judge a residual (``model - data`` on uniform times ``t_s``) against white noise.
 
@@ -164,14 +166,16 @@ def read_residual(
     frequencies whose harmonics are the drive's and never reported as lines;
     ``model_rad`` (the fitted curve) lets the trend tell a gain drift from an offset one,
     and with ``backbone`` (a decay's record) compares the record's backbone with the
-    model's (:func:`backbone_finding`).
+    model's (:func:`backbone_finding`).  ``beside`` are findings made outside the residual
+    (a decay's parameters refitted on its parts: :mod:`analysis.discrepancy.constancy`).
 
     The verdict: structure remains when the residual is not white (a Ljung-Box test over
     LJUNG_BOX_LAGS lags of valid pairs, p < FALSE_ALARM) and the power above its own
     white floor is significant and at least MIN_STRUCTURE^2 of it; or when its
     sample-to-sample scatter exceeds the record's noise by SCATTER_LIMIT (broadband
     structure, which no floor measured from the residual itself can show); or when a
-    line, a trend or a backbone is found (each as significant, and as big, on its own).
+    line, a trend, a backbone or a finding ``beside`` of kind ``constancy`` is found (each
+    as significant, and as big, on its own).
     """
     t, r, ok = _checked(t_s, residual_rad, valid)
     if backbone and model_rad is None:
@@ -209,11 +213,12 @@ def read_residual(
     outliers = _outliers(t, r, ok, base)
     if outliers is not None:
         findings.append(outliers)
+    findings += beside
     nonwhite = p < FALSE_ALARM and excess > Z_FINDING * excess_se \
         and structured_rms >= MIN_STRUCTURE * floor
     broadband = scatter > SCATTER_LIMIT
     # each as significant and big
-    named = any(f.kind in ("line", "trend", "backbone") for f in findings)
+    named = any(f.kind in ("line", "trend", "backbone", "constancy") for f in findings)
     structured = nonwhite or broadband or named
     why = _why(structured, nonwhite, broadband, structured_rms, floor, noise_rad, p, scatter,
                findings, math.sqrt(mean_square))

@@ -51,3 +51,40 @@ def test_structureless_heavy_tailed_noise_names_no_cause(tmp_path):
     report = _report("noise_decoy_free", tmp_path)
     assert report["causes"] == [] and report["cause"] == "none", report["causes"]
     assert not report["unexplained"], report["residual_reading"]["why"]
+
+
+def test_a_contact_damping_on_the_penetration_is_flagged_as_parameters_that_change_with_the_swing(
+        tmp_path):
+    # contact damping K mu0' delta delta' instead of Hunt-Crossley's K mu0 delta^1.5 delta':
+    # the whole record's residual is white, but Hunt-Crossley's mu0 fitted on the deep early
+    # impacts and on the shallow late ones differ, and in the direction the law says (a
+    # damping on delta loses relatively more than one on delta^1.5 where the impact is
+    # shallow, so the late impacts ask for a larger mu0)
+    report = _report("contact_damping_on_delta", tmp_path)
+    assert report["unexplained"], report["residual_reading"]["why"]
+    found = [f for f in report["residual_findings"] if f["kind"] == "constancy"]
+    assert found, report["residual_findings"]
+    assert found[0]["z_mu0_s_per_m"] <= -found[0]["z_needed"], found[0]
+
+
+def test_a_damping_that_grows_with_the_angle_is_proposed_with_its_size(tmp_path):
+    # theta'' -= d21 theta^2 theta': the drag named in its place is not the whole story; the
+    # term is proposed within its 99.9 % interval of the truth
+    report, truth = _report_and_truth("angle_rate_damping", tmp_path)
+    assert report["unexplained"], report["residual_reading"]["why"]
+    terms = {t["term"]: t for t in report["proposed_terms"] if t["region"] == "flight"}
+    assert "theta^2 theta'" in terms, report["proposed_terms"]
+    term = terms["theta^2 theta'"]
+    half = (term["ci95"][1] - term["ci95"][0]) / 2.0 * Z_999 / 1.96
+    assert abs(term["coefficient"] + truth["d21_per_rad2_s"]) <= half, (truth, term)
+
+
+def test_a_cubic_damping_is_proposed_or_listed_as_a_term_the_record_cannot_tell_apart(tmp_path):
+    # theta'' -= d3 theta'^3: over a decay's swings theta'^3 and theta^2 theta' share their
+    # first harmonic; the report proposes one and lists the other beside it
+    report = _report("cubic_rate_damping", tmp_path)
+    assert report["unexplained"], report["residual_reading"]["why"]
+    flight = [t for t in report["proposed_terms"] if t["region"] == "flight"]
+    offered = {t["term"] for t in flight} | {a for t in flight for a in t["alternatives"]}
+    assert "theta'^3" in offered, report["proposed_terms"]
+    assert "theta'^3" not in {c["cause"] for c in report["causes"]}
