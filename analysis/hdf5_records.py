@@ -19,8 +19,9 @@ import h5py
 import numpy as np
 
 from analysis.exchange import meta_from_json, rig_constants
-from analysis.recording_file import RecordingFormatError, open_recording
-from analysis.records import Record, RecordFormatError
+from analysis.records import Record
+from recording.errors import RecordFormatError, RecordingFormatError
+from recording.reader import open_recording
 
 
 @dataclass(frozen=True)

@@ -313,7 +313,7 @@ def _write_hdf5(path: Path, columns: dict[str, Any], metadata: dict) -> None:
     import numpy as np
 
     from analysis.json_output import to_json_text
-    from analysis.recording_file import write_attributes
+    from recording.metadata import write_attributes
 
     with h5py.File(path, "w") as handle:  # an existing file was refused or --overwrite given
         for name, values in columns.items():
