@@ -1,26 +1,24 @@
 """The recorder's HDF5 files (docs/recording_layout.md) as analysis ``Record`` objects.
 
-The recording is read through :mod:`analysis.recording_file` (which validates it and
+The recording is read through :mod:`recording.reader` (which validates it and
 refuses a damaged one).  A record must be uniformly sampled: a recording
 with gaps is returned as its gap-free segments, never with samples filled in; a
 sweep is returned one record per step (its steady-state dwell, with its drive).
-The flat file that ``impact-rig simulate --out FILE.h5`` writes is read as well.
 :mod:`analysis.record_loaders` reads ``.h5`` and ``.hdf5`` files with :func:`load_hdf5_record`.
 """
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import h5py
 import numpy as np
 
-from analysis.exchange import meta_from_json, rig_constants
-from analysis.recording_file import RecordingFormatError, open_recording
-from analysis.records import Record, RecordFormatError
+from analysis.exchange import rig_constants
+from analysis.records import Record
+from recording.errors import RecordFormatError, RecordingFormatError
+from recording.reader import open_recording
 
 
 @dataclass(frozen=True)
@@ -201,64 +199,12 @@ def load_hdf5_steps(path: str | Path) -> list[Record]:
     return out
 
 
-def _is_simulated_layout(path: Path) -> bool:
-    """True for the flat file ``impact-rig simulate`` writes (no recorder 'format' attribute)."""
-    try:
-        with h5py.File(path, "r") as f:
-            return "format" not in f.attrs and "metadata" in f.attrs and "angle_rad" in f
-    except OSError:
-        return False  # not found / not HDF5: read_recording_arrays says which
-
-
-def load_simulated_hdf5(path: str | Path) -> Record:
-    """A record from ``impact-rig simulate --out FILE.h5``: root datasets and JSON 'metadata'.
-
-    The layout (``time_s``, ``angle_rad``, optional ``table_m`` and int8 ``tach`` at the
-    root; the exchange sidecar's JSON as the root attribute ``metadata``) is documented
-    in ``rig/commands/simulate.py``.
-    """
-    path = Path(path)
-    try:
-        with h5py.File(path, "r") as f:
-            try:
-                meta = meta_from_json(json.loads(f.attrs["metadata"]), path)
-            except json.JSONDecodeError as error:
-                raise RecordFormatError(
-                    f"{path}: attribute 'metadata' is not JSON ({error})"
-                ) from None
-            missing = [name for name in ("time_s", "angle_rad") if name not in f]
-            if missing:
-                raise RecordFormatError(f"{path}: no dataset {missing[0]!r} at the root")
-            names = ("time_s", "angle_rad", "table_m", "tach")
-            columns = {name: f[name][()] for name in names if name in f}
-    except (OSError, RuntimeError) as error:  # checksum failures: damaged, never used
-        raise RecordFormatError(f"{path}: damaged ({str(error).splitlines()[0]})") from None
-    for name, values in columns.items():
-        if name != "tach" and not np.all(np.isfinite(values)):
-            row = int(np.flatnonzero(~np.isfinite(values))[0])
-            raise RecordFormatError(f"{path}: {name}[{row}] is not a finite number")
-    tach = columns.get("tach")
-    return Record(
-        time_s=columns["time_s"],
-        angle_rad=columns["angle_rad"],
-        experiment=meta.experiment,
-        rig=meta.rig,
-        drive=meta.drive,
-        table_m=columns.get("table_m"),
-        tach_indices=np.zeros(0, dtype=np.int64) if tach is None else np.flatnonzero(tach > 0),
-        source=str(path),
-        notes=meta.notes,
-    )
-
-
 def load_hdf5_record(path: Path, meta_path: Path | None = None) -> Record:
     """The whole recording as one record; an error naming the gaps when it has any."""
     if meta_path is not None:
         raise RecordFormatError(
             f"{meta_path}: an HDF5 recording carries its own metadata; drop --meta"
         )
-    if _is_simulated_layout(path):
-        return load_simulated_hdf5(path)
     arrays = read_recording_arrays(path)
     segments = gap_free_segments(arrays.indices)
     if not segments:

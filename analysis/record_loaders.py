@@ -12,7 +12,8 @@ from pathlib import Path
 
 from analysis.exchange import read_exchange
 from analysis.hdf5_records import load_hdf5_record
-from analysis.records import Record, RecordFormatError
+from analysis.records import Record
+from recording.errors import RecordFormatError
 
 
 def load_exchange_record(path: Path, meta_path: Path | None = None) -> Record:

@@ -16,10 +16,7 @@ import numpy as np
 
 from analysis.experiments import NAMES, ExperimentKind, experiment_kind
 from analysis.model import G_STANDARD, Drive, RigParameters
-
-
-class RecordFormatError(ValueError):
-    """A file cannot be turned into a record; the message names the file and what was wrong."""
+from recording.errors import RecordFormatError
 
 
 @dataclass(frozen=True)

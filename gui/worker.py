@@ -22,9 +22,9 @@ from pathlib import Path
 
 from PySide6.QtCore import QObject, Signal
 
-from analysis.recording_file import open_recording
 from drivers.interfaces import ActuatorStatus, DeviceError, PulseBlock, SampleBlock, StreamStatus
 from drivers.shaker import ShakerAmplifier
+from recording.reader import open_recording
 from rig.config import RigConfig
 from rig.devices import RigDevices, open_rig
 from rig.engine import AcquisitionEngine, EngineStats, Subscription

@@ -118,7 +118,7 @@ def main(argv: list[str] | None = None) -> int:
         return 130
     except Exception as error:  # never a traceback for the user; --verbose shows it
         from analysis.output_paths import OutputPathError
-        from analysis.records import RecordFormatError
+        from recording.errors import RecordFormatError
 
         text = str(error).strip().splitlines()[0] if str(error).strip() else repr(error)
         if not isinstance(error, RecordFormatError | OutputPathError):

@@ -24,18 +24,18 @@ from typing import Any, Protocol
 import numpy as np
 
 from analysis.output_paths import HDF5_SUFFIXES, OutputPathError, check_suffix
-from analysis.recording_file import (
+from drivers.interfaces import PulseBlock, SampleBlock
+from drivers.sensors import FLAG_NOT_FINITE
+from recording.layout import (
     FORMAT_NAME,
     FORMAT_VERSION,
     OUTAGE_CHANNEL_BYTES,
     ChannelSpec,
-    RecordingMetadata,
     RecordingStatus,
-    RecordingWriter,
     chunk_length,
 )
-from drivers.interfaces import PulseBlock, SampleBlock
-from drivers.sensors import FLAG_NOT_FINITE
+from recording.metadata import RecordingMetadata
+from recording.writer import RecordingWriter
 from rig.events import DriveSetting, Event, Gap, StepBegun, StepMark
 
 __all__ = [

@@ -15,8 +15,9 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Protocol
 
-from analysis.recording_file import Recording, RecordingFormatError, open_recording
 from drivers.interfaces import PulseBlock, SampleBlock, StreamStatus
+from recording.errors import RecordingFormatError
+from recording.reader import Recording, open_recording
 from rig.events import DriveSetting, StepMark
 
 

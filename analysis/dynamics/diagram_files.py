@@ -20,7 +20,7 @@ import numpy as np
 from analysis.dynamics.bifurcation import BifurcationDiagram, bifurcation_from_recording
 from analysis.dynamics.strobe import strobe_record
 from analysis.hdf5_records import load_hdf5_steps, read_recording_arrays
-from analysis.recording_file import FORMAT_NAME
+from recording.layout import FORMAT_NAME
 
 SWEPT = ("beta", "f_drive_hz")  # what a recorded sweep can be drawn over
 

@@ -10,7 +10,8 @@ from pathlib import Path
 import numpy as np
 
 from analysis.hdf5_records import load_hdf5_steps
-from analysis.records import Record, RecordFormatError
+from analysis.records import Record
+from recording.errors import RecordFormatError
 
 SWEPT = ("beta", "f_drive_hz")  # what a recorded sweep steps: amplitude (as beta) or frequency
 

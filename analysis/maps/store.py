@@ -27,7 +27,7 @@ import numpy as np
 from analysis.json_output import to_json_text
 from analysis.maps.plan import ROLE_NAMES, MapPlan
 from analysis.maps.tasks import NOT_RUN, STATUSES, Task, TaskOutput
-from analysis.recording_file import clear_writer_flags
+from recording.superblock import clear_writer_flags
 
 FORMAT = "impact-rig map"
 FORMAT_VERSION = 1

@@ -84,7 +84,7 @@ def run(args: argparse.Namespace) -> int:
     from analysis.exchange import sidecar_path, write_exchange
     from analysis.hdf5_records import load_hdf5_segments, load_hdf5_steps
     from analysis.output_paths import check_outputs, check_suffix
-    from analysis.records import RecordFormatError
+    from recording.errors import RecordFormatError
 
     out = check_suffix(args.out, (".csv",), "the exchange table (CSV)")
     folder = out.parent if str(out.parent) else Path(".")

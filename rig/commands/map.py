@@ -333,7 +333,7 @@ def _overlay(args: argparse.Namespace, plan: Any) -> Any:
     if args.overlay is None:
         return None
     from analysis.maps.overlay import recorded_sweep
-    from analysis.records import RecordFormatError
+    from recording.errors import RecordFormatError
 
     if plan.kind != "bifurcation":
         raise CommandError("--overlay: a recorded sweep is drawn over a bifurcation map only")

@@ -49,12 +49,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     """Salvage into the new file and say what was lost."""
     from analysis.output_paths import HDF5_SUFFIXES, check_outputs, check_suffix
-    from analysis.recording_file import repair_recording
+    from analysis.provenance import provenance
+    from recording.repair import repair_recording
 
     out = args.out or args.recording.with_name(f"{args.recording.stem}_repaired.h5")
     check_suffix(out, HDF5_SUFFIXES, "the repaired recording (HDF5)")
     (out,) = check_outputs([out], inputs=[args.recording], overwrite=args.overwrite)
     if out.exists():
         out.unlink()  # --overwrite was given (and it is not the input)
-    print(repair_recording(args.recording, out).summary())
+    print(repair_recording(args.recording, out, provenance=provenance()).summary())
     return 0

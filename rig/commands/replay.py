@@ -54,15 +54,10 @@ def run(args: argparse.Namespace) -> int:
     """Replay until every stream has played its last block; print what was seen."""
     from analysis.output_paths import check_outputs
     from analysis.provenance import provenance
+    from recording.metadata import carried_over
     from rig.engine import AcquisitionEngine
     from rig.logs import log, log_file, log_path_for, log_provenance
-    from rig.recorder import (
-        ChannelSpec,
-        Recorder,
-        RecordingError,
-        RecordingMetadata,
-        attach_recorder,
-    )
+    from rig.recorder import ChannelSpec, Recorder, RecordingError, attach_recorder
     from rig.replay import Replay
 
     speed = math.inf if args.fast else args.speed
@@ -94,15 +89,8 @@ def run(args: argparse.Namespace) -> int:
                 ChannelSpec(name, "pulses", "", rec.sample_rate_hz(name))
                 for name in rec.pulse_names
             ]
-            meta = RecordingMetadata(
-                experiment=info.experiment,
-                notes=info.notes,
-                rig=info.rig,
-                calibrations=info.calibrations,
-                devices=info.devices,
-                config_toml=info.config_toml,
-                drive=info.drive,
-                roles=info.roles,
+            meta = carried_over(
+                info,
                 extra={
                     **info.extra,
                     "replayed_from": str(Path(args.recording).resolve()),

@@ -4,11 +4,11 @@ The CSV output is the exchange format of docs/MODEL.md section 5 (``time_s``, ``
 and for forced runs ``table_m`` and ``tach``; the JSON sidecar beside it), so every
 analysis command reads a simulated record like a measured one.
 
-HDF5 output (``.h5``/``.hdf5``) uses a flat layout, simpler than the recorder's:
-one-dimensional float64 datasets ``time_s``, ``angle_rad``, ``table_m`` (forced runs)
-and an int8 dataset ``tach`` (forced runs) at the root, and a root attribute
-``metadata`` holding the same JSON text as the CSV sidecar.  ``analysis.hdf5_records``
-reads it back, so ``impact-rig identify FILE.h5`` works on it.
+HDF5 output (``.h5``/``.hdf5``) is a recording in the recorder's layout
+(docs/recording_layout.md), written through :mod:`recording.writer`: channels ``angle``
+(and ``table`` and the pulse channel ``tach`` for forced runs), the drive, and
+``"source": "simulated"`` in its ``extra_json``; so ``replay``, ``export``, ``identify``
+and ``analyze`` read it like any recording.
 """
 
 from __future__ import annotations
@@ -46,8 +46,9 @@ The experiment decides barrier and drive:
   impact_decay  barrier, no drive (released at --theta0, it rattles to rest)
   forced        barrier and table drive (needs f_drive_hz and A_m or beta, or --case)
 
-Output: FILE.csv + FILE.json (exchange format) or FILE.h5 (datasets time_s, angle_rad,
-table_m, tach and a JSON 'metadata' attribute). time_s starts at 0 at the end of the
+Output: FILE.csv + FILE.json (exchange format) or FILE.h5 (a recording in the layout of
+docs/recording_layout.md: channels angle, table and tach, source simulated; the values are
+stored as float32 there, as the recorder stores them). time_s starts at 0 at the end of the
 skipped transient; for forced runs that is a whole number of drive periods, so the
 drive phase is Omega time_s and tach = 1 on the sample nearest each phase-0 instant.
 The angle is the noise-free model angle unless a measurement model is asked for
@@ -308,22 +309,70 @@ def _metadata(model: Any, experiment: str, args: argparse.Namespace, extra: dict
     )
 
 
-def _write_hdf5(path: Path, columns: dict[str, Any], metadata: dict) -> None:
-    import h5py
+def _write_recording(
+    path: Path, columns: dict[str, Any], meta: Any, fs_hz: float, overwrite: bool
+) -> None:
+    """The simulated record as a recording (docs/recording_layout.md): one block per channel,
+    no gaps, a closed file; ``raw`` holds no ADC counts (there is no ADC), only zeros."""
+    from datetime import UTC, datetime
+
     import numpy as np
 
-    from analysis.json_output import to_json_text
-    from analysis.recording_file import write_attributes
+    from recording.layout import ChannelSpec, RecordingStatus
+    from recording.metadata import RecordingMetadata
+    from recording.writer import RecordingWriter
+    from rig.devices import ANGLE, TABLE, TACH
+    from rig.recorder import software_version
 
-    with h5py.File(path, "w") as handle:  # an existing file was refused or --overwrite given
-        for name, values in columns.items():
-            if values is None:
-                continue
-            dtype = np.int8 if name == "tach" else np.float64
-            handle.create_dataset(
-                name, data=np.asarray(values, dtype=dtype), chunks=True, fletcher32=True
+    n = columns["angle_rad"].size
+    sampled = {ANGLE: ("rad", columns["angle_rad"])}
+    if columns["table_m"] is not None:
+        sampled[TABLE] = ("m", columns["table_m"])
+    tach = columns["tach"]
+    device = "simulated (impact-rig simulate)"
+    specs = [ChannelSpec(name, "samples", unit, fs_hz, device, raw_dtype="int8")
+             for name, (unit, _) in sampled.items()]
+    specs += [ChannelSpec(TACH, "pulses", "", fs_hz, device)] if tach is not None else []
+    stored = RecordingMetadata(
+        experiment=meta.experiment,
+        notes=meta.notes,
+        rig=dict(meta.rig),
+        drive=meta.drive,
+        roles={spec.name: spec.name for spec in specs},
+        extra={"source": "simulated", **{k: v for k, v in meta.extra.items()
+                                         if k != "provenance"}},
+        start_time_utc=datetime.now(UTC).isoformat(),
+        provenance=meta.extra["provenance"],
+    )
+    if overwrite:
+        path.unlink(missing_ok=True)  # an existing file was refused unless --overwrite
+    writer = RecordingWriter(path, specs, stored, software_version=software_version())
+    try:
+        for name, (_, values) in sampled.items():
+            writer.append_channel(
+                name,
+                {"raw": [np.zeros(n, np.int8)], "values": [values],
+                 "flags": [np.zeros(n, np.uint8)]},
+                [(0, n, 0, 0.0, 0.0, 0)],
+                [],
             )
-        write_attributes(handle, {"metadata": to_json_text(metadata, one_line=True)})
+        if tach is not None:
+            edges = np.flatnonzero(tach).astype(np.int64)
+            writer.append_channel(
+                TACH, {"edge_indices": [edges], "edge_times_s": [edges / fs_hz]},
+                [(0, n, 0.0, 0, edges.size)], [],
+            )
+        if meta.drive:
+            writer.append_drive(
+                [(0.0, 0, meta.drive["frequency_hz"], meta.drive["amplitude_m"], 1, 0)]
+            )
+        writer.write_status(RecordingStatus(
+            end_host_time_s=0.0, samples_written=n * len(sampled), samples_lost=0, flushes=1,
+            closed=True, stop_reason="completed",
+        ))
+        writer.flush()
+    finally:
+        writer.close()
 
 
 def _check_record_arguments(args: argparse.Namespace) -> None:
@@ -431,8 +480,8 @@ def run(args: argparse.Namespace) -> int:
         csv_path, json_path = write_exchange(args.out, record, overwrite=args.overwrite)
         written = f"{csv_path} + {json_path.name}"
     else:
-        columns = {"time_s": time_s, "angle_rad": angle, "table_m": table, "tach": tach}
-        _write_hdf5(args.out, columns, meta.as_json())
+        columns = {"angle_rad": angle, "table_m": table, "tach": tach}
+        _write_recording(args.out, columns, meta, args.fs, args.overwrite)
         written = str(args.out)
     print(
         f"simulate: {result.t.size} samples, {result.contacts.count} contacts, "

@@ -26,7 +26,7 @@ if TYPE_CHECKING:  # the analysis's result types, for the hints only (imported w
 def load_records(results: Mapping[str, Any], notes: list[str]) -> dict[str, Any]:
     """Decays as their longest gap-free stretch, the sweep one record per step."""
     from analysis.hdf5_records import load_hdf5_segments, load_hdf5_steps
-    from analysis.records import RecordFormatError
+    from recording.errors import RecordFormatError
 
     records: dict[str, Any] = {}
     for name in ("free_decay", "impact_decay"):

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import signal
 
-from analysis.recording_file import open_recording
+from recording.reader import open_recording
 from tests.rig.cli_recording import start_forced_recording, wait_for_samples
 
 

@@ -14,7 +14,7 @@ import pytest
 
 from analysis.extensions import CAUSES
 from analysis.hdf5_records import load_hdf5_steps
-from analysis.recording_file import open_recording
+from recording.reader import open_recording
 from rig.cli import main
 from rig.config import load_config
 from tests.browser import console_errors, external_references, headless_chromium, images

@@ -24,15 +24,12 @@ import numpy as np
 from hypothesis import strategies as st
 
 from analysis.exchange import ExchangeFormatError, read_exchange
-from analysis.recording_file import (
-    ChannelSpec,
-    RecordingFormatError,
-    RecordingMetadata,
-    RecordingStatus,
-    RecordingWriter,
-    open_recording,
-)
 from drivers.daq_protocol import FrameParser, encode_data_frame, encode_reply_frame
+from recording.errors import RecordingFormatError
+from recording.layout import ChannelSpec, RecordingStatus
+from recording.metadata import RecordingMetadata
+from recording.reader import open_recording
+from recording.writer import RecordingWriter
 from rig.config import ConfigError, default_config_path, parse_config
 
 SLOW_S = 5.0  # the bound: every answer within 5 s

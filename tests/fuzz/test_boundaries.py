@@ -15,7 +15,7 @@ from pathlib import Path
 import pytest
 from hypothesis import HealthCheck, given, settings
 
-from analysis.recording_file import RecordingFormatError
+from recording.errors import RecordingFormatError
 from tests.fuzz.boundaries import (
     DAMAGES,
     check_damaged_recording,

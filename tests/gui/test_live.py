@@ -8,12 +8,12 @@ import h5py
 import numpy as np
 import pytest
 
-from analysis.recording_file import open_recording
 from drivers.amplifier_registers import Fault, Holding
 from gui.app import MainWindow
 from gui.settings import AppSettings
 from gui.worker import LiveSession
 from hardware_sim.daq_faults import CORRUPT_CRC
+from recording.reader import open_recording
 from rig.cli import main
 from rig.events import COMMANDED, MEASURED
 from tests.gui.conftest import run_events, wait_until

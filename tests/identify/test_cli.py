@@ -129,7 +129,7 @@ def test_impact_decay_with_length_and_damping_held_from_a_free_decay(decay_csv, 
 
 
 def test_simulated_hdf5_is_identified_like_its_csv(tmp_path, capsys):
-    # `simulate --out FILE.h5` writes a flat layout, not the recorder's; identify must read it.
+    # `simulate --out FILE.h5` writes a recording (the recorder's layout); identify reads it.
     h5 = tmp_path / "decay.h5"
     assert main([
         "simulate", "--experiment", "free_decay", "--theta0", "0.1", "--param", "L_m=0.1",

@@ -7,7 +7,8 @@ import pytest
 
 from analysis.exchange import ExchangeMeta, ExchangeRecord, write_exchange
 from analysis.record_loaders import load_record
-from analysis.records import Record, RecordFormatError
+from analysis.records import Record
+from recording.errors import RecordFormatError
 
 
 def test_exchange_csv_becomes_a_record(tmp_path):

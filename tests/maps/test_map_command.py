@@ -19,9 +19,9 @@ from analysis.maps import read_map
 from analysis.maps.figures import draw_map
 from analysis.maps.overlay import sweep_from_steps
 from analysis.model import Drive, Model, RigParameters
-from analysis.recording_file import clear_writer_flags
 from analysis.records import Record
 from analysis.simulate import SimulationSettings, simulate
+from recording.superblock import clear_writer_flags
 from tests.maps.conftest import TINY, assert_same_map, finite_fraction, map_main, run_map
 
 

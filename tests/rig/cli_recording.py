@@ -7,7 +7,7 @@ import sys
 import time
 from pathlib import Path
 
-from analysis.recording_file import open_recording
+from recording.reader import open_recording
 
 REPO = Path(__file__).resolve().parents[2]
 

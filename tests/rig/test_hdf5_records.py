@@ -9,7 +9,7 @@ import pytest
 
 from analysis.hdf5_records import load_hdf5_segments
 from analysis.record_loaders import load_record
-from analysis.records import RecordFormatError
+from recording.errors import RecordFormatError
 from tests.rig.test_replay import _make_recording
 
 

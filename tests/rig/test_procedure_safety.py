@@ -8,7 +8,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from analysis.recording_file import open_recording
+from recording.reader import open_recording
 from rig.cli import main
 from rig.config import load_config
 from rig.devices import open_rig

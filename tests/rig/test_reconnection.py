@@ -16,7 +16,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from analysis.recording_file import open_recording
 from drivers.daq import DaqBoard
 from drivers.interfaces import DeviceError
 from drivers.sensors import (
@@ -29,6 +28,7 @@ from drivers.sensors import (
 from drivers.serial_daq import SerialDaqBackend
 from hardware_sim.daq_emulator import DaqEmulator
 from hardware_sim.sample_source import CounterSource, expected_angle_counts
+from recording.reader import open_recording
 from rig.engine import AcquisitionEngine
 from rig.recorder import ChannelSpec, Recorder, RecordingMetadata, attach_recorder
 

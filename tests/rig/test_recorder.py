@@ -15,8 +15,8 @@ import h5py
 import numpy as np
 import pytest
 
-from analysis.recording_file import open_recording
 from drivers.interfaces import PulseBlock, SampleBlock
+from recording.reader import open_recording
 from rig.engine import AcquisitionEngine
 from rig.events import DriveSetting, StepMark
 from rig.recorder import (

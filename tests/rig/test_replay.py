@@ -8,8 +8,8 @@ import time
 import numpy as np
 import pytest
 
-from analysis.recording_file import open_recording
 from drivers.interfaces import InputStream, PulseBlock, SampleBlock
+from recording.reader import open_recording
 from rig.engine import AcquisitionEngine
 from rig.events import DriveSetting, Gap, StepMark
 from rig.recorder import Recorder, attach_recorder

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from analysis.exchange import read_exchange
-from analysis.recording_file import open_recording
 from drivers.sensors import FLAG_OUT_OF_RANGE
+from recording.reader import open_recording
 from rig.cli import main
 from rig.config import default_config_path, load_config
 from rig.replay import iter_sample_blocks

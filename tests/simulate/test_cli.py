@@ -2,17 +2,16 @@
 
 from __future__ import annotations
 
-import json
 import math
 import subprocess
 import sys
 
-import h5py
 import numpy as np
 
 from analysis.exchange import read_exchange
 from analysis.model import Model, paper_case
 from analysis.simulate import SimulationSettings, simulate
+from recording.reader import open_recording
 from rig.cli import main
 
 
@@ -88,15 +87,18 @@ def test_measurement_model_and_hdf5_output(tmp_path):
         ]
     )
     assert status == 0
-    with h5py.File(out) as handle:
-        angle = handle["angle_rad"][:]
-        time_s = handle["time_s"][:]
-        meta = json.loads(handle.attrs["metadata"])
-        assert "tach" not in handle
-    assert meta["experiment"] == "free_decay" and meta["simulation"]["rig"]["zeta"] == 0.01
+    with open_recording(out) as recording:  # the recorder's layout, read like any recording
+        angle_data = recording.channel("angle")
+        info = recording.info
+        assert recording.pulse_names == [] and recording.status().closed
+    angle, time_s = angle_data.values.astype(float), angle_data.times_s
+    assert info.experiment == "free_decay" and info.extra["simulation"]["rig"]["zeta"] == 0.01
+    assert info.extra["source"] == "simulated" and info.provenance["software"]
     assert time_s.size == 5000 and time_s[1] == 1e-3
-    # quantized to the step, noise of the requested size around the model angle
-    assert np.allclose(angle / 2e-4, np.round(angle / 2e-4), atol=1e-6)
+    # quantized to the step (then stored as float32, as the recorder stores values), noise of
+    # the requested size around the model angle
+    steps = np.round(angle / 2e-4)
+    assert np.array_equal(angle_data.values, (steps * 2e-4).astype(np.float32))
     reference = simulate(
         Model(Model().rig.with_values(zeta=0.01), barrier=False), 0.1,
         settings=SimulationSettings(duration_s=5, fs_hz=1000),
@@ -152,3 +154,19 @@ def test_cause_parameter_switches_the_cause_on(tmp_path):
     # dry friction stops the pendulum: the last seconds are exactly constant
     tail = record.angle_rad[-200:]
     assert np.all(tail == tail[0])
+
+
+def test_simulated_hdf5_is_a_recording_that_replays_and_exports_like_its_csv(tmp_path, capsys):
+    run = ["simulate", "--case", "h", "--skip", "1", "--duration", "1", "--fs", "2000",
+           "--overwrite"]
+    assert main([*run, "--out", str(tmp_path / "sim.h5")]) == 0
+    assert main([*run, "--out", str(tmp_path / "sim.csv")]) == 0
+    assert main(["replay", str(tmp_path / "sim.h5"), "--fast"]) == 0
+    assert main(["export", str(tmp_path / "sim.h5"), "--out", str(tmp_path / "back.csv")]) == 0
+    direct, back = read_exchange(tmp_path / "sim.csv"), read_exchange(tmp_path / "back.csv")
+    assert np.array_equal(back.time_s, direct.time_s)
+    for column in ("angle_rad", "table_m"):  # the recording stores values as float32
+        np.testing.assert_allclose(getattr(back, column), getattr(direct, column), rtol=2**-23,
+                                   atol=1e-12)
+    assert np.array_equal(back.tach_indices, direct.tach_indices)
+    assert back.meta.drive == direct.meta.drive and back.meta.experiment == "forced"

@@ -11,7 +11,9 @@ import h5py
 import numpy as np
 import pytest
 
-from analysis.recording_file import clear_writer_flags, lookup3, open_recording
+from recording.checksum import lookup3
+from recording.reader import open_recording
+from recording.superblock import clear_writer_flags
 from tests.trust.conftest import REPO, run_cli
 
 COMMANDS = {
@@ -112,7 +114,7 @@ SWEEP_METADATA = """
 import sys
 from pathlib import Path
 from analysis.hdf5_records import read_recording_arrays
-from analysis.records import RecordFormatError
+from recording.errors import RecordFormatError
 source, folder = Path(sys.argv[1]), Path(sys.argv[2])
 whole = source.read_bytes()
 reference = read_recording_arrays(source)

@@ -9,10 +9,10 @@ import time
 import numpy as np
 import pytest
 
-from analysis.recording_file import open_recording
 from drivers.amplifier_registers import Holding, Input, join_u32, split_u32
 from drivers.modbus_shaker import ModbusTcpBackend
 from hardware_sim.virtual_rig import VirtualRig, VirtualRigSettings, compile_physics
+from recording.reader import open_recording
 from rig.config import load_config
 from rig.devices import open_rig, virtual_config
 from rig.drive_monitor import DriveMismatchError

@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 
 from analysis.json_output import to_json_text, write_json
-from analysis.recording_file import open_recording, read_attributes
+from recording.metadata import read_attributes
+from recording.reader import open_recording
 from rig.cli import main
 from tests.strict_json import strict_loads
 

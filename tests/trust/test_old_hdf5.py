@@ -9,7 +9,7 @@ import venv
 
 import pytest
 
-from analysis.recording_file import open_recording
+from recording.reader import open_recording
 
 OLD_H5PY = "h5py==3.11.0"  # the last h5py on HDF5 1.14 (wheels bundle it)
 OLD_NUMPY = "numpy<2"  # what that h5py was built against

@@ -7,7 +7,7 @@ import subprocess
 import sys
 
 from analysis.provenance import DEPENDENCIES
-from analysis.recording_file import open_recording
+from recording.reader import open_recording
 from tests.trust.conftest import REPO, run_cli
 
 
