@@ -18,10 +18,12 @@ from tests.rig.streams import CounterStream, TachStream
 from tests.rig.test_recorder import META, SPECS
 
 
-def _make_recording(path, total=40_000, realtime=False):
+def _make_recording(path, total=40_000, realtime=False, angle_gain=None):
+    gain = {} if angle_gain is None else {"gain": angle_gain}
     streams = [
         CounterStream(
-            "angle", total=total, gaps={7_000: 321, 25_000: 5}, block=500, realtime=realtime
+            "angle", total=total, gaps={7_000: 321, 25_000: 5}, block=500, realtime=realtime,
+            **gain,
         ),
         CounterStream(
             "table",
@@ -167,7 +169,8 @@ def test_export_refuses_gaps_unless_told_and_splits_into_uniform_segments(tmp_pa
     from analysis.exchange import read_exchange
     from rig.cli import main
 
-    path = _make_recording(tmp_path / "gappy.h5")
+    # an angle that stays one (the exchange reader refuses more than pi rad)
+    path = _make_recording(tmp_path / "gappy.h5", angle_gain=5e-5)
     out = tmp_path / "gappy.csv"
     assert main(["export", str(path), "--out", str(out)]) == 2
     assert "--gaps split" in capsys.readouterr().err and not out.exists()
@@ -177,4 +180,4 @@ def test_export_refuses_gaps_unless_told_and_splits_into_uniform_segments(tmp_pa
     assert firsts == [0, 7_321, 13_345, 25_005]
     for segment, first in zip(segments, firsts, strict=True):
         index = first + np.arange(segment.time_s.size)
-        np.testing.assert_allclose(segment.angle_rad, index * 1e-3, rtol=1e-7)
+        np.testing.assert_allclose(segment.angle_rad, index * 5e-5, rtol=1e-7)
