@@ -405,11 +405,13 @@ def run_decays(args: argparse.Namespace, kinds: list[str]) -> None:
                     if fitted is not None:
                         errors.append(abs(fitted / value - 1.0))
         gain = report["gain"]["rms_reduction"] if report is not None else float("nan")
+        flagged = report is not None and bool(report["unexplained"])
         rows.append((kind, truth, found, elapsed, max(errors) if errors else float("nan"), gain,
-                     extra))
+                     extra, flagged))
         print(f"[{i + 1}/{n}] {kind:12s} {truth:20s} -> {found:20s} {elapsed:6.1f} s  "
               f"param err {rows[-1][4]:.3g}  rms gain {gain:.3g}"
-              + (f"  + {' + '.join(extra)}" if extra else ""), flush=True)
+              + (f"  + {' + '.join(extra)}" if extra else "")
+              + ("  unexplained" if flagged else ""), flush=True)
     _summary(rows)
 
 
@@ -515,6 +517,9 @@ def _summary(rows) -> None:
               "(goal <= 5 %)")
     print(f"records given a second cause beside their one: {sum(bool(r[6]) for r in rows)}/"
           f"{len(rows)}")
+    right = [r for r in rows if r[1] == r[2]]
+    print(f"records named right but flagged unexplained (a false flag): "
+          f"{sum(r[7] for r in right)}/{len(right)}")
     hits = [r for r in rows if r[1] == r[2] and r[1] != "none"]
     if hits:
         errs = np.array([r[4] for r in hits if np.isfinite(r[4])])
