@@ -13,6 +13,7 @@ from __future__ import annotations
 import math
 import threading
 import time
+from collections.abc import Iterable
 from dataclasses import dataclass
 
 import numpy as np
@@ -173,14 +174,20 @@ class DaqFaults:
 
     def samples_lost(self, before_index: int | None = None) -> int:
         """Samples the faults cost among indices below ``before_index`` (all when None)."""
-        total = 0
-        for record in self.log:
-            end = record.first_index + record.n_samples
-            if before_index is None:
-                total += record.n_samples
-            else:
-                total += max(0, min(end, before_index) - record.first_index)
-        return total
+        return samples_lost(self.log, before_index)
 
     def _random_bytes(self, n: int) -> bytes:
         return self._rng.integers(0, 256, size=n, dtype=np.uint8).tobytes()
+
+
+def samples_lost(log: Iterable[FaultRecord], before_index: int | None = None) -> int:
+    """Samples the faults of ``log`` cost among indices below ``before_index`` (all when
+    None)."""
+    total = 0
+    for record in log:
+        if before_index is None:
+            total += record.n_samples
+        else:
+            end = record.first_index + record.n_samples
+            total += max(0, min(end, before_index) - record.first_index)
+    return total

@@ -20,7 +20,7 @@ from dataclasses import replace
 from pathlib import Path
 
 from drivers.daq_protocol import BoardIdentity
-from hardware_sim.daq_faults import OVERFLOW, FaultRecord
+from hardware_sim.daq_faults import OVERFLOW, FaultRecord, samples_lost
 from hardware_sim.daq_firmware import DEFAULT_IDENTITY
 from hardware_sim.sample_source import CounterSource
 
@@ -164,14 +164,7 @@ class FirmwareFaults:
 
     def samples_lost(self, before_index: int | None = None) -> int:
         """Samples the faults cost among indices below ``before_index`` (all when None)."""
-        total = 0
-        for record in self.log:
-            end = record.first_index + record.n_samples
-            if before_index is None:
-                total += record.n_samples
-            else:
-                total += max(0, min(end, before_index) - record.first_index)
-        return total
+        return samples_lost(self.log, before_index)
 
 
 class FirmwareBoard:
