@@ -12,15 +12,15 @@ were white at 1.1 times their noise.  With the right model (twelve records of th
 reference generator with their true causes) no parameter differed by more than 2.6
 standard errors.
 
-The rule: the record is split where the final model's swing (the largest angle still to
-come) falls below SPLIT_SHARE of its largest; each part is fitted alone (the early part
-from the final model's values, the late one from its states at the split), and every
-parameter of the rig and the causes (not the initial states) is compared by
+The rule: the record is split where the final model's swing (the largest true angle still
+to come, 0 at rest) falls below SPLIT_SHARE of its largest; each part is fitted alone (the
+early part from the final model's values, the late one from its states at the split), and
+every parameter of the rig and the causes (not the initial states) is compared by
 z = (early - late) / sqrt(se_early^2 + se_late^2), on the scale the fit works in (the log
 for omega, K and the other parameters fitted as logs), with standard errors from the fits'
-95 % intervals.  A finding when some |z| exceeds the two-sided FALSE_ALARM quantile divided
-among the parameters compared (Bonferroni).  A parameter that ends on a bound of its range
-in either part, or has no interval there, is not compared.
+95 % intervals.  A finding when some z exceeds in size the two-sided FALSE_ALARM quantile
+divided among the parameters compared (Bonferroni).  A parameter that ends on a bound of
+its range in either part, or has no interval there, is not compared.
 """
 
 from __future__ import annotations
