@@ -18,8 +18,8 @@ from scipy.signal import lfilter
 
 from analysis.packed import P, ParameterError
 
-if TYPE_CHECKING:  # a type only: analysis.model imports this module to pack its causes
-    from analysis.model import Model
+if TYPE_CHECKING:  # types only: analysis.model imports this module to pack its causes
+    from analysis.model import Model, RigParameters
 
 NONE = "none"
 
@@ -72,6 +72,23 @@ class RecordScale:
     stiffness: float  # baseline K [N / m^1.5]
     mu0_s_per_m: float
     penetration_m: float  # typical largest penetration of the baseline's contacts (0: none)
+
+    @classmethod
+    def of(cls, rig: RigParameters, t: np.ndarray, angle: np.ndarray,
+           values: Mapping[str, float], penetration_m: float) -> RecordScale:
+        """The scale of a record (uniform times ``t``, angle ``angle``, NaN where excluded)
+        under a model's ``values`` (its omega and zeta; K and mu0 when it has them, else
+        the rig's), with its contacts' typical largest ``penetration_m``."""
+        omega = values["omega_rad_s"]
+        length = rig.g_m_s2 / omega**2  # the pendulum's equivalent length
+        return cls(
+            amplitude_rad=float(np.nanmax(np.abs(angle))), omega_rad_s=omega,
+            zeta=values["zeta"], duration_s=float(t[-1]), dt_s=float(t[1] - t[0]),
+            inertia_kg_m2=rig.m_kg * length**2,
+            stiffness=values.get("K_N_per_m1.5", rig.K_N_per_m1_5),
+            mu0_s_per_m=values.get("mu0_s_per_m", rig.mu0_s_per_m),
+            penetration_m=penetration_m,
+        )
 
 
 @dataclass(frozen=True)

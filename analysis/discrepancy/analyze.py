@@ -183,24 +183,6 @@ def priors_from_decays(
     return priors
 
 
-def record_scale(data: FitData, baseline: FitResult, contacts_delta: float) -> RecordScale:
-    """Magnitudes that size the candidates' steps and start values."""
-    v = baseline.values
-    omega = v["omega_rad_s"]
-    L = data.rig.g_m_s2 / omega**2
-    return RecordScale(
-        amplitude_rad=float(np.nanmax(np.abs(data.y))),
-        omega_rad_s=omega,
-        zeta=v["zeta"],
-        duration_s=float(data.t[-1]),
-        dt_s=data.dt,
-        inertia_kg_m2=data.rig.m_kg * L**2,
-        stiffness=v.get("K_N_per_m1.5", data.rig.K_N_per_m1_5),
-        mu0_s_per_m=v.get("mu0_s_per_m", data.rig.mu0_s_per_m),
-        penetration_m=contacts_delta,
-    )
-
-
 # --------------------------------------------------------------------------- candidates
 
 
@@ -435,13 +417,7 @@ def analyze_decay(
         raise AnalysisError(f"{record.source or 'record'}: {error}") from error
     notes.extend(start_notes)
     n_train = round(policy.train_fraction * data.t.size)
-    neutral = RecordScale(
-        amplitude_rad=float(np.nanmax(np.abs(data.y))), omega_rad_s=start["omega_rad_s"],
-        zeta=start["zeta"], duration_s=float(data.t[-1]), dt_s=data.dt,
-        inertia_kg_m2=data.rig.m_kg * data.rig.g_m_s2**2 / start["omega_rad_s"] ** 4,
-        stiffness=start.get("K_N_per_m1.5", data.rig.K_N_per_m1_5),
-        mu0_s_per_m=start.get("mu0_s_per_m", data.rig.mu0_s_per_m), penetration_m=0.0,
-    )
+    neutral = RecordScale.of(data.rig, data.t, data.y, start, 0.0)
     say("fitting the baseline model")
     head = data.head(n_train / data.t.size)
     baseline_train = fit(head, BASELINE, start, neutral)
@@ -451,7 +427,8 @@ def analyze_decay(
     timings["baseline"] = time.perf_counter() - clock
     _, full_sim = predict(data, BASELINE, baseline.values)
     deltas = full_sim.contacts.delta_max_m
-    scale = record_scale(data, baseline, float(np.median(deltas)) if deltas.size else 0.0)
+    scale = RecordScale.of(data.rig, data.t, data.y, baseline.values,
+                           float(np.median(deltas)) if deltas.size else 0.0)
     localization = localize(data, baseline, *motion_of(data, full_sim))
     say(f"baseline rms {baseline.rms:.3g} rad; {localization.text}")
     names = [c.name for c in candidates_for(data.experiment)]

@@ -152,18 +152,13 @@ def as_fit_result(fit: ShootingFit, model: ModelSpec, contacts: int = 0) -> FitR
 
 
 def record_scale(data: ForcedData, values: Mapping[str, float]) -> RecordScale:
-    """Magnitudes that size the candidates' steps and start values."""
+    """Magnitudes that size the candidates' steps and start values: the penetration of a
+    Hertz impact at the speed the record's highest angle implies."""
     omega = values["omega_rad_s"]
-    L = data.rig.g_m_s2 / omega**2
-    level = float(np.nanmax(data.y))
-    speed = impact_speed(data, level)
+    speed = impact_speed(data, float(np.nanmax(data.y)))
     K = values.get("K_N_per_m1.5", data.rig.K_N_per_m1_5)
-    return RecordScale(
-        amplitude_rad=float(np.nanmax(np.abs(data.y))), omega_rad_s=omega, zeta=values["zeta"],
-        duration_s=float(data.t[-1]), dt_s=data.dt, inertia_kg_m2=data.rig.m_kg * L**2,
-        stiffness=K, mu0_s_per_m=values.get("mu0_s_per_m", data.rig.mu0_s_per_m),
-        penetration_m=data.rig.l_m * hertz_penetration_rad(data.rig, omega, K, speed),
-    )
+    return RecordScale.of(data.rig, data.t, data.y, values,
+                          data.rig.l_m * hertz_penetration_rad(data.rig, omega, K, speed))
 
 
 def cause_hints(ident: ForcedIdentification) -> dict[str, float]:
