@@ -32,7 +32,7 @@ from analysis.discrepancy.forward import indistinct as forward_indistinct
 from analysis.discrepancy.localize import localize, motion_of
 from analysis.discrepancy.outcome import Analysis, AnalysisError, CandidateOutcome
 from analysis.discrepancy.policy import DEFAULT_POLICY, SelectionPolicy
-from analysis.discrepancy.residual_reading import read_residual
+from analysis.discrepancy.residual_reading import Finding, read_residual
 from analysis.discrepancy.restitution import fit_restitution, restitution_from_hunt_crossley
 from analysis.discrepancy.selection import (
     Verdict,
@@ -96,6 +96,38 @@ def proposed_terms(record: Record, final: FitResult) -> list[ProposedTerm]:
                                 final.model.causes, data.phase0_rad)
     theta = data.y[:n] - (measured[:n] - true)
     return propose_terms(data.t[:n], theta, data.valid[:n], packed, true, rate)
+
+
+def decay_implausibility(model: ModelSpec, values: Mapping[str, float],
+                         policy: SelectionPolicy) -> str | None:
+    """Why a decay's model is no explanation a real rig can have: its causes' values
+    (:func:`analysis.extensions.implausibility`), or causes that take all of the rig's
+    viscous damping (zeta below ``policy.viscous_floor``).  A contact damping on delta^2
+    was named dry friction, whose fit held zeta at 0, with nothing flagged."""
+    reasons = [implausibility(model, values)]
+    if model.causes and values.get("zeta", math.inf) < policy.viscous_floor:
+        reasons.append(f"zeta = {values['zeta']:.3g}: the causes take all of the rig's "
+                       f"viscous damping (below {policy.viscous_floor:g}), which air alone "
+                       "gives a real pendulum")
+    return "; ".join(r for r in reasons if r) or None
+
+
+def implausible_gain_finding(outcomes: Sequence[CandidateOutcome]) -> Finding | None:
+    """An ``implausible_gain`` finding when a candidate would earn its keep but its values are
+    no real rig's (the record then names no cause): the record asks for something the named
+    causes can only stand in for.  The candidate of largest information-criterion gain is
+    named."""
+    asked = [o for o in outcomes if o.verdict.earns_keep_but_implausible]
+    if not asked:
+        return None
+    top = max(asked, key=lambda o: o.verdict.information_criterion_delta)
+    v = top.verdict
+    return Finding("implausible_gain", (
+        f"{top.model} would explain the record (BIC gain "
+        f"{v.information_criterion_delta:.3g}, held-out error x{v.heldout_ratio:.3g}) but is "
+        f"no explanation a real rig can have: {v.implausible}; something outside the named "
+        "causes is missing"), {"information_criterion_delta": v.information_criterion_delta,
+                               "heldout_ratio": v.heldout_ratio})
 
 
 def baseline_start(
@@ -253,7 +285,7 @@ def assess_candidate(
         rms_extended=full.rms,
         noise_rad=data.noise_rad,
         n_heldout=int(np.count_nonzero(data.valid[fits.n_train:])),
-        implausible=implausibility(model, full.values),
+        implausible=decay_implausibility(model, full.values, fits.policy),
         policy=fits.policy,
     )
     better_basin = None
@@ -359,7 +391,7 @@ class DecaySteps:
         return information_criterion_delta(parent.full, fit.full, self.fits.data.noise_rad)
 
     def disqualification(self, model: ModelSpec, fit: CandidateOutcome) -> str | None:
-        return implausibility(model, fit.full.values)
+        return decay_implausibility(model, fit.full.values, self.fits.policy)
 
     def estimates(self, fit: CandidateOutcome) -> Mapping[str, Estimate]:
         return fit.full.estimates
@@ -479,8 +511,10 @@ def analyze_decay(
     )
     say("the final model refitted on the large swings and on the rest")
     best = analysis.final_outcome
-    analysis.constancy = constancy_finding(data, best.full if best is not None else baseline,
-                                           scale)
+    found = [constancy_finding(data, best.full if best is not None else baseline, scale)]
+    if chosen == NONE:
+        found.append(implausible_gain_finding(outcomes))
+    analysis.beside = [f for f in found if f is not None]
     if data.barrier:
         say("constant coefficient of restitution against Hunt-Crossley")
         analysis.restitution = compare_restitution(data, n_train, baseline, baseline_heldout,

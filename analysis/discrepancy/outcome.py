@@ -79,9 +79,11 @@ class Analysis:
     proposed_terms: list[ProposedTerm] = field(default_factory=list)
     # the rules under which it was decided
     policy: SelectionPolicy = DEFAULT_POLICY
-    # decays: the final model's parameters on the large swings against the rest
-    # (analysis.discrepancy.constancy), None when they agree or were not compared
-    constancy: Finding | None = None
+    # decays: findings made beside the residual, which flag it as the residual's do (the
+    # final model's parameters on the large swings against the rest,
+    # analysis.discrepancy.constancy; a cause that would explain the record but is no real
+    # rig's)
+    beside: list[Finding] = field(default_factory=list)
 
     @property
     def chosen_outcome(self) -> CandidateOutcome | None:
@@ -126,7 +128,7 @@ class Analysis:
             self.data.t, final.residual, self.data.valid, self.data.noise_rad,
             drive_frequency_hz=(self.drive or {}).get("frequency_hz"), subharmonic=period,
             model_rad=curve, backbone=backbone,
-            beside=[self.constancy] if self.constancy is not None else [])
+            beside=self.beside)
         return self
 
     def warnings(self) -> list[str]:

@@ -49,6 +49,10 @@ class SelectionPolicy:
     heldout_blocks: int = _rule(
         12, "decays: the predicted rest cut into this many blocks for the paired test of "
         "the prediction's error (``forecast_z`` standard errors over the blocks)")
+    viscous_floor: float = _rule(
+        1e-6, "decays: a model with causes whose fitted zeta falls below this (its bound is "
+        "0) is no explanation: air alone damps a real pendulum far more, and causes that "
+        "take all of the rig's viscous damping stand in for a law the model lacks")
     # -- the forward selection
     max_causes: int = _rule(3, "a forward selection stops at this many causes")
     indistinct_correlation: float = _rule(

@@ -41,7 +41,7 @@ from analysis.identify.preprocess import (
 )
 
 KINDS = ("line", "drive_frequency", "trend", "timing", "outliers", "backbone",
-         "constancy")
+         "constancy", "implausible_gain")
 
 Z_FINDING = float(stats.norm.isf(FALSE_ALARM / 2.0))  # two-sided: 3.89
 # Structure counts when its rms reaches this fraction of the noise's.  It then adds 2 %
@@ -174,8 +174,8 @@ def read_residual(
     white floor is significant and at least MIN_STRUCTURE^2 of it; or when its
     sample-to-sample scatter exceeds the record's noise by SCATTER_LIMIT (broadband
     structure, which no floor measured from the residual itself can show); or when a
-    line, a trend, a backbone or a finding ``beside`` of kind ``constancy`` is found (each
-    as significant, and as big, on its own).
+    line, a trend, a backbone or a finding ``beside`` of kind ``constancy`` or
+    ``implausible_gain`` is found (each as significant, and as big, on its own).
     """
     t, r, ok = _checked(t_s, residual_rad, valid)
     if backbone and model_rad is None:
@@ -218,7 +218,8 @@ def read_residual(
         and structured_rms >= MIN_STRUCTURE * floor
     broadband = scatter > SCATTER_LIMIT
     # each as significant and big
-    named = any(f.kind in ("line", "trend", "backbone", "constancy") for f in findings)
+    named = any(f.kind in ("line", "trend", "backbone", "constancy", "implausible_gain")
+                for f in findings)
     structured = nonwhite or broadband or named
     why = _why(structured, nonwhite, broadband, structured_rms, floor, noise_rad, p, scatter,
                findings, math.sqrt(mean_square))

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -126,6 +126,12 @@ class Verdict:
         if ratio is not None and ratio >= max(1.0, 1.0 / self.heldout_ratio):
             return False  # forecasts better, but its own long run further from the record's
         return self.heldout_helps
+
+    @property
+    def earns_keep_but_implausible(self) -> bool:
+        """True when the extension would earn its keep but its values are no real rig's: the
+        record asks for something its named causes can only stand in for."""
+        return self.implausible is not None and replace(self, implausible=None).earns_keep
 
     @property
     def why(self) -> str:

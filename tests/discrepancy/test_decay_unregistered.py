@@ -88,3 +88,14 @@ def test_a_cubic_damping_is_proposed_or_listed_as_a_term_the_record_cannot_tell_
     offered = {t["term"] for t in flight} | {a for t in flight for a in t["alternatives"]}
     assert "theta'^3" in offered, report["proposed_terms"]
     assert "theta'^3" not in {c["cause"] for c in report["causes"]}
+
+
+def test_a_contact_damping_on_the_squared_penetration_is_not_explained_as_dry_friction(tmp_path):
+    # contact damping K mu0' delta^2 delta': dry friction fits it with a large information
+    # gain only by taking all of the rig's viscous damping (zeta on its bound 0), which no
+    # real pendulum can lack; the record is flagged, never explained by friction
+    report = _report("contact_damping_on_delta2", tmp_path)
+    assert "coulomb_friction" not in {c["cause"] for c in report["causes"]}, report["causes"]
+    assert report["unexplained"], report["residual_reading"]["why"]
+    kinds = {f["kind"] for f in report["residual_findings"]}
+    assert kinds & {"constancy", "implausible_gain"}, report["residual_findings"]
