@@ -67,7 +67,7 @@ def result(key: str, figures: list[dict[str, str]], *, about: str = "",
 def _relative_argv() -> list[str]:
     script = Path(sys.argv[0]).resolve()
     shown = script.relative_to(ROOT) if script.is_relative_to(ROOT) else script
-    return [str(shown), *sys.argv[1:]]
+    return [str(shown), *(word for word in sys.argv[1:] if word != "--save")]
 
 
 def save(outcome: dict[str, Any], folder: Path = RESULTS) -> Path:
