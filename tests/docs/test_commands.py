@@ -35,7 +35,8 @@ the shortened command uses.
 
 leaves the block's commands unrun (the desktop application, a Dask cluster of several
 machines); every command of every block, run or not, is still parsed by the command-line
-parser (``impact-rig``) or checked against its ``--help`` (``python SCRIPT``).
+parser (``impact-rig``) or checked against its ``--help`` (``python SCRIPT``), as are the
+benchmarks' commands on the benchmarks page (from benchmarks/results/), minutes to hours each.
 
 Files a page assumes the reader has (their rig file, someone else's CSV) are made by
 ``GIVEN`` below, from the shipped rig file, the real records in tests/data or the page's own
@@ -364,7 +365,7 @@ def _written(folder: Path, name: str) -> bool:
     return path.exists() or any(path.parent.glob(f"{path.stem}_*{path.suffix}"))
 
 
-def _run_until_ready(shown: Shown, argv: list[str], folder: Path) -> str | None:
+def _run_until_ready(argv: list[str], folder: Path) -> str | None:
     """Start the command, wait for its ``ready`` line, Ctrl-C it: None, or what went wrong."""
     process = subprocess.Popen([sys.executable, "-m", "rig.cli", *argv[1:]], cwd=folder,
                                stdin=subprocess.PIPE, stdout=subprocess.PIPE,
@@ -397,7 +398,7 @@ def _run(shown: Shown, folder: Path, capsys) -> str | None:
         if word in GIVEN and not (folder / word).exists():
             GIVEN[word](folder)
     if plan(shown.marker).until_ready:
-        return _run_until_ready(shown, argv, folder)
+        return _run_until_ready(argv, folder)
     if argv[0] == "python":
         done = subprocess.run([sys.executable, str(ROOT / argv[1]), *argv[2:]], cwd=folder,
                               capture_output=True, text=True, timeout=600, check=False, env=_env())
