@@ -14,12 +14,14 @@ attractor matching) costs.
 
     python benchmarks/bench_dynamics.py            # full size (several minutes on 2 cores)
     python benchmarks/bench_dynamics.py --quick    # 40 betas, 30 x 30 grid
+    python benchmarks/bench_dynamics.py --save     # also benchmarks/results/dynamics.json
 """
 
 from __future__ import annotations
 
 import argparse
 import math
+import os
 import sys
 import time
 from pathlib import Path
@@ -40,6 +42,7 @@ from analysis.dynamics.sweeps import default_workers  # noqa: E402
 from analysis.model import Model, paper_case  # noqa: E402
 from analysis.packed import P  # noqa: E402
 from analysis.simulate import SimulationSettings, simulate_ensemble, simulate_packed  # noqa: E402
+from benchmarks.results import figure, result, save  # noqa: E402
 
 
 def serial_seconds_per_run(packed: np.ndarray, initial: np.ndarray, periods: int) -> float:
@@ -62,7 +65,8 @@ def serial_seconds_per_run(packed: np.ndarray, initial: np.ndarray, periods: int
     return (time.perf_counter() - start) / packed.shape[0]
 
 
-def bench_bifurcation(n_betas: int, periods: int, out: Path | None) -> None:
+def bench_bifurcation(n_betas: int, periods: int, out: Path | None) -> dict[str, float]:
+    """Print and return the seconds of each mode (continuation, fixed)."""
     rig, drive = paper_case("h").dimensional()
     base = Model(rig, drive)
     betas = np.linspace(0.01, 0.13, n_betas)
@@ -74,10 +78,11 @@ def bench_bifurcation(n_betas: int, periods: int, out: Path | None) -> None:
         f"  baseline: a {periods}-period run takes {per_run * 1e3:.1f} ms serially "
         f"(mean over {sample.size} betas)"
     )
+    seconds = {}
     for mode, runs in (("continuation", 2 * n_betas), ("fixed", n_betas)):
         start = time.perf_counter()
         diagrams = simulate_bifurcation(base, betas, periods=periods, record_periods=100, mode=mode)
-        elapsed = time.perf_counter() - start
+        elapsed = seconds[mode] = time.perf_counter() - start
         baseline = runs * per_run
         print(
             f"  {mode:>12}: {elapsed:7.2f} s for {runs} runs; serial baseline {baseline:7.2f} s; "
@@ -85,9 +90,11 @@ def bench_bifurcation(n_betas: int, periods: int, out: Path | None) -> None:
         )
         if out is not None and mode == "continuation":
             plot_bifurcation(*diagrams, title="paper case h rig", path=out / "bifurcation.png")
+    return seconds
 
 
-def bench_basins(n_grid: int, out: Path | None) -> None:
+def bench_basins(n_grid: int, out: Path | None) -> float:
+    """Print and return the seconds of the basin map."""
     rig, drive = paper_case("d").dimensional()
     model = Model(rig, drive)
     transient, record = 200, 64
@@ -112,18 +119,29 @@ def bench_basins(n_grid: int, out: Path | None) -> None:
     )
     if out is not None:
         plot_basins(basins, title="paper case d", path=out / "basins.png")
+    return elapsed
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="small sizes (40 betas, 30 x 30)")
     parser.add_argument("--figures", type=Path, help="write bifurcation.png and basins.png here")
+    parser.add_argument("--save", action="store_true",
+                        help="also write the figures to benchmarks/results/dynamics.json")
     args = parser.parse_args()
     if args.figures is not None:
         args.figures.mkdir(parents=True, exist_ok=True)
+    load = os.getloadavg()[0]
     n_betas, n_grid = (40, 30) if args.quick else (400, 200)
-    bench_bifurcation(n_betas, 500, args.figures)
-    bench_basins(n_grid, args.figures)
+    bifurcation = bench_bifurcation(n_betas, 500, args.figures)
+    basins = bench_basins(n_grid, args.figures)
+    if args.save:
+        save(result("dynamics", [
+            figure(f"bifurcation diagram, {n_betas} betas x 500 periods (fixed start / "
+                   "continuation up + down)",
+                   f"{bifurcation['fixed']:.3g} s / {bifurcation['continuation']:.3g} s"),
+            figure(f"basins, {n_grid} x {n_grid} grid", f"{basins:.3g} s"),
+        ], load_at_start=load))
 
 
 if __name__ == "__main__":

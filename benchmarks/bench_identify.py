@@ -9,12 +9,14 @@
    integrator) and impact decays (data from the project's simulator).
 
     python benchmarks/bench_identify.py --trials 100
+    python benchmarks/bench_identify.py --save      (also benchmarks/results/identify.json)
 """
 
 from __future__ import annotations
 
 import argparse
 import math
+import os
 import sys
 import time
 from pathlib import Path
@@ -28,6 +30,7 @@ from analysis.identify import fit_free_decay, fit_impact_decay  # noqa: E402
 from analysis.model import Model, RigParameters  # noqa: E402
 from analysis.records import Record  # noqa: E402
 from analysis.simulate import SimulationSettings, simulate  # noqa: E402
+from benchmarks.results import figure, result, save  # noqa: E402
 from tests.identify.oracle import free_decay  # noqa: E402
 
 RIG_KEYS = {"m_kg": 0.0326, "l_m": 0.05, "R_m": 0.0095, "g": 9.81}
@@ -52,7 +55,7 @@ def _impact_record(rng, truth, theta0, offset, duration_s, fs_hz) -> Record:
     return Record(sim.t, angle, "impact_decay", rig=RIG_KEYS)
 
 
-def bench_impact_fit_time(repeats: int) -> None:
+def bench_impact_fit_time(repeats: int) -> float:
     rng = np.random.default_rng(10)
     truth, theta0, offset = _impact_truth(rng)
     record = _impact_record(rng, truth, theta0, offset, 10.0, 10_000.0)
@@ -75,9 +78,11 @@ def bench_impact_fit_time(repeats: int) -> None:
     K = result["K_N_per_m1.5"]
     print(f"  K {K.value:.5g} (true {truth.K_N_per_m1_5:.5g}), mu0 "
           f"{result['mu0_s_per_m'].value:.4g} (true {truth.mu0_s_per_m:.4g})")
+    return fit
 
 
-def _report(name: str, key: str, truths: list[float], results: list) -> None:
+def _report(name: str, key: str, truths: list[float], results: list) -> float:
+    """Print the coverage, bias and z statistics of one parameter; returns the coverage."""
     truths_a = np.array(truths)
     values = np.array([r[key].value for r in results])
     half = np.array([r[key].half_width for r in results])
@@ -88,9 +93,12 @@ def _report(name: str, key: str, truths: list[float], results: list) -> None:
           f"({100 * covered / len(truths):.0f} %), bias {np.mean(rel):+.2e} relative "
           f"(+-{np.std(rel) / math.sqrt(len(rel)):.1e}), z mean {np.mean(z):+.2f} "
           f"sd {np.std(z):.2f}")
+    return float(covered / len(truths))
 
 
-def bench_free_decay_coverage(trials: int, amplitude: tuple[float, float], name: str) -> None:
+def bench_free_decay_coverage(
+    trials: int, amplitude: tuple[float, float], name: str
+) -> dict[str, float]:
     rng = np.random.default_rng(123 if name == "averaging" else 321)
     truths: dict[str, list[float]] = {"L_m": [], "zeta": []}
     results = []
@@ -106,11 +114,10 @@ def bench_free_decay_coverage(trials: int, amplitude: tuple[float, float], name:
     elapsed = time.perf_counter() - start
     print(f"free decay, {name} fits, {trials} trials, amplitude {amplitude} rad "
           f"({elapsed / trials:.2f} s per fit):")
-    for key in ("L_m", "zeta"):
-        _report(name, key, truths[key], results)
+    return {key: _report(name, key, truths[key], results) for key in ("L_m", "zeta")}
 
 
-def bench_impact_coverage(trials: int) -> None:
+def bench_impact_coverage(trials: int) -> dict[str, float]:
     rng = np.random.default_rng(77)
     truths: dict[str, list[float]] = {"K_N_per_m1.5": [], "mu0_s_per_m": []}
     results = []
@@ -123,19 +130,30 @@ def bench_impact_coverage(trials: int) -> None:
         truths["mu0_s_per_m"].append(truth.mu0_s_per_m)
     elapsed = time.perf_counter() - start
     print(f"impact decay, {trials} trials, 6 s at 5 kHz ({elapsed / trials:.2f} s per fit):")
-    for key in truths:
-        _report("impact", key, truths[key], results)
+    return {key: _report("impact", key, truths[key], results) for key in truths}
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--trials", type=int, default=100, help="free-decay trials (averaging)")
     parser.add_argument("--repeats", type=int, default=3, help="timing repeats (best is shown)")
+    parser.add_argument("--save", action="store_true",
+                        help="also write the figures to benchmarks/results/identify.json")
     args = parser.parse_args()
-    bench_impact_fit_time(args.repeats)
-    bench_free_decay_coverage(args.trials, (0.05, 0.18), "averaging")
+    load = os.getloadavg()[0]
+    fit_s = bench_impact_fit_time(args.repeats)
+    free = bench_free_decay_coverage(args.trials, (0.05, 0.18), "averaging")
     bench_free_decay_coverage(max(5, args.trials // 4), (0.3, 1.5), "simulation")
-    bench_impact_coverage(max(5, args.trials // 5))
+    impact_trials = max(5, args.trials // 5)
+    impact = bench_impact_coverage(impact_trials)
+    if args.save:
+        coverage = [free["L_m"], free["zeta"], impact["K_N_per_m1.5"], impact["mu0_s_per_m"]]
+        save(result("identify", [
+            figure("time to fit a 10 s impact decay at 10 kHz", f"{fit_s:.2f} s", "< 10 s"),
+            figure(f"95 % intervals' coverage of L, zeta, K, mu0 ({args.trials}/{args.trials}/"
+                   f"{impact_trials}/{impact_trials} trials)",
+                   ", ".join(f"{100 * value:.0f} %" for value in coverage)),
+        ], load_at_start=load))
 
 
 if __name__ == "__main__":

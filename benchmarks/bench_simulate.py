@@ -13,6 +13,7 @@ Scenarios: (1) the paper's case h, 200 drive periods; (2) impact decay released 
 real-time factor at 200 kHz output (the virtual rig's need: > 1).
 
     python -m benchmarks.bench_simulate          (or python benchmarks/bench_simulate.py)
+    python benchmarks/bench_simulate.py --save   (also benchmarks/results/simulate.json)
 
 The machine may be shared: timings are CPU times (time.process_time), the best of
 several repetitions.
@@ -20,7 +21,9 @@ several repetitions.
 
 from __future__ import annotations
 
+import argparse
 import math
+import os
 import sys
 import time
 from pathlib import Path
@@ -35,6 +38,7 @@ if str(ROOT) not in sys.path:
 from analysis.model import Model, acceleration, paper_case  # noqa: E402
 from analysis.packed import P  # noqa: E402
 from analysis.simulate import SimulationSettings, Stepper, simulate_packed  # noqa: E402
+from benchmarks.results import figure, result, save  # noqa: E402
 
 GRID_HZ = 1000.0
 BASELINE_RTOL = 1e-9
@@ -91,8 +95,9 @@ def _best_time(function, repeats: int) -> tuple[float, object]:
 
 def scenario(
     name: str, model: Model, theta0: float, duration_s: float, baseline_rtol: float
-) -> float:
-    """Print errors, speeds and the ratio for one scenario; returns the ratio."""
+) -> tuple[float, float]:
+    """Print errors, speeds and the ratio for one scenario; returns the ratio and our CPU
+    seconds per run."""
     p = model.pack()
     grid = np.arange(math.floor(duration_s * GRID_HZ)) / GRID_HZ
     reference, _ = solve_ivp_with_events(p, theta0, 0.0, duration_s, grid, 1e-13)
@@ -135,7 +140,7 @@ def scenario(
     print(f"steps_per_second {name} solve_ivp {baseline_steps / baseline_time:.3g}")
     print(f"steps_per_second {name} analysis.simulate {result.n_steps / our_time:.3g}")
     print(f"speedup_vs_solve_ivp {name} {ratio:.0f}")
-    return ratio
+    return ratio, our_time
 
 
 def stepper_real_time(model: Model, seconds: float = 5.0, fs_hz: float = 200_000.0) -> float:
@@ -153,16 +158,33 @@ def stepper_real_time(model: Model, seconds: float = 5.0, fs_hz: float = 200_000
 
 def main() -> None:
     """Run both scenarios and the streaming check."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--save", action="store_true",
+                        help="also write the figures to benchmarks/results/simulate.json")
+    args = parser.parse_args()
+    load = os.getloadavg()[0]
     rig, drive = paper_case("h").dimensional()
     case_h = (Model(rig, drive), -0.2, 200.0 / drive.frequency_hz)
     impact_decay = (Model(), -1.2, 12.0)
-    scenario("case_h_200_periods", *case_h, BASELINE_RTOL)
-    scenario("impact_decay_from_-1.2_rad", *impact_decay, BASELINE_RTOL)
+    h = scenario("case_h_200_periods", *case_h, BASELINE_RTOL)
+    decay = scenario("impact_decay_from_-1.2_rad", *impact_decay, BASELINE_RTOL)
     print("# the same at moderate accuracy (solve_ivp at rtol 1e-6)")
-    scenario("case_h_200_periods@moderate", *case_h, MODERATE_RTOL)
-    scenario("impact_decay_from_-1.2_rad@moderate", *impact_decay, MODERATE_RTOL)
+    h_moderate, _ = scenario("case_h_200_periods@moderate", *case_h, MODERATE_RTOL)
+    decay_moderate, _ = scenario("impact_decay_from_-1.2_rad@moderate", *impact_decay,
+                                 MODERATE_RTOL)
     print("# streaming: simulated seconds per CPU second, 200 kHz samples in 10 ms chunks")
-    stepper_real_time(case_h[0])
+    factor = stepper_real_time(case_h[0])
+    if args.save:
+        save(result("simulate", [
+            figure("compiled integrator vs `solve_ivp` DOP853 (restarted at each contact) at "
+                   "equal accuracy, paper case h over 200 periods",
+                   f"{h[0]:.0f}x ({h[1] * 1e3:.2f} ms per run)"),
+            figure("the same, impact decay from -1.2 rad",
+                   f"{decay[0]:.0f}x ({decay[1] * 1e3:.2f} ms per run)"),
+            figure("the same at moderate accuracy (case h / decay)",
+                   f"{h_moderate:.0f}x / {decay_moderate:.0f}x"),
+            figure("Stepper at 200 kHz", f"{factor:.0f}x real time"),
+        ], load_at_start=load))
 
 
 if __name__ == "__main__":

@@ -5,16 +5,24 @@ to the same sample times (no shaker, sensors or quantization), so the ratio is
 the cost the rig adds on top of the integrator.
 
     python benchmarks/bench_virtual_rig.py
+    python benchmarks/bench_virtual_rig.py --save   (also benchmarks/results/virtual-rig.json)
 """
 
 from __future__ import annotations
 
+import argparse
+import os
+import sys
 import time
+from pathlib import Path
 
 import numpy as np
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
 from analysis.model import Model, paper_case
 from analysis.simulate import Stepper
+from benchmarks.results import figure, result, save
 from hardware_sim.virtual_rig import VirtualRig, VirtualRigSettings
 
 RATE_HZ = 200_000.0
@@ -61,6 +69,12 @@ def _time_stepper(model: Model, theta0: float, block: int) -> float:
 
 
 def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--save", action="store_true",
+                        help="also write the figures to benchmarks/results/virtual-rig.json")
+    args = parser.parse_args()
+    load = os.getloadavg()[0]
+    rig_factors, bare_factors = [], []
     print(f"{DURATION_S:g} s of stream at {RATE_HZ / 1000:g} kHz (angle, table, tach)")
     for name, (model, theta0) in _cases().items():
         for block in (256, 4096):
@@ -71,6 +85,14 @@ def main() -> None:
                 f"bare Stepper {DURATION_S / bare_s:6.1f}x; rig/Stepper time ratio "
                 f"{rig_s / bare_s:4.2f}"
             )
+            rig_factors.append(DURATION_S / rig_s)
+            bare_factors.append(DURATION_S / bare_s)
+    if args.save:
+        save(result("virtual-rig", [figure(
+            "virtual rig `generate` at 200 kHz vs the bare Stepper",
+            f"{min(rig_factors):.0f}-{max(rig_factors):.0f}x faster than real time (bare "
+            f"Stepper {min(bare_factors):.0f}-{max(bare_factors):.0f}x)",
+        )], load_at_start=load))
 
 
 if __name__ == "__main__":

@@ -206,26 +206,26 @@ def run(args: argparse.Namespace) -> int:
             f"(port in use? try {option} 0)"
         ) from None
     ends = sim.endpoints
-    print(f"impact-rig sim-rig: virtual rig running at {args.speed:g}x real time", flush=True)
-    if ends.daq_port:
-        print(f"daq-serial: {ends.daq_port}")
-    else:
-        print("daq-serial: not started")
-    if ends.scpi:
-        print(f"scpi-generator: {ends.scpi}  (gain {args.gain:g} m/V)")
-        print(
-            "note: this emulated generator turns its output off when the host's connection "
-            "drops; a real one does not (docs/scpi_generator.md)"
-        )
-    else:
-        print(f"modbus-tcp: {ends.modbus_tcp}")
-    if ends.modbus_rtu:
-        print(f"modbus-rtu: {ends.modbus_rtu}")
-    print("ready; Ctrl-C stops (type 'help' for commands)", flush=True)
     stopped = threading.Event()
-    reader = threading.Thread(target=_read_commands, args=(sim, stopped), daemon=True)
-    reader.start()
-    try:
+    try:  # Ctrl-C from here on, even right after 'ready', stops the rig cleanly
+        print(f"impact-rig sim-rig: virtual rig running at {args.speed:g}x real time", flush=True)
+        if ends.daq_port:
+            print(f"daq-serial: {ends.daq_port}")
+        else:
+            print("daq-serial: not started")
+        if ends.scpi:
+            print(f"scpi-generator: {ends.scpi}  (gain {args.gain:g} m/V)")
+            print(
+                "note: this emulated generator turns its output off when the host's connection "
+                "drops; a real one does not (docs/scpi_generator.md)"
+            )
+        else:
+            print(f"modbus-tcp: {ends.modbus_tcp}")
+        if ends.modbus_rtu:
+            print(f"modbus-rtu: {ends.modbus_rtu}")
+        print("ready; Ctrl-C stops (type 'help' for commands)", flush=True)
+        reader = threading.Thread(target=_read_commands, args=(sim, stopped), daemon=True)
+        reader.start()
         while not stopped.wait(0.2):
             pass
     except KeyboardInterrupt:
