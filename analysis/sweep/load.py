@@ -52,7 +52,7 @@ def is_sweep(paths: Sequence[str | Path], meta_path: str | Path | None = None) -
             return bool(read_recording_arrays(path).steps.size)
         if path.suffix.lower() == ".csv":
             return bool(read_meta(meta_path or sidecar_path(path)).extra.get("sweep_steps"))
-    except (OSError, ValueError):
+    except (OSError, ValueError, KeyError):
         return False
     return False
 
