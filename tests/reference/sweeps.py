@@ -28,6 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
+from analysis.model import Drive, Model, RigParameters
 from analysis.records import Record
 from analysis.sweep.steps import DOWN, UP, Sweep, SweepStep, SweptParameter
 from tests.reference.cause_sizes import CHOICES, ResponseScale, draw_cause_values
@@ -143,20 +144,26 @@ def draw_sweep(
     dwell_s: float = 4.0,
     laser: bool | None = None,
     sample_rate_hz: float = SAMPLE_RATE_HZ,
+    span: tuple[float, float] | None = None,
+    fixed: float | None = None,
 ) -> GeneratedSweep:
     """A random sweep from ``numpy.random.default_rng(seed)``: ``up_steps`` settings up and
     ``up_steps - 1`` back down, each settled for ``settle_s`` and dwelt on for ``dwell_s``.
 
     ``cause`` (one of :data:`SWEEP_CAUSES`, or any cause of docs/MODEL.md section 6),
     ``parameter`` and ``laser`` fix those draws, leaving the others as the seed makes them.
+    ``span`` replaces the swept range (beta = A / L for an amplitude sweep, Hz for a
+    frequency sweep), ``fixed`` the other setting (the frequency of an amplitude sweep, the
+    beta of a frequency sweep).
     A draw driven over the top is drawn again from the sub-seeds (seed, 1), (seed, 2), ...
     """
-    _check_request(seed, cause, parameter, up_steps, settle_s, dwell_s, laser, sample_rate_hz)
+    _check_request(seed, cause, parameter, up_steps, settle_s, dwell_s, laser, sample_rate_hz,
+                   span, fixed)
     for attempt in range(MAX_ATTEMPTS):
         rng = np.random.default_rng(seed if attempt == 0 else [seed, attempt])
         try:
             return _draw_once(rng, seed, attempt, cause, parameter, up_steps, settle_s,
-                              dwell_s, laser, sample_rate_hz)
+                              dwell_s, laser, sample_rate_hz, span, fixed)
         except OverTheTopError:
             continue
     raise RuntimeError(f"seed {seed}: every one of {MAX_ATTEMPTS} draws went over the top")
@@ -164,7 +171,8 @@ def draw_sweep(
 
 def _check_request(seed: int, cause: str | None, parameter: str | None, up_steps: int,
                    settle_s: float, dwell_s: float, laser: bool | None,
-                   sample_rate_hz: float) -> None:
+                   sample_rate_hz: float, span: tuple[float, float] | None,
+                   fixed: float | None) -> None:
     if isinstance(seed, bool) or not isinstance(seed, int | np.integer) or seed < 0:
         raise ValueError(f"seed = {seed!r}: expected a non-negative integer")
     if cause is not None and cause not in CHOICES:
@@ -179,6 +187,10 @@ def _check_request(seed: int, cause: str | None, parameter: str | None, up_steps
             raise ValueError(f"{name} = {value!r}: expected a positive number")
     if laser is not None and not isinstance(laser, bool):
         raise ValueError(f"laser = {laser!r}: expected True, False or None")
+    if span is not None and not (len(span) == 2 and 0 < span[0] < span[1]):
+        raise ValueError(f"span = {span!r}: expected (low, high) with 0 < low < high")
+    if fixed is not None and not (math.isfinite(fixed) and fixed > 0):
+        raise ValueError(f"fixed = {fixed!r}: expected a positive number")
 
 
 def _draw_once(
@@ -192,6 +204,8 @@ def _draw_once(
     dwell_s: float,
     laser: bool | None,
     sample_rate_hz: float,
+    span: tuple[float, float] | None,
+    fixed: float | None,
 ) -> GeneratedSweep:
     drawn_cause = str(SWEEP_CAUSES[rng.integers(len(SWEEP_CAUSES))])
     drawn_parameter = PARAMETERS[rng.integers(len(PARAMETERS))]
@@ -203,12 +217,15 @@ def _draw_once(
 
     rig = draw_rig(rig_rng)
     detuning = drive_rng.uniform(1e-4, 5e-4) * float(drive_rng.choice([-1.0, 1.0]))
+    drawn_beta = drive_rng.uniform(*FREQUENCY_SWEEP_BETA)
     if parameter == "amplitude":
-        up = [(AMPLITUDE_SWEEP_HZ, round(float(beta) * rig.L_m, 5))
-              for beta in np.linspace(*AMPLITUDE_SWEEP_BETA, up_steps)]
+        frequency = AMPLITUDE_SWEEP_HZ if fixed is None else float(fixed)
+        up = [(frequency, round(float(beta) * rig.L_m, 5))
+              for beta in np.linspace(*(span or AMPLITUDE_SWEEP_BETA), up_steps)]
     else:
-        amplitude = round(drive_rng.uniform(*FREQUENCY_SWEEP_BETA) * rig.L_m, 5)
-        up = [(round(float(f), 3), amplitude) for f in np.linspace(*FREQUENCY_SWEEP_HZ, up_steps)]
+        amplitude = round((drawn_beta if fixed is None else fixed) * rig.L_m, 5)
+        up = [(round(float(f), 3), amplitude)
+              for f in np.linspace(*(span or FREQUENCY_SWEEP_HZ), up_steps)]
     settings = up + up[-2::-1]
     directions = (UP,) * len(up) + (DOWN,) * (len(up) - 1)
     drives = tuple(
@@ -461,3 +478,19 @@ def write_sweep_recording(generated: GeneratedSweep, path: str | Path, *,
             edges = start + np.flatnonzero(run.tach[start:stop])
             recorder.add(PulseBlock("tach", start, stop, edges, edges / fs), t0)
     return Path(path)
+
+
+def truth_model(truth: SweepTruth, *, with_cause: bool = True) -> Model:
+    """The project's :class:`~analysis.model.Model` of the true rig (the stated drive of
+    the first step), with the hidden cause as a named cause unless ``with_cause`` is
+    False (the baseline a lab would start from: its own rig, no cause)."""
+    rig = truth.rig
+    model = Model(rig=RigParameters(m_kg=rig.m_kg, l_m=rig.l_m, L_m=rig.L_m, R_m=rig.R_m,
+                                    g_m_s2=rig.g_m_s2, zeta=rig.zeta, E_Pa=rig.E_Pa,
+                                    mu0_s_per_m=rig.mu0_s_per_m),
+                  drive=Drive(truth.drives[0].stated_amplitude_m,
+                              truth.drives[0].stated_frequency_hz))
+    if with_cause:
+        for name, values in truth.causes.items():
+            model = model.with_extension(name, **values)
+    return model
