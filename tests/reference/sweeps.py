@@ -15,9 +15,10 @@ phase 0.
 One hidden cause or none is drawn per sweep: those that move the diagram (a barrier
 offset moves grazing, a drive harmonic or an amplitude error moves the period-doublings,
 the contact's law moves the onset of chaos) and those that only distort the reading (the
-angle sensor's).  The step lengths are the caller's: the reference simulator costs about
-0.4 s of computing per second simulated at 10 Hz, so a test keeps steps of a few seconds
-and benchmarks take longer ones.
+angle sensor's).  The step lengths are the caller's (by default an 8 s settle, what the
+lightly damped pendulum needs, and a 6 s dwell): the reference simulator costs about 0.4 s
+of computing per second simulated (a 20 s step about 8 s), so a test keeps to a few short
+steps and the benchmark takes the default ones.
 """
 
 from __future__ import annotations
@@ -55,13 +56,13 @@ MOVES_DIAGRAM = ("barrier_offset", "excitation_distortion", "excitation_amplitud
 DISTORTS_READING = ("sensor_offset", "sensor_nonlinearity", "sensor_lag")
 SWEEP_CAUSES = ("none", *MOVES_DIAGRAM, *DISTORTS_READING)
 PARAMETERS: tuple[SweptParameter, ...] = ("amplitude", "frequency")
-# An amplitude sweep at 10 Hz over beta = A / L (the paper's 0.022-0.12: period 2,
-# period k and chaos; above about 0.13 some rigs are driven over the top) ...
-AMPLITUDE_SWEEP_HZ = 10.0
-AMPLITUDE_SWEEP_BETA = (0.03, 0.11)
-# ... and a frequency sweep at a fixed beta drawn from this range, over these frequencies.
-FREQUENCY_SWEEP_BETA = (0.05, 0.08)
-FREQUENCY_SWEEP_HZ = (8.0, 12.0)
+# An amplitude sweep at 6 Hz over beta = A / L, and a frequency sweep over 4-7 Hz at a
+# fixed beta drawn from its range: periods 1, 3, 4 and 6, chaos, and hysteresis between
+# the way up and the way down on the paper's rig, each step settled within about 8 s.
+AMPLITUDE_SWEEP_HZ = 6.0
+AMPLITUDE_SWEEP_BETA = (0.04, 0.14)
+FREQUENCY_SWEEP_BETA = (0.08, 0.11)
+FREQUENCY_SWEEP_HZ = (4.0, 7.0)
 SAMPLE_RATE_HZ = 1000.0
 MAX_ATTEMPTS = 20  # redraws (sub-seeds) allowed when a draw is driven over the top
 PILOT_S = 3.0  # a baseline run at the middle setting, for causes sized to the response
@@ -139,9 +140,9 @@ def draw_sweep(
     cause: str | None = None,
     *,
     parameter: SweptParameter | None = None,
-    up_steps: int = 5,
-    settle_s: float = 2.0,
-    dwell_s: float = 4.0,
+    up_steps: int = 6,
+    settle_s: float = 8.0,
+    dwell_s: float = 6.0,
     laser: bool | None = None,
     sample_rate_hz: float = SAMPLE_RATE_HZ,
     span: tuple[float, float] | None = None,

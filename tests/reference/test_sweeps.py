@@ -43,7 +43,7 @@ def test_steps_run_up_and_back_down_with_their_settle(offset_sweep):
     assert sweep.parameter == "frequency"
     assert [s.direction for s in sweep.steps] == [UP, UP, DOWN]
     settings = [sweep.setting(s) for s in sweep.steps]
-    assert settings == [8.0, 12.0, 8.0]
+    assert settings == [4.0, 7.0, 4.0]
     assert len({s.amplitude_m for s in sweep.steps}) == 1
     fs = TINY["sample_rate_hz"]
     for number, step in enumerate(sweep.steps):
