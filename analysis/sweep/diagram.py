@@ -17,8 +17,8 @@ same change at different places).
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
-from dataclasses import dataclass, replace
+from collections.abc import Callable, Sequence
+from dataclasses import asdict, dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -28,7 +28,7 @@ from analysis.dynamics.regime import Regime
 from analysis.dynamics.strobe import StrobeSamples
 from analysis.identify.preprocess import noise_and_quantum
 from analysis.measurement import MeasurementModel
-from analysis.model import Drive, Model
+from analysis.model import Drive, Model, RigParameters
 from analysis.packed import P
 from analysis.simulate import SimulationSettings, simulate_packed
 from analysis.sweep.steps import DOWN, UP, Sweep, SweepStep
@@ -57,12 +57,153 @@ class SimulatedStep:
     end_state: tuple[float, float]
 
 
+@dataclass(frozen=True)
+class StepPlan:
+    """What a simulation needs of one measured step: its drive, its settle and dwell in
+    samples at its rate, and its noise (the simulated reading's)."""
+
+    number: int
+    drive: Drive
+    settle_samples: int
+    dwell_samples: int
+    fs_hz: float
+    noise_rad: float
+
+
+@dataclass(frozen=True)
+class SweepTask:
+    """One model through one sweep, as plain data that pickles to any worker: the model's
+    fields (:func:`model_fields`), the steps, the start (theta, theta') and drive phase."""
+
+    model: dict[str, Any]
+    steps: tuple[StepPlan, ...]
+    start: tuple[float, float] = (0.0, 0.0)
+    start_phase_rad: float = 0.0
+
+
+@dataclass(frozen=True)
+class JudgedStep:
+    """One step's regime and its settled stroboscopic cloud (the angle at 8 drive phases of
+    each settled period), with the noise the judgement assumed."""
+
+    number: int
+    kind: str  # Regime.kind
+    period: int | None
+    label: str
+    noise_rad: float
+    cloud: np.ndarray  # (periods, phases)
+    cloud_noise_rad: np.ndarray  # (periods, phases): each point's noise
+
+    @property
+    def short(self) -> str:
+        """'period-2', 'chaotic', 'quasi-periodic', 'undetermined'."""
+        return Regime(self.kind, self.period, self.label).short_name
+
+
+def model_fields(model: Model) -> dict[str, Any]:
+    """The model as plain fields (rig, drive, barrier, causes): what a task carries."""
+    return {"rig": model.rig.as_dict(), "drive": asdict(model.drive), "barrier": model.barrier,
+            "extensions": {name: dict(values) for name, values in model.extensions.items()}}
+
+
+def model_from_fields(fields: dict[str, Any]) -> Model:
+    """The model :func:`model_fields` gave."""
+    return Model(rig=RigParameters(**fields["rig"]), drive=Drive(**fields["drive"]),
+                 barrier=fields["barrier"], extensions=fields["extensions"])
+
+
 def step_drive(model: Model, step: SweepStep, measured: Drive | None = None) -> Drive:
     """The drive the model runs a step with: ``measured`` when given, else the step's
     setting with the model's own drive shape (its second harmonic)."""
     if measured is not None:
         return measured
     return replace(model.drive, amplitude_m=step.amplitude_m, frequency_hz=step.frequency_hz)
+
+
+def sweep_task(
+    model: Model,
+    sweep: Sweep,
+    measured: Sequence[JudgedStep],
+    *,
+    drives: Sequence[Drive | None] | None = None,
+    start: tuple[float, float] = (0.0, 0.0),
+    start_phase_rad: float = 0.0,
+) -> SweepTask:
+    """The task of running ``model`` through ``sweep`` as the rig ran it: from ``start``
+    (theta, theta') at the first settle's start, each step settled for its ``settle_s``
+    and dwelt on for its record's length.  ``drives`` gives a step's measured drive (None:
+    its setting, :func:`step_drive`); ``measured`` the judged steps, for their noise."""
+    if drives is not None and len(drives) != len(sweep.steps):
+        raise ValueError(f"{len(drives)} drives for the {len(sweep.steps)} steps of "
+                         f"{sweep.source or 'the sweep'}; expected one per step "
+                         "(None: its setting)")
+    if len(measured) != len(sweep.steps):
+        raise ValueError(f"{len(measured)} judged steps for the {len(sweep.steps)} steps of "
+                         f"{sweep.source or 'the sweep'}")
+    plans = []
+    for index, (step, judged) in enumerate(zip(sweep.steps, measured, strict=True)):
+        fs = step.record.sample_rate_hz
+        plans.append(StepPlan(
+            number=step.number,
+            drive=step_drive(model, step, None if drives is None else drives[index]),
+            settle_samples=round(step.settle_s * fs),
+            dwell_samples=int(step.record.time_s.size),
+            fs_hz=fs,
+            noise_rad=judged.noise_rad,
+        ))
+    return SweepTask(model_fields(model), tuple(plans), (float(start[0]), float(start[1])),
+                     float(start_phase_rad))
+
+
+def simulate_steps(task: SweepTask) -> tuple[SimulatedStep, ...]:
+    """The task's model run through its steps, the state and the drive phase carried from
+    each step into the next."""
+    model = model_from_fields(task.model)
+    state, phase = task.start, task.start_phase_rad
+    out = []
+    for plan in task.steps:
+        fs, total = plan.fs_hz, plan.settle_samples + plan.dwell_samples
+        p = replace(model, drive=plan.drive).pack()
+        p[P.PHASE0] = phase
+        # one sample beyond the dwell's last: the state the next step starts from
+        result = simulate_packed(p, state[0], state[1], settings=SimulationSettings(
+            duration_s=(total + 1.5) / fs, fs_hz=fs, poincare_phase=None, rtol=RTOL,
+            atol=ATOL))
+        if result.status != "ok" or result.theta.size < total + 1:
+            raise RuntimeError(f"step {plan.number}: the model's simulation stopped "
+                               f"({result.status})")
+        omega = plan.drive.Omega_rad_s
+        out.append(SimulatedStep(
+            number=plan.number,
+            drive=plan.drive,
+            theta_rad=result.theta[plan.settle_samples:total],
+            theta_dot_rad_s=result.theta_dot[plan.settle_samples:total],
+            fs_hz=fs,
+            dwell_phase_rad=math.remainder(phase + omega * plan.settle_samples / fs,
+                                           2.0 * math.pi),
+            end_state=(float(result.theta[total]), float(result.theta_dot[total])),
+        ))
+        state = out[-1].end_state
+        phase = math.remainder(phase + omega * total / fs, 2.0 * math.pi)
+    return tuple(out)
+
+
+def run_sweep_task(task: SweepTask) -> tuple[tuple[SimulatedStep, ...], tuple[JudgedStep, ...]]:
+    """Simulate the task's sweep and judge each simulated dwell read as its measured step
+    was (the model's measurement causes, the step's noise level, seeded by its number):
+    the unit of work a worker runs."""
+    model = model_from_fields(task.model)
+    simulated = simulate_steps(task)
+    judged = []
+    for step, plan in zip(simulated, task.steps, strict=True):
+        t = np.arange(step.theta_rad.size) / step.fs_hz
+        reading = MeasurementModel(noise_std_rad=plan.noise_rad,
+                                   seed=NOISE_SEED * 1000 + step.number).apply(
+            t, step.theta_rad, model)
+        judged.append(_judged(step.number, reading, step.fs_hz, plan.noise_rad,
+                              tach_indices=None, frequency_hz=step.drive.frequency_hz,
+                              phase_rad=step.dwell_phase_rad))
+    return simulated, tuple(judged)
 
 
 def simulate_sweep(
@@ -73,64 +214,11 @@ def simulate_sweep(
     start: tuple[float, float] = (0.0, 0.0),
     start_phase_rad: float = 0.0,
 ) -> tuple[SimulatedStep, ...]:
-    """Run ``model`` through ``sweep`` as the rig ran it: from ``start`` (theta, theta') at
-    the first settle's start, each step settled for its ``settle_s`` and dwelt on for its
-    record's length, the state and the drive phase carried into the next step.
-
-    ``drives`` gives a step's measured drive (None: its setting, :func:`step_drive`).
-    """
-    if drives is not None and len(drives) != len(sweep.steps):
-        raise ValueError(f"{len(drives)} drives for the {len(sweep.steps)} steps of "
-                         f"{sweep.source or 'the sweep'}; expected one per step "
-                         "(None: its setting)")
-    state = (float(start[0]), float(start[1]))
-    phase = float(start_phase_rad)
-    out = []
-    for index, step in enumerate(sweep.steps):
-        drive = step_drive(model, step, None if drives is None else drives[index])
-        fs = step.record.sample_rate_hz
-        settle_samples = round(step.settle_s * fs)
-        dwell_samples = step.record.time_s.size
-        total = settle_samples + dwell_samples
-        p = replace(model, drive=drive).pack()
-        p[P.PHASE0] = phase
-        # one sample beyond the dwell's last: the state the next step starts from
-        result = simulate_packed(p, state[0], state[1], settings=SimulationSettings(
-            duration_s=(total + 1.5) / fs, fs_hz=fs, poincare_phase=None, rtol=RTOL,
-            atol=ATOL))
-        if result.status != "ok" or result.theta.size != total + 1:
-            raise RuntimeError(f"{sweep.source or 'sweep'} step {step.number}: the model's "
-                               f"simulation stopped ({result.status})")
-        omega = drive.Omega_rad_s
-        out.append(SimulatedStep(
-            number=step.number,
-            drive=drive,
-            theta_rad=result.theta[settle_samples:total],
-            theta_dot_rad_s=result.theta_dot[settle_samples:total],
-            fs_hz=fs,
-            dwell_phase_rad=math.remainder(phase + omega * settle_samples / fs, 2.0 * math.pi),
-            end_state=(float(result.theta[total]), float(result.theta_dot[total])),
-        ))
-        state = out[-1].end_state
-        phase = math.remainder(phase + omega * total / fs, 2.0 * math.pi)
-    return tuple(out)
-
-
-@dataclass(frozen=True)
-class JudgedStep:
-    """One step's regime and its settled stroboscopic cloud (the angle at 8 drive phases of
-    each settled period), with the noise the judgement assumed."""
-
-    number: int
-    regime: Regime
-    noise_rad: float
-    cloud: np.ndarray  # (periods, phases)
-    cloud_noise_rad: np.ndarray  # (periods, phases): each point's noise
-
-    @property
-    def short(self) -> str:
-        """'period-2', 'chaotic', 'quasi-periodic', 'undetermined'."""
-        return self.regime.short_name
+    """Run ``model`` through ``sweep`` as the rig ran it (see :func:`sweep_task`)."""
+    unjudged = [JudgedStep(s.number, "undetermined", None, "", 1.0, np.zeros((0, 8)),
+                           np.zeros((0, 8))) for s in sweep.steps]
+    return simulate_steps(sweep_task(model, sweep, unjudged, drives=drives, start=start,
+                                     start_phase_rad=start_phase_rad))
 
 
 def judge_measured(sweep: Sweep) -> tuple[JudgedStep, ...]:
@@ -145,22 +233,6 @@ def judge_measured(sweep: Sweep) -> tuple[JudgedStep, ...]:
     return tuple(out)
 
 
-def judge_simulated(model: Model, simulated: Sequence[SimulatedStep],
-                    measured: Sequence[JudgedStep]) -> tuple[JudgedStep, ...]:
-    """Each simulated step read as its measured step was (the model's measurement causes,
-    the measured noise level, seeded by the step's number) and judged the same way."""
-    out = []
-    for step, twin in zip(simulated, measured, strict=True):
-        t = np.arange(step.theta_rad.size) / step.fs_hz
-        reading = MeasurementModel(noise_std_rad=twin.noise_rad,
-                                   seed=NOISE_SEED * 1000 + step.number).apply(
-            t, step.theta_rad, model)
-        out.append(_judged(step.number, reading, step.fs_hz, twin.noise_rad, tach_indices=None,
-                           frequency_hz=step.drive.frequency_hz,
-                           phase_rad=step.dwell_phase_rad))
-    return tuple(out)
-
-
 def _judged(number: int, angle: np.ndarray, fs_hz: float, noise_rad: float, *,
             tach_indices: np.ndarray | None, frequency_hz: float,
             phase_rad: float) -> JudgedStep:
@@ -170,10 +242,11 @@ def _judged(number: int, angle: np.ndarray, fs_hz: float, noise_rad: float, *,
             frequency_hz=frequency_hz, phase_rad=phase_rad)
     except ValueError as error:  # too few drive periods to judge
         empty = np.zeros((0, 8))
-        return JudgedStep(number, Regime("undetermined", None, f"undetermined: {error}"),
-                          noise_rad, empty, empty)
+        return JudgedStep(number, "undetermined", None, f"undetermined: {error}", noise_rad,
+                          empty, empty)
     cloud, cloud_noise = _settled_cloud(regime, strobe, noise_rad)
-    return JudgedStep(number, regime, noise_rad, cloud, cloud_noise)
+    return JudgedStep(number, regime.kind, regime.period, regime.label, noise_rad, cloud,
+                      cloud_noise)
 
 
 def _settled_cloud(regime: Regime, strobe: StrobeSamples,
@@ -348,11 +421,35 @@ def compare_diagram(
     (``measured``: the sweep's steps judged once by :func:`judge_measured`, shared by every
     model compared)."""
     measured = judge_measured(sweep) if measured is None else tuple(measured)
-    if len(measured) != len(sweep.steps):
-        raise ValueError(f"{len(measured)} judged steps for the {len(sweep.steps)} steps of "
-                         f"{sweep.source or 'the sweep'}")
-    simulated = simulate_sweep(model, sweep, drives=drives, start=start)
-    judged = judge_simulated(model, simulated, measured)
+    task = sweep_task(model, sweep, measured, drives=drives, start=start)
+    return assemble(name, model, sweep, measured, run_sweep_task(task))
+
+
+def compare_diagrams(
+    cases: Sequence[tuple[str, Model, Sweep, Sequence[JudgedStep], tuple[float, float]]],
+    run_map: Callable[[Callable[[Any], Any], Sequence[Any]], list[Any]] | None = None,
+) -> list[DiagramComparison]:
+    """Many models through many sweeps (``cases``: name, model, sweep, its judged steps,
+    start), each pair one task; ``run_map`` spreads them over workers
+    (``analysis.maps.MapRunner.map``: this process, a local Dask cluster or a scheduler),
+    with the same results wherever they ran.  Without it they run here, in order."""
+    tasks = [sweep_task(model, sweep, measured, start=start)
+             for _, model, sweep, measured, start in cases]
+    results = (run_map(run_sweep_task, tasks) if run_map is not None
+               else [run_sweep_task(task) for task in tasks])
+    return [assemble(name, model, sweep, tuple(measured), result)
+            for (name, model, sweep, measured, _), result in zip(cases, results, strict=True)]
+
+
+def assemble(
+    name: str,
+    model: Model,
+    sweep: Sweep,
+    measured: Sequence[JudgedStep],
+    result: tuple[tuple[SimulatedStep, ...], tuple[JudgedStep, ...]],
+) -> DiagramComparison:
+    """The comparison of a task's result (:func:`run_sweep_task`) with the measured steps."""
+    simulated, judged = result
     settings = [diagram_setting(sweep, step, model) for step in sweep.steps]
     directions = [step.direction for step in sweep.steps]
     steps = tuple(

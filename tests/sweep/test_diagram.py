@@ -9,11 +9,13 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from analysis.maps import MapRunner
 from analysis.model import Drive
 from analysis.packed import P
 from analysis.simulate import SimulationSettings, simulate_packed
 from analysis.sweep.diagram import (
     compare_diagram,
+    compare_diagrams,
     judge_measured,
     regime_changes,
     simulate_sweep,
@@ -92,3 +94,28 @@ def test_regime_changes_are_placed_between_steps():
     assert changes[0].at == pytest.approx(0.03)
     # hysteresis: the same change met at different places up and down
     assert changes[3].at == pytest.approx(0.05)
+
+
+def _result_bytes(comparisons) -> bytes:
+    parts = []
+    for comparison in comparisons:
+        for step in comparison.simulated:
+            parts += [step.theta_rad.tobytes(), step.theta_dot_rad_s.tobytes(),
+                      np.array([step.dwell_phase_rad, *step.end_state]).tobytes()]
+        for judged in comparison.judged:
+            parts += [judged.short.encode(), judged.cloud.tobytes()]
+        parts.append(np.array([s.distance for s in comparison.steps]).tobytes())
+    return b"".join(parts)
+
+
+def test_a_local_cluster_of_processes_gives_the_same_bytes(clean, measured):
+    model = truth_model(clean.truth)
+    cases = [(name, m, clean.sweep, measured, _start(clean))
+             for name, m in (("true", model),
+                             ("wrong", model.with_extension("barrier_offset", theta_b_rad=0.02)))]
+    here = compare_diagrams(cases)
+    with MapRunner(workers=2) as runner:
+        assert runner.workers == 2
+        there = compare_diagrams(cases, runner.map)
+    assert [c.summary() for c in there] == [c.summary() for c in here]
+    assert _result_bytes(there) == _result_bytes(here)
