@@ -20,6 +20,7 @@ from analysis.sweep.diagram import (
     regime_changes,
     simulate_sweep,
 )
+from analysis.sweep.figure import draw_diagrams
 from analysis.sweep.steps import DOWN, UP, Sweep
 from tests.reference.sweeps import GeneratedSweep, draw_sweep, truth_model
 
@@ -119,3 +120,15 @@ def test_a_local_cluster_of_processes_gives_the_same_bytes(clean, measured):
         there = compare_diagrams(cases, runner.map)
     assert [c.summary() for c in there] == [c.summary() for c in here]
     assert _result_bytes(there) == _result_bytes(here)
+
+
+def test_the_figure_draws_each_model_over_the_measured_points(tmp_path, clean, measured):
+    model = truth_model(clean.truth)
+    comparisons = [compare_diagram(name, m, clean.sweep, measured, start=_start(clean))
+                   for name, m in (("baseline", model.with_extension("excitation_amplitude",
+                                                                      eps=0.15)),
+                                   ("explained", model))]
+    path = draw_diagrams(comparisons, measured, tmp_path / "diagram.png", title="sweep 5")
+    assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    with pytest.raises(ValueError, match="no model"):
+        draw_diagrams([], measured, tmp_path / "none.png")
