@@ -266,7 +266,7 @@ def _draw_once(
         sample_rate_hz=float(sample_rate_hz),
         periods=periods,
     )
-    return GeneratedSweep(_sweep_of(truth, channels, seed), truth, channels)
+    return GeneratedSweep(sweep_of(truth, channels), truth, channels)
 
 
 # A scale for the causes whose size does not depend on the response (never read).
@@ -401,9 +401,10 @@ def stated_rig(truth: SweepTruth) -> dict[str, float]:
     return {"m_kg": rig.m_kg, "l_m": rig.l_m, "R_m": rig.R_m, "g": rig.g_m_s2}
 
 
-def _sweep_of(truth: SweepTruth, channels: RunChannels, seed: int) -> Sweep:
-    """The steps' dwells as :class:`Record` values, in running order."""
-    source = f"generated sweep {seed}"
+def sweep_of(truth: SweepTruth, channels: RunChannels) -> Sweep:
+    """The steps' dwells as :class:`Record` values, in running order (the truth and the
+    channels pickle; a :class:`Sweep` does not: this rebuilds it in another process)."""
+    source = f"generated sweep {truth.seed}"
     steps = []
     for number, drive in enumerate(truth.drives):
         dwell = slice(channels.dwell_start[number], channels.dwell_end[number])
