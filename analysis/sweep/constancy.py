@@ -1,7 +1,7 @@
 """Whether one quantity, fitted step by step, holds across a sweep: the steps' values about
 their weighted mean (chi-square on their standard errors), and the weighted line through
-them against the swept setting (its slope's z), for the ``constancy`` findings of
-:mod:`analysis.sweep.analyze` and :mod:`analysis.sweep.causes`."""
+them against the swept setting (its slope's z), for the ``constancy`` finding of
+:mod:`analysis.sweep.causes`."""
 
 from __future__ import annotations
 

@@ -254,10 +254,6 @@ class SweepIdentification:
         r = r[np.isfinite(r)]
         return float(math.sqrt(np.mean(r * r))) if r.size else math.nan
 
-    def step_values(self, k: int) -> dict[str, float]:
-        """The values of step k's model."""
-        return self.model.step_values(self.fit.values, k)
-
     def step_estimates(self, k: int) -> dict[str, Estimate]:
         """Step k's own fitted values (its drive phase, ...) with their intervals."""
         own = STEP_MARK + str(self.data.numbers[k])
