@@ -84,13 +84,15 @@ def read_recording_arrays(path: str | Path) -> RecordingArrays:
         )
 
 
-def _record(
+def stretch_record(
     arrays: RecordingArrays,
     select: np.ndarray,
     path: Path,
     label: str,
     drive: dict[str, float] | None = None,
 ) -> Record:
+    """Samples ``select`` of the recording as a record (labelled ``label`` after the path),
+    with ``drive``, or else the drive every sweep step in it shares and the steps listed."""
     indices = arrays.indices[select]
     tach = np.flatnonzero(np.isin(indices, arrays.tach_edges))
     context: dict[str, Any] = {"calibrations": arrays.calibrations,
@@ -126,7 +128,8 @@ def _whole_drive(
                       & (steps["settle_start_index"] <= indices[-1])]
     if not steps.size:
         return arrays.drive, []
-    listed = [{"step": int(s["step"]), "frequency_hz": float(s["frequency_hz"]),
+    listed = [{"step": int(s["step"]), "direction": int(s["direction"]),
+               "frequency_hz": float(s["frequency_hz"]),
                "amplitude_m": float(s["amplitude_m"]),
                "start_s": _time_at(arrays, int(s["settle_start_index"])),
                "dwell_start_s": _time_at(arrays, int(s["dwell_start_index"])),
@@ -168,7 +171,7 @@ def load_hdf5_segments(path: str | Path) -> list[Record]:
         raise RecordFormatError(f"{path}: the recording holds no samples")
     label = "" if len(segments) == 1 else " segment {k}"
     return [
-        _record(arrays, slice(start, stop), path, label.format(k=k + 1))
+        stretch_record(arrays, slice(start, stop), path, label.format(k=k + 1))
         for k, (start, stop) in enumerate(segments)
     ]
 
@@ -195,7 +198,7 @@ def load_hdf5_steps(path: str | Path) -> list[Record]:
             "frequency_hz": float(step["frequency_hz"]),
             "amplitude_m": float(step["amplitude_m"]),
         }
-        out.append(_record(arrays, positions, path, f" step {int(step['step'])}", drive))
+        out.append(stretch_record(arrays, positions, path, f" step {int(step['step'])}", drive))
     return out
 
 
@@ -215,4 +218,4 @@ def load_hdf5_record(path: Path, meta_path: Path | None = None) -> Record:
             f"{path}: {len(segments) - 1} gap(s) in the samples (the first at sample "
             f"{first_gap}); analyse one gap-free segment ('impact-rig export --gaps split')"
         )
-    return _record(arrays, slice(None), path, "")
+    return stretch_record(arrays, slice(None), path, "")

@@ -446,7 +446,7 @@ def analyze_decay(
     try:
         start, hints, start_notes = baseline_start(record, data)
     except IdentificationError as error:
-        raise AnalysisError(f"{record.source or 'record'}: {error}") from error
+        raise AnalysisError.naming(record.source, error) from error
     notes.extend(start_notes)
     n_train = round(policy.train_fraction * data.t.size)
     neutral = RecordScale.of(data.rig, data.t, data.y, start, 0.0)

@@ -514,7 +514,7 @@ def analyze_forced(
     try:
         data = forced_data(record)
     except IdentificationError as error:
-        raise AnalysisError(f"{record.source or 'record'}: {error}") from error
+        raise AnalysisError.naming(record.source, error) from error
     regime = record_regime(record, data)
     chaotic = regime.kind == "chaotic"
     data = data.for_regime(regime.kind)
@@ -527,7 +527,7 @@ def analyze_forced(
                                   period=regime.period or 1,
                                   progress=say, threads=threads, policy=policy)
     except IdentificationError as error:
-        raise AnalysisError(f"{record.source or 'record'}: {error}") from error
+        raise AnalysisError.naming(record.source, error) from error
     verdict = choose([v for _, v in out.candidates])
     chosen = out.steps[0][0] if out.steps else \
         verdict.model.causes[0] if verdict is not None else NONE

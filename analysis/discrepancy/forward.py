@@ -86,14 +86,16 @@ class Steps(Protocol[Fitted]):
 
 
 def forward_selection(
-    steps: Steps[Fitted], first: Fitted, verdict: Verdict, policy: SelectionPolicy,
+    steps: Steps[Fitted], first: Fitted, verdict: Verdict | None, policy: SelectionPolicy,
     say: Progress,
 ) -> tuple[Fitted, list[tuple[str, Verdict]]]:
     """Causes added to ``first`` (the accepted single cause, fitted, and its ``verdict``
-    against the baseline) by the rules in the module's docstring: the final fitted model,
-    and the causes it holds in the order they were taken, each with its step's verdict."""
+    against the baseline; or the baseline itself, fitted, and None: every cause is then
+    taken by a step) by the rules in the module's docstring: the final fitted model, and
+    the causes it holds in the order they were taken, each with its step's verdict."""
     current: Any = first
-    taken: list[tuple[str, Verdict]] = [(first.model.causes[0], verdict)]
+    taken: list[tuple[str, Verdict]] = \
+        [(first.model.causes[0], verdict)] if verdict is not None else []
     while len(current.model.causes) < policy.max_causes:
         if (why := steps.open_structure(current)) is not None:
             say(f"  beside {current.model}: {why}; no further cause tried")

@@ -24,6 +24,14 @@ from analysis.records import Record
 class AnalysisError(ValueError):
     """The record cannot be analysed; the message says why."""
 
+    @classmethod
+    def naming(cls, source: str, error: Exception) -> AnalysisError:
+        """``error`` as an analysis error that names ``source`` once (an error from below
+        that names it already is not prefixed again)."""
+        text = str(error)
+        name = source or "record"
+        return cls(text if text.startswith(f"{name}:") else f"{name}: {text}")
+
 
 @dataclass(frozen=True)
 class CandidateOutcome:

@@ -11,6 +11,14 @@ the segments into one trajectory where the model allows it.
 A segment may also run on past its fitted samples into samples it does not see: those are
 forecasts from the fitted state, the held-out judge of a model.
 
+Several records fitted with one set of shared parameters (the steps of a sweep: one rig,
+each step its own drive) are one problem of several *parts*: the records laid end to end,
+each part's segments run with that part's model (its ``packed_of``), no segment linked
+across parts.  A parameter that enters one part's model alone (a step's drive phase) is a
+``FreeParameter`` with that ``part``: its Jacobian column is zero outside the part, so the
+columns of such parameters of different parts are differenced in one run together, as the
+segment states are.
+
 The solver is Levenberg-Marquardt on the joint vector (shared parameters, segment states).
 Its Jacobian is a forward difference: one run per shared parameter, and two runs for all
 segment states at once (a segment's samples depend only on its own state).  The runs are
@@ -28,7 +36,7 @@ import copy
 import functools
 import math
 import os
-from collections.abc import Callable, Iterable, Iterator, Mapping
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from itertools import pairwise
@@ -131,6 +139,7 @@ class FreeParameter:
     log: bool = False
     lower: float = -math.inf
     upper: float = math.inf
+    part: int | None = None  # the one part whose model it enters (None: every part's)
 
 
 @dataclass(frozen=True)
@@ -230,12 +239,25 @@ class _Solution(NamedTuple):
 
 class _Times:
     """The times a run reports, segment by segment: ``out_t[bounds[k]:bounds[k + 1]]`` for
-    segment k (its last time is where it ends), and the groups of segments run in threads."""
+    segment k (its last time is where it ends), and the groups of segments run in threads
+    (each within one part: a part's segments run with its own model)."""
 
-    def __init__(self, out_t: np.ndarray, bounds: np.ndarray, threads: int) -> None:
+    def __init__(self, out_t: np.ndarray, bounds: np.ndarray, threads: int,
+                 part_of_segment: np.ndarray) -> None:
         self.out_t = out_t
         self.bounds = bounds
-        self.groups = _groups(np.diff(bounds), threads)
+        sizes = np.diff(bounds)
+        self.parts = _part_ranges(part_of_segment)  # each part's segments, run whole
+        self.groups = []
+        for a, b in self.parts:
+            self.groups += [(a + lo, a + hi) for lo, hi in _groups(sizes[a:b], threads)]
+
+
+def _part_ranges(part_of_segment: np.ndarray) -> list[tuple[int, int]]:
+    """[first, stop) segment ranges of the parts, in order."""
+    cuts = np.flatnonzero(np.diff(part_of_segment)) + 1
+    edges = np.concatenate([[0], cuts, [part_of_segment.size]])
+    return [(int(a), int(b)) for a, b in pairwise(edges)]
 
 
 class _Jacobian(NamedTuple):
@@ -346,10 +368,11 @@ class ShootingProblem:
         valid: np.ndarray,
         noise_rad: float,
         segments: Segments,
-        packed_of: PackedOf,
+        packed_of: PackedOf | Sequence[PackedOf],
         free: list[FreeParameter],
         fixed: Mapping[str, float],
         *,
+        part_of_segment: np.ndarray | None = None,
         measure: Measure | None = None,
         measure_has_memory: bool = True,
         rate_scale: float = 1.0,
@@ -363,7 +386,12 @@ class ShootingProblem:
         if not self.sigma > 0:
             raise ValueError(f"noise_rad = {noise_rad!r}: must be > 0")
         self.segments = segments
-        self.packed_of = packed_of
+        # the parts: one model (packed_of) per part, each segment in one part
+        self.packs = list(packed_of) if isinstance(packed_of, Sequence) else [packed_of]
+        self.part_of_segment = (np.zeros(segments.count, dtype=np.int64)
+                                if part_of_segment is None
+                                else np.asarray(part_of_segment, dtype=np.int64))
+        _check_parts(segments, self.part_of_segment, len(self.packs))
         self.measure = measure
         # a sensor without memory (a zero, a cubic) reads all samples in one call; one with
         # memory (a filter) reads each chain of linked segments as one stretch
@@ -385,7 +413,7 @@ class ShootingProblem:
         self.sample_of = np.concatenate([np.arange(a, b) for a, b in zip(s.start, s.stop,
                                                                           strict=True)])
         self.segment_of = np.repeat(np.arange(s.count), s.stop - s.start)
-        self.times = _Times(self.out_t, self.bounds, self.threads)
+        self.times = _Times(self.out_t, self.bounds, self.threads, self.part_of_segment)
         self.is_end = np.zeros(self.out_t.size, dtype=bool)
         self.is_end[self.bounds[1:] - 1] = True
         fit = np.zeros(self.sample_of.size, dtype=bool)
@@ -395,6 +423,14 @@ class ShootingProblem:
             offset += b - a
         self.fitted = fit & self.valid[self.sample_of]  # rows of the data residual
         self.links = np.flatnonzero(s.linked[:-1]) if s.count > 1 else np.zeros(0, np.int64)
+        # the part of each residual row (data rows, then two per link)
+        self.row_part = np.concatenate([
+            self.part_of_segment[self.segment_of[self.fitted]],
+            np.repeat(self.part_of_segment[self.links], 2)])
+        for p in self.free:
+            if p.part is not None and not 0 <= p.part < len(self.packs):
+                raise ValueError(f"free parameter {p.name}: part {p.part}; the problem has "
+                                 f"{len(self.packs)}")
         # chains of linked segments: the measurement runs over each as one stretch (a
         # filter's memory carries across a link, not across a gap)
         heads = np.concatenate([[0], np.flatnonzero(~s.linked[:-1]) + 1])
@@ -404,6 +440,10 @@ class ShootingProblem:
                        for h, e in zip(heads, tails, strict=True)]
 
     # ------------------------------------------------------------------ model evaluation
+
+    def packed_of(self, values: Mapping[str, float]) -> list[np.ndarray]:
+        """Every part's packed model at ``values``."""
+        return [pack(values) for pack in self.packs]
 
     def values_of(self, u: np.ndarray) -> dict[str, float]:
         """Shared values at the step-unit vector ``u``."""
@@ -418,23 +458,26 @@ class ShootingProblem:
         """Angle and rate at every segment time (ends included), or at ``times`` instead
         (each segment's own, its last where it ends).  ``split`` runs groups of segments in
         threads (they are independent, so the result is the same to the bit): a trial
-        step's run is otherwise one core's work while the others wait."""
+        step's run is otherwise one core's work while the others wait.  Unsplit, each part
+        runs whole (with its own model) in the calling thread."""
         p = self.packed_of(values)
+        part = self.part_of_segment
         starts = self.t[self.segments.start]
         at = times or self.times
-        groups = at.groups if split else [(0, self.segments.count)]
+        groups = at.groups if split else at.parts
 
         def group(bounds: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
             a, b = bounds
             lo, hi = at.bounds[a], at.bounds[b]
-            th, om, _ = integrate_segments(p, starts[a:b], states[a:b], at.out_t[lo:hi],
+            th, om, _ = integrate_segments(p[part[a]], starts[a:b], states[a:b], at.out_t[lo:hi],
                                            at.bounds[a:b + 1] - lo, rtol=RTOL, atol=ATOL,
                                            max_steps=MAX_STEPS_PER_SEGMENT)
             return th, om
 
         if len(groups) == 1:
             return group(groups[0])
-        parts = list(_pool(self.threads, "shooting-run").map(group, groups))
+        pool = _pool(self.threads, "shooting-run") if split else _InCaller()
+        parts = list(pool.map(group, groups))
         return (np.concatenate([th for th, _ in parts]),
                 np.concatenate([om for _, om in parts]))
 
@@ -532,7 +575,8 @@ class ShootingProblem:
             if independent and not within.all():
                 kept = np.bincount(seg_rows[within], minlength=n_seg)
                 times = _Times(self.t[self.sample_of[within]],
-                               np.concatenate([[0], np.cumsum(kept)]), self.threads)
+                               np.concatenate([[0], np.cumsum(kept)]), self.threads,
+                               self.part_of_segment)
 
             def readings(states: np.ndarray, within: np.ndarray = within,
                          times: _Times | None = times) -> np.ndarray:
@@ -786,17 +830,31 @@ class ShootingProblem:
         _lower, upper = self._bounds()
         packed = self.packed_of(self.values_of(u)) if motion is not None else None
 
+        def direction(i: int) -> float:
+            return 1.0 if u[i] + 1.0 <= upper[i] else -1.0  # stay inside the bounds
+
         def shared_column(i: int) -> np.ndarray:
-            h = 1.0 if u[i] + 1.0 <= upper[i] else -1.0  # stay inside the bounds
+            h = direction(i)
             du = u.copy()
             du[i] += h
             values = self.values_of(du)
-            if packed is not None and np.array_equal(self.packed_of(values), packed,
-                                                     equal_nan=True):
+            if packed is not None and all(
+                    np.array_equal(a, b, equal_nan=True)
+                    for a, b in zip(self.packed_of(values), packed, strict=True)):
                 th, en = self.read(values, *motion)
             else:
                 th, en = self.run(values, s, split=False)
             return (self.residuals(th, en, s) - r) / h
+
+        def part_columns(indices: list[int]) -> list[tuple[int, np.ndarray]]:
+            """Columns of parameters of different parts, from one run with all moved."""
+            du = u.copy()
+            h = np.array([direction(i) for i in indices])
+            du[indices] += h
+            th, en = self.run(self.values_of(du), s, split=False)
+            change = self.residuals(th, en, s) - r
+            return [(i, np.where(self.row_part == self.free[i].part, change / hi, 0.0))
+                    for i, hi in zip(indices, h, strict=True)]
 
         def state_run(k: int) -> tuple[np.ndarray, np.ndarray]:
             ds = s.copy()
@@ -804,7 +862,13 @@ class ShootingProblem:
             return self.run(self.values_of(u), ds, split=False)
 
         pool = _pool(self.threads, "shooting-jacobian")
-        shared = list(pool.map(shared_column, range(g)))
+        everywhere = [i for i, p in enumerate(self.free) if p.part is None]
+        shared = [np.zeros(0)] * g
+        for i, column in zip(everywhere, pool.map(shared_column, everywhere), strict=True):
+            shared[i] = column
+        for columns in pool.map(part_columns, _part_rounds(self.free)):
+            for i, column in columns:
+                shared[i] = column
         perturbed = list(pool.map(state_run, range(2)))
         # data rows: d(residual)/d(own state), one column pair per segment
         slope = robust_slope(self._data_residuals(theta)) if self.robust else None
@@ -947,6 +1011,28 @@ def _pool(threads: int, role: str) -> ThreadPoolExecutor | _InCaller:
         _POOLS[threads, role] = ThreadPoolExecutor(max_workers=threads,
                                                    thread_name_prefix=role)
     return _POOLS[threads, role]
+
+
+def _check_parts(segments: Segments, part_of_segment: np.ndarray, parts: int) -> None:
+    """Every segment in a part, the parts in order, no link across them."""
+    part = part_of_segment
+    if part.shape != (segments.count,) or (part.size and (
+            part[0] != 0 or part[-1] != parts - 1 or np.any(~np.isin(np.diff(part), (0, 1))))):
+        raise ValueError(f"part_of_segment must number the {segments.count} segments' parts "
+                         f"0..{parts - 1} in order")
+    if segments.count > 1 and np.any(segments.linked[:-1] & (np.diff(part) != 0)):
+        raise ValueError("a segment is linked to the next part's first one")
+
+
+def _part_rounds(free: Sequence[FreeParameter]) -> list[list[int]]:
+    """The indices of the part-specific parameters in rounds, at most one of each part in a
+    round (their columns are differenced together)."""
+    by_part: dict[int, list[int]] = {}
+    for i, p in enumerate(free):
+        if p.part is not None:
+            by_part.setdefault(p.part, []).append(i)
+    depth = max((len(v) for v in by_part.values()), default=0)
+    return [[v[k] for v in by_part.values() if len(v) > k] for k in range(depth)]
 
 
 def _groups(sizes: np.ndarray, count: int) -> list[tuple[int, int]]:

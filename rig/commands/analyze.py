@@ -33,6 +33,22 @@ shooting over short segments, then over the whole record), and judged by forecas
 the stretch after each fitted one (and, on a chaotic record, by the invariant statistics
 of the model's own long run). Decay records, when given, only start the fit.
 
+A sweep is explained as one rig: FILE is a recording made by `impact-rig sweep` (its
+sweep steps), a sweep exported as one CSV (its JSON lists `sweep_steps`), or several
+per-step files given together in running order (`impact-rig export --per-step`). Each
+step's dwell is a forced record with its own drive, measured from its own tach and table
+channel; the rig's parameters (L, zeta, K, mu0, the barrier, the sensor's zero) are fitted
+once, shared by every step, with 95 % intervals over all of them. Steps the sweep was
+interrupted in, steps too short to judge (under 2 s of dwell) and steps with lost samples
+are set aside with the reason. The named causes are chosen by the same forward selection
+as a single record's, over every step at once, each cause's parameters shared; a cause
+that explains the steps only with a different size on each is not named, and how its
+size would have to vary with the drive is reported (as is a rig parameter the steps,
+each fitted alone, put at different values). The report's `sweep` section (docs/MODEL.md)
+lists the shared parameters, the causes and every step: setting, drive measured, regime,
+residual; --report writes a page with a table of the steps. Progress (steps identified
+k of n, each fit's stage) goes to stderr.
+
 FILE is an exchange CSV (NAME.json beside it, or --meta) or an HDF5 recording.
 """
 
@@ -44,6 +60,8 @@ examples:
   impact-rig analyze forced.csv --report out/
   impact-rig analyze forced.csv --impact-decay impacts.csv   # start from the decay's values
   impact-rig analyze decay.csv --rule bic_margin=6            # a looser information criterion
+  impact-rig analyze sweep_10Hz.h5 --report out/              # a sweep: one rig, every step
+  impact-rig analyze sweep_step*.csv --json sweep.json        # per-step files, in this order
 """
 
 
@@ -56,7 +74,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         DESCRIPTION,
         EPILOG,
     )
-    parser.add_argument("file", type=Path, help="exchange CSV or HDF5 recording")
+    parser.add_argument("files", type=Path, nargs="+", metavar="FILE",
+                        help="exchange CSV or HDF5 recording; a sweep's recording or "
+                        "exported CSV, or several per-step files of one sweep")
     parser.add_argument("--meta", type=Path, help="JSON sidecar, if not NAME.json beside FILE")
     parser.add_argument(
         "--json", type=Path, dest="json_out", metavar="FILE",
@@ -88,24 +108,31 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Analyse the record and print a short summary (the JSON report goes to --json)."""
-    from analysis.discrepancy import AnalysisError, SelectionPolicy, analyze_record
-    from analysis.identify import IdentificationError
-    from analysis.json_output import to_json_text
-    from analysis.provenance import provenance
-    from analysis.report.discrepancy import report_json
+    """Analyse the record (or the sweep) and print a short summary (the JSON report goes to
+    --json)."""
+    from analysis.discrepancy.policy import SelectionPolicy
+    from analysis.sweep.load import is_sweep
 
+    args.file = args.files[0]
     _check_files(args)
     try:
         policy = SelectionPolicy.from_assignments(args.rule)
     except ValueError as error:
         raise CommandError(f"--rule: {error}") from error
+    if is_sweep(args.files, args.meta):
+        return _run_sweep(args, policy)
+    from analysis.discrepancy import AnalysisError, analyze_record
+    from analysis.identify import IdentificationError
+    from analysis.json_output import to_json_text
+    from analysis.provenance import provenance
+    from analysis.report.discrepancy import report_json
+
     record, priors = _load_record_and_priors(args)
     try:
         analysis = analyze_record(record, workers=args.workers, progress=progress,
                                   priors=priors, policy=policy)
     except (AnalysisError, IdentificationError, ValueError) as error:
-        raise CommandError(f"{args.file}: cannot analyse: {error}") from error
+        raise cannot_analyse(args.file, error) from error
     js = report_json(analysis)
     js["provenance"] = provenance()
     to_stdout = args.json_out == STDOUT
@@ -121,15 +148,93 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
+def _run_sweep(args: argparse.Namespace, policy) -> int:
+    """Analyse a sweep (one rig for every step) and print its summary."""
+    from analysis.sweep.load import load_sweep
+
+    if args.free_decay or args.impact_decay:
+        raise CommandError("--free-decay/--impact-decay: a sweep's steps identify the rig "
+                           "themselves; analyse it without them")
+    try:
+        sweep = load_sweep(args.files, args.meta)
+    except ValueError as error:  # the loader names the file and the step
+        raise CommandError(str(error)) from error
+    from analysis.discrepancy import AnalysisError
+    from analysis.identify import IdentificationError
+    from analysis.json_output import to_json_text
+    from analysis.provenance import provenance
+    from analysis.report.sweep import sweep_report_json, write_sweep_report
+    from analysis.sweep.analyze import analyze_sweep
+
+    try:
+        analysis = analyze_sweep(sweep, threads=args.workers, progress=progress, policy=policy)
+    except (AnalysisError, IdentificationError, ValueError) as error:
+        raise cannot_analyse(args.file, error) from error
+    js = sweep_report_json(analysis)
+    js["provenance"] = provenance()
+    to_stdout = args.json_out == STDOUT
+    if args.json_out and not to_stdout:
+        _write_json(js, args.json_out, overwrite=args.overwrite)
+        progress(f"wrote {args.json_out}")
+    if args.report:
+        try:
+            page = write_sweep_report(analysis, args.report, name=args.file.stem,
+                                      overwrite=args.overwrite)
+        except OSError as error:
+            raise CommandError(f"--report {args.report}: cannot write ({error})") from None
+        progress(f"wrote {page}")
+    if to_stdout:
+        print(to_json_text(js))
+    else:
+        _print_sweep_summary(js)
+    return 0
+
+
+def _print_sweep_summary(js: dict) -> None:
+    """The shared parameters, then one line per step and per step set aside."""
+    from analysis.estimate_text import estimate_text
+
+    sweep = js["sweep"]
+    print(f"sweep: {len(sweep['steps'])} steps over the drive's {sweep['parameter']}, one rig")
+    for name, estimate in sweep["shared"].items():
+        print(f"  {name} = {estimate_text(estimate['value'], estimate.get('ci95'))}")
+    named = sweep["causes"]["named"]
+    print(f"cause: {sweep['cause']}" if len(named) <= 1 else "causes: " + ", ".join(named))
+    for entry in sweep["causes"]["selected"]:
+        for name, estimate in entry["parameters"].items():
+            print(f"  {name} = {estimate_text(estimate['value'], estimate.get('ci95'))}"
+                  + ("" if entry["named"] else " (differs from step to step: not named)"))
+    for step in sweep["steps"]:
+        print(f"step {step['step']}: {sweep['parameter']} {step['setting']:.4g}, drive "
+              f"{step['drive']['frequency_hz']:.6g} Hz, regime {step['regime']}, residual "
+              f"{step['rms_over_noise']:.3g} x noise")
+    for step in sweep["set_aside"]:
+        print(f"step {step['step']} set aside: {step['reason']}")
+    for finding in sweep["residual_findings"]:
+        print(f"residual finding ({finding['kind']}): {finding['text']}")
+    for warning in js["warnings"]:
+        print(f"caution: {warning}")
+
+
+def cannot_analyse(path: Path, error: Exception) -> CommandError:
+    """The one-line error of an analysis that failed, naming ``path`` once (the errors from
+    below name the record they were about, often that very path)."""
+    text = str(error)
+    while text.startswith(f"{path}: "):
+        text = text[len(f"{path}: "):]
+    return CommandError(f"{path}: cannot analyse: {text}")
+
+
 def _check_files(args: argparse.Namespace) -> None:
     """Refuse a missing input, a bad --workers or outputs in the way, before a long analysis."""
     from analysis.output_paths import check_outputs, record_inputs
 
-    if not args.file.exists():
-        raise CommandError(f"{args.file}: no such file")
+    for path in args.files:
+        if not path.exists():
+            raise CommandError(f"{path}: no such file")
     if args.workers is not None and args.workers < 1:
         raise CommandError(f"--workers {args.workers}: expected at least 1")
-    inputs = record_inputs(args.file, args.meta)
+    inputs = [p for path in args.files for p in record_inputs(path, args.meta)]
     for decay in (args.free_decay, args.impact_decay):
         inputs += record_inputs(decay) if decay else []
     outputs = [args.json_out] if args.json_out and args.json_out != STDOUT else []

@@ -210,6 +210,20 @@ class GeneratedRecord:
     true_angle_rad: np.ndarray
 
 
+def draw_rig(rng: np.random.Generator) -> RigTruth:
+    """A rig around the paper's, drawn from ``rng``."""
+    return RigTruth(
+        m_kg=0.0326 * rng.uniform(0.97, 1.03),
+        l_m=0.050 * rng.uniform(0.98, 1.02),
+        L_m=rng.uniform(0.040, 0.056),
+        R_m=0.0095 * rng.uniform(0.98, 1.02),
+        g_m_s2=9.81,
+        zeta=rng.uniform(0.004, 0.012),
+        E_Pa=rng.uniform(1.0e6, 4.0e6),
+        mu0_s_per_m=rng.uniform(0.4, 1.2),
+    )
+
+
 def true_pendulum(rig: RigTruth, causes: dict[str, dict[str, float]],
                   effects: dict[str, dict[str, float]] | None = None) -> Pendulum:
     """The rig's pendulum with the dynamics causes of ``causes`` (and of ``effects``)
@@ -372,16 +386,7 @@ def _draw_once(
     laser = drawn_laser if laser is None else laser
     rig_rng, drive_rng, start_rng, measure_rng, cause_rng = rng.spawn(5)
 
-    rig = RigTruth(
-        m_kg=0.0326 * rig_rng.uniform(0.97, 1.03),
-        l_m=0.050 * rig_rng.uniform(0.98, 1.02),
-        L_m=rig_rng.uniform(0.040, 0.056),
-        R_m=0.0095 * rig_rng.uniform(0.98, 1.02),
-        g_m_s2=9.81,
-        zeta=rig_rng.uniform(0.004, 0.012),
-        E_Pa=rig_rng.uniform(1.0e6, 4.0e6),
-        mu0_s_per_m=rig_rng.uniform(0.4, 1.2),
-    )
+    rig = draw_rig(rig_rng)
     beta_drawn = drive_rng.uniform(*BETA_RANGES[stated_frequency])
     stated_amplitude = round(beta_drawn * rig.L_m, 5)  # the shaker is set to 0.01 mm
     detuning = drive_rng.uniform(1e-4, 5e-4) * float(drive_rng.choice([-1.0, 1.0]))

@@ -1,0 +1,137 @@
+"""The analysis of a sweep: one rig identified for every step
+(:mod:`analysis.sweep.fit`), the causes that hold across the steps
+(:mod:`analysis.sweep.causes`), each step's drive and fit, and the steps set aside.
+
+What it reports is the JSON report's ``sweep`` section (docs/MODEL.md, "The sweep
+section"); :func:`report_json` adds the policy and the warnings around it.  Each step
+identified alone is reported beside the joint fit (``alone``), to read, not to judge:
+over one short dwell a cold start's short segments can trade the barrier against the
+sensor's zero, and their scatter from step to step is no finding (a clean reference
+sweep's steps put them 3 mrad apart, in opposite directions, at 4.7 standard errors).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from analysis.discrepancy.policy import DEFAULT_POLICY, SelectionPolicy
+from analysis.discrepancy.residual_reading import Finding
+from analysis.sweep.causes import SweepCauses, causes_json, select_causes
+from analysis.sweep.fit import (
+    SweepIdentification,
+    identify_sweep,
+    shared_json,
+    sweep_data,
+)
+from analysis.sweep.steps import Sweep
+
+Progress = Callable[[str], None]
+
+
+@dataclass
+class SweepAnalysis:
+    """What the analysis of a sweep found, before it becomes the report."""
+
+    sweep: Sweep
+    ident: SweepIdentification
+    policy: SelectionPolicy
+    causes: SweepCauses
+    findings: list[Finding]
+    timings: dict[str, float]
+    # Hook for the diagram comparison (analysis.sweep.diagram, added by the lead): the
+    # measured, baseline and explained bifurcation diagrams compared step by step, as the
+    # report's ``sweep.diagram``; None until that comparison runs.
+    diagram: dict[str, Any] | None = None
+    warnings: list[str] = field(default_factory=list)
+
+
+def analyze_sweep(
+    sweep: Sweep, *, threads: int | None = None, progress: Progress | None = None,
+    policy: SelectionPolicy = DEFAULT_POLICY,
+) -> SweepAnalysis:
+    """Identify one rig for every step of ``sweep`` and select the causes that hold
+    across its steps (see the module's docstring)."""
+    say = progress or (lambda message: None)
+    clock = time.perf_counter()
+    n = len(sweep.steps)
+    say(f"sweep of {n} steps over the drive's {sweep.parameter}"
+        + (f" ({len(sweep.set_aside)} set aside)" if sweep.set_aside else ""))
+    data = sweep_data(sweep)
+    for step, regime in zip(sweep.steps, data.regimes, strict=True):
+        say(f"  step {step.number}: {sweep.setting(step):.4g} "
+            f"{'m' if sweep.parameter == 'amplitude' else 'Hz'}, regime {regime}")
+    ident = identify_sweep(data, progress=say, threads=threads)
+    timings = {"identification": time.perf_counter() - clock}
+    say("causes across the sweep, each of one size for every step")
+    causes = select_causes(ident, policy, threads=threads, progress=say)
+    timings["causes"] = time.perf_counter() - clock - timings["identification"]
+    findings = list(causes.findings)
+    warnings = []
+    misfit = max(ident.step_rms(k) / d.noise_rad for k, d in enumerate(data.steps))
+    if misfit > 3.0:
+        warnings.append(f"poor fit: on some step the residual is {misfit:.3g} x that step's "
+                        "noise; one rig with these parameters does not explain every step")
+    return SweepAnalysis(sweep, ident, policy, causes, findings, timings, warnings=warnings)
+
+
+def sweep_json(analysis: SweepAnalysis) -> dict[str, Any]:
+    """The report's ``sweep`` section (docs/MODEL.md, "The sweep section")."""
+    ident = analysis.ident
+    data = ident.data
+    sweep = analysis.sweep
+    steps = []
+    final = analysis.causes.final.full
+    for k, (step, d) in enumerate(zip(sweep.steps, data.steps, strict=True)):
+        rms = ident.step_rms(k)
+        r = final.residual[data.step_slice(k)]
+        r = r[np.isfinite(r)]
+        final_rms = float(math.sqrt(np.mean(r * r))) if r.size else math.nan
+        steps.append({
+            "step": step.number, "direction": step.direction,
+            "setting": sweep.setting(step), "frequency_hz": step.frequency_hz,
+            "amplitude_m": step.amplitude_m, "settle_s": step.settle_s,
+            "dwell_s": float(d.t[-1]), "regime": data.regimes[k],
+            "drive": d.drive.as_json(),
+            "own": {name: e.as_json() for name, e in ident.step_estimates(k).items()},
+            "alone": {name: e.as_json() for name, e in
+                      ident.alone[k].short_fit.estimates.items()},
+            "noise_rad": d.noise_rad, "rms_residual": rms,
+            "rms_over_noise": rms / d.noise_rad,
+            "explained_rms_over_noise": final_rms / d.noise_rad,
+        })
+    fit = ident.fit
+    omega = fit.estimates["omega_rad_s"]
+    g = data.steps[0].rig.g_m_s2
+    length = {"value": g / omega.value ** 2}
+    if omega.ci95 is not None and omega.ci95[0] > 0:
+        length["ci95"] = [g / omega.ci95[1] ** 2, g / omega.ci95[0] ** 2]
+    return {
+        "source": sweep.source,
+        "parameter": sweep.parameter,
+        "steps": steps,
+        "set_aside": [{"step": s.number, "reason": s.reason} for s in sweep.set_aside],
+        "shared": {"L_m": length, **shared_json(fit)},
+        "model": list(ident.model.causes),
+        "cause": (analysis.causes.named or ["none"])[0],
+        "causes": causes_json(analysis.causes),
+        "noise_rad": data.noise_rad,
+        "rms_residual": fit.rms,
+        "fit": {"segments": ident.segments.segments.count, "iterations": fit.iterations,
+                "solver": fit.message, "success": fit.success,
+                "robust": data.heavy_tailed},
+        "residual_findings": [f.as_json() for f in analysis.findings],
+        "diagram": analysis.diagram,
+        "timings_s": dict(analysis.timings),
+    }
+
+
+def report_json(analysis: SweepAnalysis) -> dict[str, Any]:
+    """The JSON report of a sweep: its ``sweep`` section with the policy and warnings."""
+    return {"experiment": "forced", "kind": "sweep", "sweep": sweep_json(analysis),
+            "policy": analysis.policy.as_json(), "warnings": list(analysis.warnings)}

@@ -1,0 +1,112 @@
+"""Sweeps read from a recording, an exported sweep CSV and per-step files: the same steps,
+steps that cannot be judged set aside with the reason, bad files refused in one line."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from analysis.exchange import read_meta, sidecar_path
+from analysis.sweep.load import SweepFormatError, is_sweep, load_sweep
+from rig.cli import main
+from tests.sweep.recordings import sine_sweep, write_sweep_recording
+
+FS = 500.0
+AMPLITUDES = (1e-3, 2e-3, 3e-3, 2e-3)
+
+
+def _recording(tmp_path: Path, name: str = "sweep.h5", **options) -> Path:
+    complete = options.pop("complete", None)
+    angle, edges, marks = sine_sweep(AMPLITUDES, fs=FS, complete=complete)
+    marks = options.pop("marks", marks)
+    edges = options.pop("edges", edges)
+    return write_sweep_recording(tmp_path / name, angle, FS, edges, marks,
+                                 table=1e-3 * angle, **options)
+
+
+def test_recording_steps_are_the_dwells_with_their_settings(tmp_path: Path) -> None:
+    path = _recording(tmp_path)
+    assert is_sweep([path])
+    sweep = load_sweep([path])
+    assert sweep.parameter == "amplitude" and not sweep.set_aside
+    assert [s.number for s in sweep.steps] == [0, 1, 2, 3]
+    assert [s.amplitude_m for s in sweep.steps] == list(AMPLITUDES)
+    for step in sweep.steps:
+        record = step.record
+        assert step.settle_s == pytest.approx(1.0)
+        assert record.time_s[-1] - record.time_s[0] == pytest.approx(3.0 - 1 / FS)
+        assert record.time_s[0] == pytest.approx(4.0 * step.number + 1.0)
+        assert record.drive["amplitude_m"] == step.amplitude_m
+        assert record.table_m is not None and record.tach_indices.size == 15
+
+
+def test_exported_sweep_csv_and_per_step_files_give_the_same_steps(tmp_path: Path) -> None:
+    path = _recording(tmp_path)
+    assert main(["export", str(path), "--out", str(tmp_path / "whole.csv")]) == 0
+    assert main(["export", str(path), "--out", str(tmp_path / "each.csv"), "--per-step"]) == 0
+    steps = read_meta(sidecar_path(tmp_path / "whole.csv")).extra["sweep_steps"]
+    assert [s["direction"] for s in steps] == [1, 1, 1, 1]
+    from_recording = load_sweep([path])
+    from_csv = load_sweep([tmp_path / "whole.csv"])
+    per_step = sorted(tmp_path.glob("each_step*.csv"))
+    from_files = load_sweep(per_step)
+    assert from_files.parameter == from_csv.parameter == "amplitude"
+    for a, b, c in zip(from_recording.steps, from_csv.steps, from_files.steps, strict=True):
+        assert a.amplitude_m == b.amplitude_m == c.amplitude_m
+        assert b.settle_s == pytest.approx(a.settle_s)
+        for other in (b, c):
+            np.testing.assert_allclose(other.record.angle_rad, a.record.angle_rad, atol=1e-7)
+            np.testing.assert_array_equal(other.record.tach_indices, a.record.tach_indices)
+
+
+def test_interrupted_step_is_set_aside_and_the_sweep_kept_to_it(tmp_path: Path) -> None:
+    path = _recording(tmp_path, complete=[True, True, True, False])
+    sweep = load_sweep([path])
+    assert [s.number for s in sweep.steps] == [0, 1, 2]
+    assert [(s.number, s.reason.split(":")[0]) for s in sweep.set_aside] == [(3, "interrupted")]
+
+
+def test_short_step_and_lost_samples_are_set_aside(tmp_path: Path) -> None:
+    angle, edges, marks = sine_sweep(AMPLITUDES, fs=FS)
+    # step 1's dwell cut to 1 s; samples of step 2's dwell lost
+    marks[1] = replace(marks[1], dwell_end_index=marks[1].dwell_start_index + 500)
+    path = write_sweep_recording(tmp_path / "s.h5", angle, FS, edges, marks,
+                                 lost=(5000, 5200))
+    sweep = load_sweep([path])
+    assert [s.number for s in sweep.steps] == [0, 3]
+    reasons = {s.number: s.reason for s in sweep.set_aside}
+    assert reasons[1].startswith("too short to judge: a dwell of 1 s")
+    assert reasons[2].startswith("lost samples: 200 of its dwell's 1500")
+
+
+@pytest.mark.parametrize(("change", "message"), [
+    ("none", "no sweep steps"),
+    ("overlap", "sweep step 2 overlaps step 1"),
+    ("no_tach", "sweep step 1: no tach edges in its dwell"),
+    ("all_interrupted", "no step to analyse (step 0: interrupted"),
+])
+def test_bad_sweep_file_is_refused_in_one_line(tmp_path: Path, change: str,
+                                              message: str) -> None:
+    angle, edges, marks = sine_sweep(AMPLITUDES, fs=FS)
+    if change == "none":
+        # a recording without marks is no sweep; asked to load one as a sweep it is refused
+        path = write_sweep_recording(tmp_path / "s.h5", angle, FS, edges, marks[:1])
+        import h5py
+        with h5py.File(path, "a") as f:
+            f["sweep_steps"].resize((0,))
+    else:
+        if change == "overlap":
+            marks[2] = replace(marks[2], settle_start_index=marks[1].dwell_end_index - 100)
+        elif change == "no_tach":
+            edges = edges[(edges < marks[1].settle_start_index)
+                          | (edges >= marks[1].dwell_end_index)]
+        else:
+            marks = [replace(m, complete=False) for m in marks]
+        path = write_sweep_recording(tmp_path / "s.h5", angle, FS, edges, marks)
+    with pytest.raises(SweepFormatError) as error:
+        load_sweep([path])
+    text = str(error.value)
+    assert message in text and "\n" not in text and text.count(str(path)) == 1
