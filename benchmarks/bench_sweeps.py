@@ -261,6 +261,12 @@ def _figures(rows: list[dict[str, Any]]) -> dict[str, Any]:
         },
         "steps_undetermined_measured": sum(m == "undetermined" for r in rows
                                            for m in r["measured"]) / steps,
+        # of the steps whose measured regime is determined (an undetermined one agrees with
+        # no model)
+        "true_model_judged_steps_agreeing": sum(r["true_agreeing"] for r in rows) / max(
+            1, sum(m != "undetermined" for r in rows for m in r["measured"])),
+        "baseline_judged_steps_agreeing": sum(r["baseline_agreeing"] for r in rows) / max(
+            1, sum(m != "undetermined" for r in rows for m in r["measured"])),
         "explanation": ("not in this tree (analysis.sweep.analyze)" if not scored else
                         {"scored": len(scored),
                          "named_right": sum(r["named_right"] for r in scored) / len(scored)}),

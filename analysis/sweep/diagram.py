@@ -368,9 +368,14 @@ class DiagramComparison:
         return None
 
     def summary(self) -> str:
-        """One line: 'baseline: 6 of 16 steps agree, the first period-doubling at beta 0.083
-        against 0.099 measured'."""
+        """One line: 'baseline: 6 of 16 steps agree (2 undetermined as measured), the first
+        period-doubling at beta 0.083 against 0.099 measured'.  A step whose measured
+        regime is undetermined (too few periods to tell chaos from a long period) agrees
+        with no model."""
         text = f"{self.name}: {self.agreeing} of {len(self.steps)} steps agree"
+        undetermined = sum(step.measured == "undetermined" for step in self.steps)
+        if undetermined:
+            text += f" ({undetermined} undetermined as measured)"
         for kind in ("period-doubling", "onset of chaos"):
             measured = self.first(kind, self.measured_changes)
             model = self.first(kind, self.model_changes)
