@@ -21,6 +21,7 @@ as a ratio measured in one process.
 
     python benchmarks/bench_sweeps.py                       # 12 sweeps of 11 steps
     python benchmarks/bench_sweeps.py --sweeps 2 --up-steps 3 --json sweeps.json --overwrite
+    python benchmarks/bench_sweeps.py --timing-only
 """
 
 from __future__ import annotations
@@ -48,7 +49,10 @@ from analysis.sweep.diagram import (
 )
 from analysis.sweep.steps import DOWN, UP, Sweep, SweepStep
 from tests.reference.sweeps import (
+    AMPLITUDE_SWEEP_BETA,
+    AMPLITUDE_SWEEP_HZ,
     DISTORTS_READING,
+    FREQUENCY_SWEEP_HZ,
     MOVES_DIAGRAM,
     PARAMETERS,
     draw_sweep,
@@ -115,30 +119,38 @@ def _row(seed: int, truth: Any, seconds: float, measured: tuple[JudgedStep, ...]
     }
 
 
-def _timing_sweep(template: Sweep) -> tuple[Sweep, tuple[JudgedStep, ...]]:
-    """A 16-step sweep of 20 s steps over the settings of ``template``'s way up (repeated
-    up and down), at its rate: records of the right length (the timing simulates them;
-    nothing is compared), each step judged with a stated noise of 1 mrad."""
-    up = [s for s in template.steps if s.direction == UP]
-    settings = [up[round(k * (len(up) - 1) / 7)] for k in range(8)]
-    fs = up[0].record.sample_rate_hz
+def _timing_sweep(truth: Any) -> tuple[Sweep, tuple[JudgedStep, ...]]:
+    """A 16-step sweep of 20 s steps (8 up over the generator's range for the swept
+    parameter, 8 back down) on the rig of ``truth``, at 1 kHz: records of the right length
+    (the timing simulates them; nothing is compared), each step judged with a stated noise
+    of 1 mrad."""
+    fs = truth.sample_rate_hz
+    if truth.parameter == "amplitude":
+        up = [(AMPLITUDE_SWEEP_HZ, float(beta) * truth.rig.L_m)
+              for beta in np.linspace(*AMPLITUDE_SWEEP_BETA, TIMING_STEPS // 2)]
+    else:
+        amplitude = truth.drives[0].stated_amplitude_m
+        up = [(float(f), amplitude) for f in np.linspace(*FREQUENCY_SWEEP_HZ, TIMING_STEPS // 2)]
     samples = round(TIMING_DWELL_S * fs)
+    rig = {"m_kg": truth.rig.m_kg, "l_m": truth.rig.l_m, "R_m": truth.rig.R_m,
+           "g": truth.rig.g_m_s2}
     steps = []
-    for number, source in enumerate(settings + settings[::-1]):
+    for number, (frequency, amplitude) in enumerate(up + up[::-1]):
         record = Record(time_s=np.arange(samples) / fs, angle_rad=np.zeros(samples),
-                        experiment="forced", rig=source.record.rig,
-                        drive=source.record.drive, source=f"timing step {number}")
-        steps.append(SweepStep(number, UP if number < 8 else DOWN, source.frequency_hz,
-                               source.amplitude_m, TIMING_SETTLE_S, record))
+                        experiment="forced", rig=rig,
+                        drive={"frequency_hz": frequency, "amplitude_m": amplitude},
+                        source=f"timing step {number}")
+        steps.append(SweepStep(number, UP if number < len(up) else DOWN, frequency, amplitude,
+                               TIMING_SETTLE_S, record))
     judged = tuple(JudgedStep(s.number, "undetermined", None, "", 1e-3, np.zeros((0, 8)),
                               np.zeros((0, 8))) for s in steps)
-    return Sweep("timing", template.parameter, tuple(steps)), judged
+    return Sweep("timing", truth.parameter, tuple(steps)), judged
 
 
-def time_workers(template: Sweep, truth: Any) -> dict[str, float]:
+def time_workers(truth: Any) -> dict[str, float]:
     """Seconds to simulate (and judge) the 16-step sweep for the baseline and the true model
     with 1 worker (this process) and with 2 (a local Dask cluster, its start not counted)."""
-    sweep, judged = _timing_sweep(template)
+    sweep, judged = _timing_sweep(truth)
     start = (truth.theta0_rad, truth.theta_dot0_rad_s)
     cases = [(name, model, sweep, judged, start)
              for name, model in (("baseline", truth_model(truth, with_cause=False)),
@@ -167,44 +179,64 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--dwell", type=float, default=6.0, help="dwell per step [s]")
     parser.add_argument("--jobs", type=int, default=2, help="processes drawing the sweeps")
     parser.add_argument("--no-timing", action="store_true", help="skip the worker timing")
+    parser.add_argument("--timing-only", action="store_true", help="only the worker timing")
     parser.add_argument("--json", type=Path, help="write the rows and figures here")
     parser.add_argument("--overwrite", action="store_true", help="replace the --json file")
     args = parser.parse_args(argv)
+    if args.json and args.json.exists() and not args.overwrite:
+        parser.error(f"{args.json}: exists; pass --overwrite to replace it")
     requests = [(FIRST_SEED + k, CAUSE_CYCLE[k % len(CAUSE_CYCLE)],
                  PARAMETERS[k % len(PARAMETERS)], args.up_steps, args.settle, args.dwell)
                 for k in range(args.sweeps)]
+    figures: dict[str, Any] = {}
+    if args.timing_only:  # the rig of a small sweep: the timing needs no measured steps
+        truth = _draw((FIRST_SEED, "barrier_offset", "amplitude", 2, 0.5, 1.0))[0]
+        figures["timing_16_steps_of_20_s"] = time_workers(truth)
+        print(to_json_text(figures))
+        _write(args, figures, [])
+        return 0
     clock = time.perf_counter()
+    rows: list[dict[str, Any]] = []
     with ProcessPoolExecutor(max_workers=args.jobs) as pool:
-        drawn = list(pool.map(_draw, requests))
-    print(f"{len(drawn)} sweeps drawn by the reference simulator in "
-          f"{time.perf_counter() - clock:.0f} s ({args.jobs} processes)")
-    rows = []
-    for (seed, *_), (truth, run, seconds) in zip(requests, drawn, strict=True):
-        sweep = sweep_of(truth, run)
-        measured = judge_measured(sweep)
-        start = (truth.theta0_rad, truth.theta_dot0_rad_s)
-        true, baseline = compare_diagrams([
-            ("true", truth_model(truth), sweep, measured, start),
-            ("baseline", truth_model(truth, with_cause=False), sweep, measured, start)])
-        named = explain(sweep)  # EXPLANATION: the shared fit's named causes (None: absent)
-        row = _row(seed, truth, seconds, measured, true, baseline, named)
-        rows.append(row)
-        print(f"seed {seed} {truth.parameter:9s} {truth.cause:22s} measured "
-              f"{' '.join(row['measured'])}")
-        print(f"    {true.summary()}; median distance {row['true_median_distance']:.3g}")
-        print(f"    {baseline.summary()}; median distance "
-              f"{row['baseline_median_distance']:.3g}"
-              + ("" if named is None else f"; explanation names {named or 'nothing'}"))
-    figures = _figures(rows)
+        # each sweep compared as soon as it is drawn; the figures written after each one
+        for (seed, *_), (truth, run, seconds) in zip(requests, pool.map(_draw, requests),
+                                                     strict=True):
+            rows.append(_compare(seed, truth, run, seconds))
+            figures = _figures(rows)
+            _write(args, figures, rows)
+    print(f"{len(rows)} sweeps drawn by the reference simulator and compared in "
+          f"{time.perf_counter() - clock:.0f} s ({args.jobs} processes drawing)")
     if not args.no_timing:
-        template = sweep_of(drawn[0][0], drawn[0][1])
-        figures["timing_16_steps_of_20_s"] = time_workers(template, drawn[0][0])
+        figures["timing_16_steps_of_20_s"] = time_workers(truth)
     print(to_json_text(figures))
+    _write(args, figures, rows)
+    return 0
+
+
+def _compare(seed: int, truth: Any, run: Any, seconds: float) -> dict[str, Any]:
+    """One drawn sweep's row: the true model and the baseline against its diagram, and the
+    explanation's named causes."""
+    sweep = sweep_of(truth, run)
+    measured = judge_measured(sweep)
+    start = (truth.theta0_rad, truth.theta_dot0_rad_s)
+    true, baseline = compare_diagrams([
+        ("true", truth_model(truth), sweep, measured, start),
+        ("baseline", truth_model(truth, with_cause=False), sweep, measured, start)])
+    named = explain(sweep)  # EXPLANATION: the shared fit's named causes (None: absent)
+    row = _row(seed, truth, seconds, measured, true, baseline, named)
+    print(f"seed {seed} {truth.parameter:9s} {truth.cause:22s} measured "
+          f"{' '.join(row['measured'])}")
+    print(f"    {true.summary()}; median distance {row['true_median_distance']:.3g}")
+    print(f"    {baseline.summary()}; median distance {row['baseline_median_distance']:.3g}"
+          + ("" if named is None else f"; explanation names {named or 'nothing'}"), flush=True)
+    return row
+
+
+def _write(args: argparse.Namespace, figures: dict[str, Any],
+           rows: list[dict[str, Any]]) -> None:
     if args.json:
         write_json(args.json, {"made_by": "benchmarks/bench_sweeps.py", "command": sys.argv,
-                               "figures": figures, "rows": rows}, overwrite=args.overwrite)
-        print(f"wrote {args.json}")
-    return 0
+                               "figures": figures, "rows": rows}, overwrite=True)
 
 
 def _figures(rows: list[dict[str, Any]]) -> dict[str, Any]:
@@ -229,6 +261,12 @@ def _figures(rows: list[dict[str, Any]]) -> dict[str, Any]:
         },
         "steps_undetermined_measured": sum(m == "undetermined" for r in rows
                                            for m in r["measured"]) / steps,
+        # of the steps whose measured regime is determined (an undetermined one agrees with
+        # no model)
+        "true_model_judged_steps_agreeing": sum(r["true_agreeing"] for r in rows) / max(
+            1, sum(m != "undetermined" for r in rows for m in r["measured"])),
+        "baseline_judged_steps_agreeing": sum(r["baseline_agreeing"] for r in rows) / max(
+            1, sum(m != "undetermined" for r in rows for m in r["measured"])),
         "explanation": ("not in this tree (analysis.sweep.analyze)" if not scored else
                         {"scored": len(scored),
                          "named_right": sum(r["named_right"] for r in scored) / len(scored)}),

@@ -23,7 +23,9 @@ from typing import Any
 
 import numpy as np
 
+from analysis.dynamics.continuation import ContinuationError, ContinuationResult, continue_orbits
 from analysis.dynamics.measured_regime import judge_record_regime
+from analysis.dynamics.period_map import PeriodMap
 from analysis.dynamics.regime import Regime
 from analysis.dynamics.strobe import StrobeSamples
 from analysis.identify.preprocess import noise_and_quantum
@@ -366,9 +368,14 @@ class DiagramComparison:
         return None
 
     def summary(self) -> str:
-        """One line: 'baseline: 6 of 16 steps agree, the first period-doubling at beta 0.083
-        against 0.099 measured'."""
+        """One line: 'baseline: 6 of 16 steps agree (2 undetermined as measured), the first
+        period-doubling at beta 0.083 against 0.099 measured'.  A step whose measured
+        regime is undetermined (too few periods to tell chaos from a long period) agrees
+        with no model."""
         text = f"{self.name}: {self.agreeing} of {len(self.steps)} steps agree"
+        undetermined = sum(step.measured == "undetermined" for step in self.steps)
+        if undetermined:
+            text += f" ({undetermined} undetermined as measured)"
         for kind in ("period-doubling", "onset of chaos"):
             measured = self.first(kind, self.measured_changes)
             model = self.first(kind, self.model_changes)
@@ -467,3 +474,38 @@ def assemble(
         simulated=simulated,
         judged=judged,
     )
+
+
+def model_orbits(
+    comparison: DiagramComparison, model: Model, sweep: Sweep, *,
+    max_points: int = 400,
+) -> ContinuationResult | None:
+    """The model's periodic orbits, stable and unstable, over the sweep's way up: the
+    continuation (:mod:`analysis.dynamics.continuation`) of the orbit the simulation
+    settled on at the first step it judged periodic, towards the top setting, with the
+    branches born at its period-doublings.  None when no simulated step is periodic or
+    Newton's method finds no orbit there."""
+    up = [i for i, s in enumerate(sweep.steps) if s.direction != DOWN]
+    first = next((i for i in up if comparison.judged[i].kind == "periodic"), None)
+    if first is None:
+        return None
+    simulated = comparison.simulated[first]
+    parameter = "beta" if sweep.parameter == "amplitude" else "f_drive_hz"
+    top = max(comparison.steps[i].setting for i in up)
+    start = comparison.steps[first].setting
+    if top <= start:
+        return None
+    # the simulated state nearest drive phase 0 near the dwell's end: Newton's guess
+    omega = simulated.drive.Omega_rad_s
+    phases = (simulated.dwell_phase_rad
+              + omega * np.arange(simulated.theta_rad.size) / simulated.fs_hz)
+    cycles = np.floor(phases / (2.0 * math.pi))
+    crossings = np.flatnonzero(np.diff(cycles) > 0) + 1
+    at = int(crossings[-1]) if crossings.size else simulated.theta_rad.size - 1
+    guess = np.array([simulated.theta_rad[at], simulated.theta_dot_rad_s[at]])
+    period_map = PeriodMap(replace(model, drive=simulated.drive), parameter,
+                           comparison.judged[first].period or 1)
+    try:
+        return continue_orbits(period_map, start, top, guess, max_points=max_points)
+    except ContinuationError:
+        return None

@@ -5,7 +5,11 @@ from __future__ import annotations
 from collections.abc import Sequence
 from itertools import pairwise
 from pathlib import Path
+from typing import Any
 
+import numpy as np
+
+from analysis.dynamics.continuation import ContinuationResult
 from analysis.figure_style import legend_beside, save_figure
 from analysis.sweep.diagram import DiagramComparison, JudgedStep
 from analysis.sweep.steps import DOWN
@@ -19,10 +23,13 @@ MODEL_SHIFT = 0.06
 
 
 def draw_diagrams(comparisons: Sequence[DiagramComparison], measured: Sequence[JudgedStep],
-                  path: str | Path, *, title: str = "") -> Path:
+                  path: str | Path, *, title: str = "",
+                  orbits: ContinuationResult | None = None, orbits_of: str = "") -> Path:
     """Each model's stroboscopic points (the angle at drive phase 0 of each settled
     period) over the measured ones, step by step, the way up and the way down side by
-    side; the models' one-line summaries under the title.  Writes a PNG; returns its path.
+    side; the models' one-line summaries under the title; under them, when given, the
+    periodic orbits of model ``orbits_of`` (:func:`analysis.sweep.diagram.model_orbits`),
+    stable solid and unstable dashed.  Writes a PNG; returns its path.
     """
     if not comparisons:
         raise ValueError("no model to draw: give at least one comparison")
@@ -40,6 +47,8 @@ def draw_diagrams(comparisons: Sequence[DiagramComparison], measured: Sequence[J
         step = steps[step_index]
         return step.setting + (DOWN_SHIFT * spacing if step.direction == DOWN else 0.0)
 
+    if orbits is not None:
+        _draw_orbits(axes, orbits, orbits_of)
     for index, judged in enumerate(measured):
         if judged.cloud.size:
             axes.plot([where(index)] * judged.cloud.shape[0], judged.cloud[:, 0], ".",
@@ -66,3 +75,21 @@ def draw_diagrams(comparisons: Sequence[DiagramComparison], measured: Sequence[J
     axes.set_title("\n".join(lines), fontsize=8, loc="left")
     legend_beside(axes, fontsize=8)
     return save_figure(figure, path)
+
+
+def _draw_orbits(axes: Any, orbits: ContinuationResult, name: str) -> None:
+    stable_label = f"{name} orbits, stable".strip()
+    unstable_label = f"{name} orbits, unstable".strip()
+    for branch in orbits.branches:
+        if not branch.points:
+            continue
+        values = branch.values
+        stable = branch.stable
+        thetas = np.array([p.section_theta for p in branch.points])
+        for column in range(thetas.shape[1]):
+            theta = thetas[:, column]
+            axes.plot(values, np.where(stable, theta, np.nan), "-", color="0.6", linewidth=1.0,
+                      label=stable_label, zorder=0)
+            axes.plot(values, np.where(stable, np.nan, theta), "--", color="0.75",
+                      linewidth=1.0, label=unstable_label, zorder=0)
+            stable_label = unstable_label = None

@@ -17,6 +17,7 @@ from analysis.sweep.diagram import (
     compare_diagram,
     compare_diagrams,
     judge_measured,
+    model_orbits,
     regime_changes,
     simulate_sweep,
 )
@@ -132,3 +133,18 @@ def test_the_figure_draws_each_model_over_the_measured_points(tmp_path, clean, m
     assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     with pytest.raises(ValueError, match="no model"):
         draw_diagrams([], measured, tmp_path / "none.png")
+
+
+def test_the_models_orbit_starts_where_the_first_step_settled(tmp_path, clean, measured):
+    model = truth_model(clean.truth)
+    comparison = compare_diagram("true", model, clean.sweep, measured, start=_start(clean))
+    orbits = model_orbits(comparison, model, clean.sweep, max_points=8)
+    branch = orbits.branches[0]
+    assert branch.periods == 1 and branch.values[0] == pytest.approx(4.0)
+    assert branch.points[0].stable
+    measured_theta = np.mean(measured[0].cloud[:, 0])
+    assert abs(branch.points[0].section_theta[0] - measured_theta) < 5 * measured[0].noise_rad
+    assert np.all(np.diff(branch.values) > 0)  # followed towards the top setting
+    path = draw_diagrams([comparison], measured, tmp_path / "orbits.png", orbits=orbits,
+                         orbits_of="true")
+    assert path.stat().st_size > 0
