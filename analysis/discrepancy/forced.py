@@ -336,9 +336,14 @@ class ForcedSteps:
     continued to its optimum (:func:`screened_beside`; a cause the first one masked gains
     here, where it could not against the baseline); a drive cause whose screened size the
     table channel found absent is not fitted on.  The best are fitted over the record from
-    the current model's optimum and afresh as every single cause is (``_fit_afresh``),
-    the closer kept, against the current model continued as long; the judges are the
-    information criterion, the forecasts, and on a chaotic record the invariants' veto.
+    three starts, the closest kept: the current model's optimum with the cause neutral,
+    afresh as every single cause is (``_fit_afresh``), and the step's screening solution
+    (the cause's size found on the short segments beside the current model), against the
+    current model continued as long.  A cause that must move the rig's own parameters far
+    to show stays near its neutral start (a sensor lag whose attenuation the viscous
+    damping had taken, held at 0), and afresh it misses what the current model's causes
+    explain; its screening found both.  The judges are the information criterion, the
+    forecasts, and on a chaotic record the invariants' veto.
     A step is tried while the current model's residual is not white noise, not even
     correlated beyond chance (a Ljung-Box p of FALSE_ALARM): structure too small to call the
     model unexplained can still be a second cause's (quadratic drag beside a barrier offset
@@ -382,12 +387,14 @@ class ForcedSteps:
         data, lay, model = self.data, self.lay, current.model
         with SideBySide(self.threads) as batch:
             parent = batch.add(refit, data, model, current.full, lay)
-            nested = {name: batch.add(extend, data, model, current.full, name, lay.full)
-                      for name in names}
-            afresh = {name: batch.add(_fit_afresh, data, model.plus(name), self.ident,
-                                      self.hints, lay) for name in names}
+            starts = {name: [
+                batch.add(extend, data, model, current.full, name, lay.full),
+                batch.add(_fit_afresh, data, model.plus(name), self.ident, self.hints, lay),
+                batch.add(fit_cause, data, model.plus(name), self.beside[name][1], lay,
+                          seed=current.full),
+            ] for name in names}
         return parent.result, {
-            name: min(nested[name].result, afresh[name].result, key=lambda f: f.rss)
+            name: min((start.result for start in starts[name]), key=lambda f: f.rss)
             for name in names}
 
     def gain(self, parent: ShootingFit, fit: ShootingFit) -> float:
