@@ -1,5 +1,10 @@
 """``impact-rig analyze`` end to end on files: JSON of docs/MODEL.md section 6, Markdown and
-HTML page with PNG figures, clear errors on bad input."""
+HTML page with PNG figures, clear errors on bad input.
+
+The records come from the independent reference simulator (``tests/reference``: scipy
+DOP853 with events), never from ``impact-rig simulate``, whose integrator and cause code the
+analysis shares.
+"""
 
 from __future__ import annotations
 
@@ -9,8 +14,10 @@ import subprocess
 import sys
 
 from analysis.discrepancy import DEFAULT_POLICY
-from tests.discrepancy.hidden_cause import draw_case, write_case
+from tests.gui.recordings import write_recording
 from tests.html_page import read_page
+from tests.reference.decays import FREE, draw_decay
+from tests.reference.free_decays import FS_HZ, draw_free_decay
 from tests.strict_json import strict_loads
 
 SECTION_6_KEYS = {"experiment", "cause", "ranking", "baseline", "extended", "gain", "localization"}
@@ -26,8 +33,8 @@ def run_cli(*args):
 
 
 def test_analyze_writes_section_6_json_and_report(tmp_path):
-    case = draw_case(11, "free_decay")
-    csv = write_case(case, tmp_path, name="run")
+    case = draw_decay(3906, FREE)  # a clean decay: the baseline explains it
+    csv = case.write(tmp_path, name="run")
     out = tmp_path / "out.json"
     result = run_cli(str(csv), "--json", str(out), "--report", str(tmp_path / "rep"),
                      "--workers", "1")
@@ -35,7 +42,7 @@ def test_analyze_writes_section_6_json_and_report(tmp_path):
     report = strict_loads(out.read_text(encoding="utf-8"))
     assert set(report) >= SECTION_6_KEYS
     assert set(report["gain"]) >= GAIN_KEYS
-    assert report["cause"] == case.cause
+    assert report["cause"] == "none"
     assert report["experiment"] == "free_decay"
     for key in ("L_m", "omega_rad_s", "zeta", "theta0_rad"):
         estimate = report["baseline"]["parameters"][key]
@@ -51,17 +58,17 @@ def test_analyze_writes_section_6_json_and_report(tmp_path):
         dataclasses.asdict(DEFAULT_POLICY)
     md = (tmp_path / "rep" / "run.md").read_text()
     assert "Rules: decided under the default rules" in md
-    assert f"cause: `{case.cause}`" in md
+    assert "cause: `none`" in md
     # the parameters say which data and model they come from, and why identify may differ
     story = md.split("## Parameters", 1)[1].split("|", 1)[0]
     assert f"({report['samples_fitted']} samples" in story and "`impact-rig identify`" in story
-    assert "No cause was found" in story  # seed 11 hides none
+    assert "No cause was found" in story
     png = tmp_path / "rep" / "run_fit.png"
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     # the HTML page beside it says what the Markdown and the JSON say
     page = read_page(tmp_path / "rep" / "run.html")
     assert page.title == "Discrepancy analysis: run.csv"
-    assert f"cause: {case.cause}" in page.items
+    assert "cause: none" in page.items
     assert f"where the baseline fails: {report['localization']}" in page.items
     ranked = [row[0] for row in page.table_with("cause")[1:]]
     assert ranked == [row["cause"] for row in report["ranking"]]
@@ -75,7 +82,7 @@ def test_analyze_writes_section_6_json_and_report(tmp_path):
     # the console gets a short human summary (the report is in the files): the cause, its
     # size with an interval, the fits against the noise
     lines = result.stdout.splitlines()
-    assert case.cause == "none" and lines[0] == "cause: none" and len(lines) < 20
+    assert lines[0] == "cause: none" and len(lines) < 20
     noise_ratio = report["baseline"]["rms_residual"] / report["noise_rad"]
     assert f"baseline fit: rms residual {report['baseline']['rms_residual']:.3g} rad = " \
         f"{noise_ratio:.3g} x the noise" in lines
@@ -102,15 +109,11 @@ def test_record_without_motion_is_refused_with_reason(tmp_path):
 
 
 def test_analyze_reads_hdf5_records(tmp_path, capsys):
-    h5 = tmp_path / "decay.h5"
-    made = subprocess.run(
-        [sys.executable, "-m", "rig.cli", "simulate", "--experiment", "free_decay",
-         "--param", "L_m=0.08", "--param", "zeta=0.004", "--cause", "coulomb_friction",
-         "--param", "Tc_N_m=3e-5", "--theta0", "0.25", "--duration", "15", "--fs", "500",
-         "--noise-rad", "2e-4", "--seed", "3", "--out", str(h5)],
-        capture_output=True, text=True, timeout=300,
-    )
-    assert made.returncode == 0, made.stderr
+    # a reference decay with dry friction (the decay pairs' "friction alone"), written as a
+    # recording by the project's recorder
+    decay = draw_free_decay(8904, ("coulomb_friction",))
+    truth = decay.causes["coulomb_friction"]["Tc_N_m"]
+    h5 = write_recording(tmp_path / "decay.h5", decay.angle_rad, FS_HZ, experiment="free_decay")
     result = run_cli(str(h5), "--json", "-", "--workers", "1", "--quiet")
     assert result.returncode == 0, result.stderr
     report = json.loads(result.stdout)  # --json -: the report alone on stdout
@@ -120,8 +123,8 @@ def test_analyze_reads_hdf5_records(tmp_path, capsys):
     assert report["ranking"][0]["cause"] == "coulomb_friction" and scores == sorted(scores)[::-1]
     tc = report["extended"]["parameters"]["Tc_N_m"]
     assert tc == report["ranking"][0]["parameters"]["Tc_N_m"]
-    # the simulated friction lies in the interval the extended model reports
-    assert tc["ci95"][0] <= 3e-5 <= tc["ci95"][1]
+    # the drawn friction lies in the interval the extended model reports
+    assert tc["ci95"][0] <= truth <= tc["ci95"][1]
     # without --json the console summary names the cause and its size with the interval
     from rig.commands.analyze import _print_summary
 

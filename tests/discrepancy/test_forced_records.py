@@ -23,6 +23,7 @@ from tests.reference.forced_records import draw_forced_case, draw_pair, write_fo
 from tests.reference.unregistered import EFFECTS, draw_unregistered_case
 
 DURATION_S = 30.0
+Z_999 = 3.29  # the 99.9 % interval's half-width in standard errors (1.96: the 95 % one)
 # name: (seed, cause, drive frequency, laser, regime asked of the generator)
 CASES = {
     "clean, 2 Hz": (5201, "none", 2.0, None, None),
@@ -53,6 +54,13 @@ def _analyse(name, tmp_path):
          "--report", str(tmp_path / "pages")], capture_output=True, text=True, timeout=300)
     assert done.returncode == 0, done.stderr
     return case, json.loads(out.read_text())
+
+
+def _within_999(estimate: dict, truth: float) -> bool:
+    """``truth`` inside the reported 99.9 % interval (the 95 % one widened, 3.29 / 1.96):
+    the tolerance is what the method claims, not one wider than the effect."""
+    low, high = estimate["ci95"]
+    return abs(estimate["value"] - truth) <= (high - low) / 2 * Z_999 / 1.96
 
 
 def _regime_right(case, report) -> bool:
@@ -89,10 +97,44 @@ def test_a_forced_record_is_explained_from_the_record_alone(name, tmp_path):
         return
     best = next(r for r in report["ranking"] if r["cause"] == case.cause)
     for key, truth in case.causes[case.cause].items():
-        found = best["parameters"][key]["value"]
-        assert found == pytest.approx(truth, rel=0.15, abs=0.05 if key.endswith("rad") else 0)
+        assert _within_999(best["parameters"][key], truth), (key, truth, best["parameters"][key])
     assert report["gain"]["heldout_rms_extended"] < report["gain"]["heldout_rms_baseline"]
     assert report["extended"]["rms_residual"] < 1.5 * noise
+
+
+# pivot and sensor causes on short records (10 s at 10 Hz, the laser and the regime drawn):
+# seeds 3911-3913, one per cause, every one kept; miss budget: the known miss below, a
+# strict expected failure
+SHORT_S = 10.0
+SHORT_CASES = {
+    "sensor zero, 10 s": (3911, "sensor_offset"),
+    "dry friction, 10 s": (3912, "coulomb_friction"),
+    "drag, 10 s": (3913, "quadratic_drag"),
+}
+SHORT_MISSES = {
+    "drag, 10 s": "known miss: drag (seed 3913) is named none and nothing is flagged, on this "
+                  "10 s record and on the seed's 30 s one (not yet diagnosed)",
+}
+
+
+def _short(name: str):
+    marks = ([pytest.mark.xfail(strict=True, raises=AssertionError, reason=SHORT_MISSES[name])]
+             if name in SHORT_MISSES else [])
+    return pytest.param(name, id=name, marks=marks)
+
+
+@pytest.mark.parametrize("name", [_short(name) for name in SHORT_CASES])
+def test_a_pivot_or_sensor_cause_is_named_with_its_size_on_a_short_record(name, tmp_path):
+    seed, cause = SHORT_CASES[name]
+    case = draw_forced_case(seed, cause, frequency_hz=10.0, duration_s=SHORT_S)
+    report = analyze_record(load_record(write_forced_case(case, tmp_path)), workers=2).as_json()
+    assert [c["cause"] for c in report["causes"]] == [cause], report["ranking"][:3]
+    assert report["cause"] == cause
+    assert report["unexplained"] is False, report["residual_reading"]["why"]
+    found = report["causes"][0]["parameters"]
+    for key, truth in case.causes[cause].items():
+        assert _within_999(found[key], truth), (key, truth, found[key])
+    assert report["extended"]["rms_residual"] < 1.5 * case.measurement.angle_noise_rad
 
 
 def _check_the_command_output(case, report, tmp_path):
@@ -129,9 +171,8 @@ def test_two_causes_at_once_are_both_named_with_their_sizes(seed, frequency, tmp
     assert report["cause"] == report["causes"][0]["cause"]
     for cause_name, values in case.causes.items():
         for key, truth in values.items():
-            found = named[cause_name]["parameters"][key]["value"]
-            assert found == pytest.approx(truth, rel=0.2, abs=0.05 if key.endswith("rad")
-                                          else 0), (cause_name, key)
+            estimate = named[cause_name]["parameters"][key]
+            assert _within_999(estimate, truth), (cause_name, key, truth, estimate)
     assert report["extended"]["rms_residual"] < 1.5 * case.measurement.angle_noise_rad
 
 

@@ -100,18 +100,16 @@ def test_several_free_decays_are_pooled(tmp_path):
 
 def test_impact_decay_with_length_and_damping_held_from_a_free_decay(decay_csv, tmp_path,
                                                                     capsys):
-    from analysis.model import Model, RigParameters
-    from analysis.simulate import SimulationSettings, simulate
+    # the independent reference simulator (scipy DOP853 with events), not the project's
+    from tests.reference.simulator import Pendulum, TableMotion, simulate_reference
 
-    truth = RigParameters(L_m=0.25, zeta=0.015, mu0_s_per_m=0.5).with_stiffness(3e5)
-    sim = simulate(
-        Model(rig=truth, barrier=True), -0.3, 0.0,
-        settings=SimulationSettings(duration_s=4.0, fs_hz=3000.0, poincare_phase=None),
-    )
-    angle = sim.theta + np.random.default_rng(3).normal(0.0, 2e-4, sim.t.size)
+    truth = Pendulum(m_kg=0.0326, l_m=0.05, L_m=0.25, zeta=0.015, K_n=3e5, mu0_s_per_m=0.5)
+    t = np.arange(round(4.0 * 3000.0)) / 3000.0
+    theta = simulate_reference(truth, TableMotion(), -0.3, 0.0, t).theta_rad
+    angle = theta + np.random.default_rng(3).normal(0.0, 2e-4, t.size)
     meta = ExchangeMeta("impact_decay", rig={"m_kg": 0.0326, "l_m": 0.05, "R_m": 0.0095,
                                              "g": 9.81})
-    path, _ = write_exchange(tmp_path / "impacts.csv", ExchangeRecord(sim.t, angle, meta))
+    path, _ = write_exchange(tmp_path / "impacts.csv", ExchangeRecord(t, angle, meta))
     out = tmp_path / "impacts_params.json"  # impacts.json is the input's sidecar: refused
     assert main(["identify", str(path), "--free-decay", str(decay_csv), "--json", str(out)]) == 0
     report = json.loads(out.read_text())["parameters"]

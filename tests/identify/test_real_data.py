@@ -22,17 +22,23 @@ REAL = Path(__file__).resolve().parents[1] / "data" / "real_exchange"  # SOURCE.
 
 # (file, lower, upper bound of L_eff in m, from SOURCE.md)
 # - UW single pendulum: centre of mass at a1 = 0.148 m, so L_eff >= 0.148; its stated
-#   small-angle period 0.784 s gives 0.153 m; the arm is far shorter than 0.2 m.
+#   small-angle period 0.784 s, rounded or cut to the millisecond (0.7835-0.785 s), gives
+#   L_eff = g T^2 / (4 pi^2) = 0.15254-0.15313 m.  The large decay's swing is viscous and
+#   its fit must land there (within its own 99.9 % interval, below); the small decay sticks
+#   (dry friction, which the viscous fit cannot follow: its "poor fit" warning) and is held
+#   to the physical bounds only: above the centre of mass, below the stated period's length.
 # - Rotary pendulum: every part within 0.137 m of the pivot, so L_eff <= 0.137 m; the
 #   hinge and coupler near the pivot keep it well above a few centimetres.
+UW_PERIOD_S = (0.7835, 0.785)
+UW_L_M = tuple(9.81 * period**2 / (4 * math.pi**2) for period in UW_PERIOD_S)
 CASES = [
-    ("uw_single_small_decay", 0.145, 0.20),
-    ("uw_single_large_decay", 0.145, 0.20),
+    ("uw_single_small_decay", 0.148, UW_L_M[1]),
+    ("uw_single_large_decay", *UW_L_M),
     ("rotary_free_swing_1", 0.03, 0.137),
     ("rotary_free_swing_2", 0.03, 0.137),
     ("rotary_free_swing_3", 0.03, 0.137),
 ]
-
+Z_999 = 3.29  # the 99.9 % interval's half-width in standard errors (1.96: the 95 % one)
 
 
 def _measured_period(t: np.ndarray, angle: np.ndarray, offset: float) -> tuple[float, float]:
@@ -59,7 +65,8 @@ def test_real_free_decay(name, low, high):
     record = load_record(REAL / f"{name}.csv")
     result = fit_free_decay(record)
     L = result["L_m"]
-    assert low < L.value < high, L
+    slack = (L.ci95[1] - L.ci95[0]) / 2 * Z_999 / 1.96  # the fit's own 99.9 % half-width
+    assert low - slack < L.value < high + slack, L
     assert L.ci95[0] < L.value < L.ci95[1]
     zeta = result["zeta"]
     assert zeta.value > 0 and zeta.ci95[0] > 0
