@@ -214,7 +214,9 @@ def _contact_terms(error: EquationError, packed: np.ndarray,
 
 def time_blocks(t: np.ndarray, end: float) -> np.ndarray:
     """Each time's held-out block: HELDOUT_BLOCKS equal spans from ``t[0]`` to ``end`` (times
-    after it in the last)."""
+    after it in the last); none for no times (a decay whose flights no window fits)."""
+    if t.size == 0:
+        return np.zeros(0, dtype=int)
     spans = HELDOUT_BLOCKS * (t - t[0]) / max(end - t[0], 1e-300)
     return np.minimum(spans.astype(int), HELDOUT_BLOCKS - 1)
 

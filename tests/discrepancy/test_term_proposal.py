@@ -19,11 +19,13 @@ from scipy import stats
 from analysis.discrepancy.term_proposal import (
     CONTACT_EXPONENTS,
     HELDOUT_BLOCKS,
+    EquationError,
     ProposedTerm,
     contact_library,
     flight_library,
     propose_terms,
     select_terms,
+    weak_flight,
 )
 from analysis.identify.forced import (
     ForcedModel,
@@ -106,6 +108,22 @@ def test_noise_alone_asks_for_no_term(seed):
     assert select_terms(library, _correlated_noise(rng, t.size, 2.0), _blocks(t)) == []
     contact = contact_library(theta, rate, packed)
     assert select_terms(contact, _correlated_noise(rng, t.size, 2.0), _blocks(t)) == []
+
+
+def test_a_decay_whose_flights_no_window_fits_asks_for_no_term():
+    """An 8 s impact decay (contact exponent, seed 3901 of tests/reference/decays.py) had no
+    flight a weak-form window fits wholly: the proposal raised IndexError from its empty
+    blocks and the analysis failed.  No window, no flight term."""
+    rng = np.random.default_rng([15, 9])
+    t, theta, rate, packed = _swing(rng)
+    none = np.zeros(t.size, dtype=bool)
+    error = EquationError(residual=np.zeros(t.size), theta=theta, rate=rate, flight=none,
+                          contact=none, window=5, lowpass=9, angle=theta, free=none,
+                          model_acceleration=np.zeros(t.size))
+    library, residual, blocks = weak_flight(t, error, flight_library(t, theta, rate, packed),
+                                            2.0, True)
+    assert library.columns.shape[0] == residual.size == blocks.size == 0
+    assert select_terms(library, residual, blocks) == []
 
 
 @pytest.mark.parametrize("seed", range(4))
