@@ -56,7 +56,7 @@ class _ModbusBackend:
             address,
             count=count,
         )
-        return list(reply.registers)
+        return self._registers(reply, count, address)
 
     def read_holding_registers(self, address: int, count: int) -> list[int]:
         reply = self._request(
@@ -65,7 +65,18 @@ class _ModbusBackend:
             address,
             count=count,
         )
-        return list(reply.registers)
+        return self._registers(reply, count, address)
+
+    def _registers(self, reply: Any, count: int, address: int) -> list[int]:
+        """The reply's registers, when there are as many as asked (a reply whose byte count
+        says otherwise is garbled: its words cannot be trusted to be the ones asked for)."""
+        registers = list(reply.registers)
+        if len(registers) != count:
+            raise DeviceError(
+                f"{self.description}: a garbled reply to a read of {count} register(s) at "
+                f"{address}: it holds {len(registers)}"
+            )
+        return registers
 
     def write_registers(self, address: int, values: Sequence[int]) -> None:
         self._request(
