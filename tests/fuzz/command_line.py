@@ -18,6 +18,7 @@ import contextlib
 import io
 import os
 import re
+import shutil
 import signal
 import sys
 import time
@@ -43,21 +44,54 @@ def commands() -> dict[str, argparse.ArgumentParser]:
     return dict(sorted(sub.choices.items()))
 
 
+_ORIGINALS: dict[Path, bytes] = {}  # the input files' bytes, put back after every run
+
+
 def inputs(folder: Path) -> list[str]:
-    """Files a generated command line may name: real inputs, and things that are not."""
-    recording = folder / "small.h5"
+    """Files a generated command line may name: real inputs, and things that are not.
+
+    The real ones are copies in ``folder/inputs`` (a command line may well write over
+    one with ``--overwrite``: :func:`check_command_line` puts them back after each run),
+    never the repository's own files.
+    """
+    copies = folder / "inputs"
+    copies.mkdir(exist_ok=True)
+    recording = copies / "small.h5"
     if not recording.exists():
         write_small_recording(recording)
-    csvs = sorted(EXCHANGE_CSV.glob("*.csv"))[:1]
+    sources = [
+        *sorted(EXCHANGE_CSV.glob("rotary_free_swing_1.*")),
+        ROOT / "rig" / "default_rig.toml",
+        ROOT / "README.md",
+    ]
+    for source in sources:
+        (copies / source.name).write_bytes(source.read_bytes())
+    for path in copies.iterdir():
+        _ORIGINALS[path] = path.read_bytes()
     return [
         str(recording),
-        *(str(p) for p in csvs),
-        str(ROOT / "rig" / "default_rig.toml"),
-        str(folder / "missing.h5"),
-        str(folder),
+        str(copies / "rotary_free_swing_1.csv"),
+        str(copies / "default_rig.toml"),
+        str(copies / "README.md"),
+        str(copies / "missing.h5"),
+        str(copies),
         "/dev/null",
-        str(ROOT / "README.md"),
     ]
+
+
+def _put_back_inputs() -> None:
+    for path, data in _ORIGINALS.items():
+        if not path.is_file() or path.read_bytes() != data:
+            if path.is_dir():
+                shutil.rmtree(path)
+            path.write_bytes(data)
+    for path in {p.parent for p in _ORIGINALS}:
+        for extra in path.iterdir():  # written beside them: gone again
+            if extra not in _ORIGINALS:
+                if extra.is_dir():
+                    shutil.rmtree(extra)
+                else:
+                    extra.unlink()
 
 
 def value_text(files: list[str]) -> st.SearchStrategy[str]:
@@ -117,6 +151,7 @@ def run_command_line(argv: list[str], folder: Path) -> tuple[int | None, str, st
         try:
             os.setsid()
             os.chdir(folder)
+            os.environ["QT_QPA_PLATFORM"] = "offscreen"  # `impact-rig gui` needs no display
             null = os.open(os.devnull, os.O_RDONLY)
             os.dup2(null, 0)
             sys.stdin = io.TextIOWrapper(io.FileIO(0, "r", closefd=False))
@@ -158,7 +193,10 @@ def run_command_line(argv: list[str], folder: Path) -> tuple[int | None, str, st
 def check_command_line(argv: list[str], folder: Path) -> str:
     """Run one command line and judge its answer (BadAnswerError); returns "ok", "refused"
     or WORKING."""
-    code, _out, err, _took = run_command_line(argv, folder)
+    try:
+        code, _out, err, _took = run_command_line(argv, folder)
+    finally:
+        _put_back_inputs()
     shown = " ".join(repr(a) if not a or " " in a else a for a in argv)
     if "Traceback" in err:
         raise BadAnswerError(f"impact-rig {shown}: a traceback: {err.strip().splitlines()[-1]}")
