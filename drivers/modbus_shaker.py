@@ -7,6 +7,7 @@ DeviceError whose message says where, which request and what happened.
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import os
 from collections.abc import Callable, Sequence
@@ -47,7 +48,8 @@ class _ModbusBackend:
         self.timeout_s = timeout_s
 
     def close(self) -> None:
-        self._client.close()
+        with contextlib.suppress(OSError):  # the peer may have reset it already
+            self._client.close()
 
     def read_input_registers(self, address: int, count: int) -> list[int]:
         reply = self._request(
@@ -93,7 +95,7 @@ class _ModbusBackend:
             raise DeviceError(
                 f"{self.description}: no reply to {what} within {self.timeout_s} s ({error})"
             ) from None
-        except ConnectionException as error:
+        except (ConnectionException, OSError) as error:  # OSError: a reset, a broken pipe
             raise DeviceError(
                 f"{self.description}: connection lost during {what} ({error})"
             ) from None

@@ -2,7 +2,7 @@
 
 The shaker driver against an amplifier that answers wrongly: the real pymodbus server
 (the amplifier emulator) behind a proxy that mangles its replies as drawn: delayed past
-the driver's timeout, dropped, the connection closed, truncated, another unit id or
+the driver's timeout, dropped, the connection closed (or reset), truncated, another unit id or
 transaction id, an exception code, a bit flipped, garbage around it, a wrong length
 field, well-formed replies with random register values, with every word 0xFFFF, or with
 fewer registers than asked.  :func:`check_driver` runs a
@@ -59,7 +59,7 @@ TIMEOUT_S = 0.3  # the driver's reply timeout here
 WATCHDOG_S = 0.5
 FATES = (
     "pass", "delay", "drop", "close", "truncate", "unit", "tid", "exception", "flip",
-    "garbage", "length", "values", "short", "huge",
+    "garbage", "length", "values", "short", "huge", "reset",
 )
 
 
@@ -139,7 +139,9 @@ class ManglingProxy:
                     return
                 heartbeat = request[7] in (6, 16) and request[8:10] == HEARTBEAT_ADDRESS
                 fate = "pass" if heartbeat else self._fate()  # the order of the driver's own
-                if fate == "close":
+                if fate == "reset":  # closed with a TCP reset, as a rebooting controller does
+                    client.setsockopt(socket.SOL_SOCKET, socket.SO_LINGER, struct.pack("ii", 1, 0))
+                if fate in ("close", "reset"):
                     return
                 mangled = self._mangle(fate, request, reply)
                 with contextlib.suppress(OSError):

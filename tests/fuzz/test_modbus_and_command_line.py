@@ -58,12 +58,14 @@ def test_the_amplifier_emulator_survives_hostile_requests_and_keeps_its_ranges(
     [
         ("short", "a garbled reply to a read of 3 register(s) at 0: it holds 1"),
         ("huge", "beyond the amplifier's own range: a garbled reply"),
+        ("reset", "connection lost during FC4 read of 5 input register(s) at 3"),
     ],
 )
 def test_a_reply_that_cannot_be_the_amplifiers_is_refused_not_passed_on(emulator, fate, words):
     # found by the driver's fuzzing: a read answered with fewer registers than asked raised
     # ValueError out of connect(); words beyond the amplifier's ranges came back as a
-    # measured drive of 4,259,770 Hz
+    # measured drive of 4,259,770 Hz; found by the soak: a connection reset by the controller
+    # raised ConnectionResetError out of measured()
     reset(emulator.firmware)
     first = [fate] if fate == "short" else ["pass", "pass", fate]  # identify, or measure
     proxy = ManglingProxy(emulator.port, first, seed=0)
