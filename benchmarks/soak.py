@@ -49,6 +49,7 @@ def missed(figures: SoakFigures) -> list[str]:
             and figures.drive_off_rows_in_file == figures.amplifier_restarts,
             "an amplifier restart not seen, not recovered or not in the drive log",
         ),
+        (not figures.watch_error, f"the shaker driver raised {figures.watch_error}"),
         (not figures.live_reads_failed, "the file did not read while written"),
         (figures.reader_ok and figures.h5py_ok, "the file does not read after"),
         (figures.export_ok, f"impact-rig export failed: {figures.export_message}"),
