@@ -1,8 +1,13 @@
 """Generated input at the program's boundaries for as long as asked: bad answers found.
 
-The same checks and strategies as the suite's ``tests/fuzz`` (``tests.fuzz.boundaries``):
-the DAQ frame decoder, the exchange CSV and sidecar, the rig file and damaged recordings.
-Each answer must be a correct result or one line naming what was wrong, within 5 s.
+The same checks and strategies as the suite's ``tests/fuzz`` (``tests.fuzz.boundaries``,
+``tests.fuzz.modbus``, ``tests.fuzz.command_line``): the DAQ frame decoder, the exchange
+CSV and sidecar, the rig file, damaged recordings, the shaker driver against an amplifier
+whose replies are mangled, the amplifier emulator's Modbus server against hostile
+requests (both real pymodbus over loopback TCP; the driver reconnecting or not), and every
+``impact-rig`` sub-command's arguments.  Each answer must be a correct result or one line
+naming what was wrong, within 5 s; a command line accepted and still at work after 5 s (an
+analysis, a recording) is killed and counted as working, not judged.
 Hypothesis runs in rounds of ``--round`` examples with fresh random seeds until the
 time is up; a failure is shrunk, counted by its kind (exception type and first words),
 and the run goes on.
@@ -11,7 +16,7 @@ Printed per boundary: inputs tried, distinct failures (with one example each), t
 slowest answer; the figures also as one JSON line at the end (``--json FILE`` writes it).
 
     python benchmarks/fuzz.py --minutes 10                      (every boundary, 10 min each)
-    python benchmarks/fuzz.py --minutes 1 --boundary exchange
+    python benchmarks/fuzz.py --minutes 1 --boundary exchange --boundary cli
 """
 
 from __future__ import annotations
@@ -27,9 +32,15 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 from hypothesis.errors import HypothesisException
 
 from tests.fuzz import boundaries as b
+from tests.fuzz import command_line, modbus
+
+BOUNDARIES = (
+    "frames", "exchange", "rig_file", "recording", "modbus_driver", "modbus_server", "cli"
+)
 
 
 class Boundary:
@@ -40,35 +51,39 @@ class Boundary:
         self.strategy = strategy
         self.check = check
         self.tried = 0
+        self.working = 0  # command lines accepted and still at work after 5 s
         self.slowest_s = 0.0
         self.failures: dict[str, str] = {}  # kind -> one shrunk example's message
 
     def run_one(self, value) -> None:
         self.tried += 1
         started = time.perf_counter()
-        try:
-            self.check(value)
-        finally:
-            self.slowest_s = max(self.slowest_s, time.perf_counter() - started)
+        if self.check(value) == command_line.WORKING:
+            self.working += 1
+            return
+        self.slowest_s = max(self.slowest_s, time.perf_counter() - started)
 
     def figures(self) -> dict[str, object]:
         return {
             "boundary": self.name,
             "inputs_tried": self.tried,
+            "still_working_after_5_s": self.working,
             "distinct_failures": len(self.failures),
             "slowest_answer_s": round(self.slowest_s, 4),
             "failures": self.failures,
         }
 
 
-def boundaries(folder: Path) -> dict[str, Boundary]:
+def boundaries(folder: Path, amplifier) -> dict[str, Boundary]:
     recording = folder / "small.h5"
     b.write_small_recording(recording)
+    files = command_line.inputs(folder)
+    names = list(command_line.commands())
 
-    def in_scratch(check: Callable[..., None]) -> Callable[..., None]:
-        def run(value) -> None:
+    def in_scratch(check: Callable[..., object]) -> Callable[..., object]:
+        def run(value) -> object:
             with tempfile.TemporaryDirectory(dir=folder) as scratch:
-                check(value, Path(scratch))
+                return check(value, Path(scratch))
 
         return run
 
@@ -82,6 +97,19 @@ def boundaries(folder: Path) -> dict[str, Boundary]:
             "recording",
             b.DAMAGES,
             in_scratch(lambda v, d: b.check_damaged_recording(recording, v, d)),
+        ),
+        "modbus_driver": Boundary(
+            "modbus_driver", modbus.driver_cases(), lambda v: modbus.check_driver(amplifier, v)
+        ),
+        "modbus_server": Boundary(
+            "modbus_server",
+            modbus.hostile_requests(),
+            lambda v: modbus.check_server(amplifier, v),
+        ),
+        "cli": Boundary(
+            "cli",
+            st.sampled_from(names).flatmap(lambda name: command_line.command_lines(name, files)),
+            in_scratch(lambda v, d: command_line.check_command_line(v, d)),
         ),
     }
 
@@ -122,28 +150,31 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--boundary",
         action="append",
-        choices=("frames", "exchange", "rig_file", "recording"),
+        choices=BOUNDARIES,
         help="only this boundary (repeat for several; default: all)",
     )
     parser.add_argument("--round", type=int, default=200, help="examples per Hypothesis round")
     parser.add_argument("--json", type=Path, help="also write the figures to this file")
     args = parser.parse_args(argv)
     results = []
+    amplifier = modbus.amplifier()
     with tempfile.TemporaryDirectory(prefix="impact-rig-fuzz-") as folder:
-        known = boundaries(Path(folder))
+        known = boundaries(Path(folder), amplifier)
         for name in args.boundary or list(known):
             boundary = known[name]
             fuzz(boundary, args.minutes * 60.0, args.round)
             figures = boundary.figures()
             results.append(figures)
+            working = f", {boundary.working:,} still at work after 5 s" if boundary.working else ""
             print(
                 f"{name}: {figures['inputs_tried']:,} inputs tried, "
                 f"{figures['distinct_failures']} distinct failures, slowest answer "
-                f"{figures['slowest_answer_s']:.3f} s",
+                f"{figures['slowest_answer_s']:.3f} s{working}",
                 flush=True,
             )
             for kind, example in boundary.failures.items():
                 print(f"  {kind}\n    {example[:300]}", flush=True)
+    amplifier.stop()
     summary = {"minutes_per_boundary": args.minutes, "boundaries": results}
     text = json.dumps(summary)
     print(text)

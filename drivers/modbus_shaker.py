@@ -7,6 +7,7 @@ DeviceError whose message says where, which request and what happened.
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import os
 from collections.abc import Callable, Sequence
@@ -47,7 +48,8 @@ class _ModbusBackend:
         self.timeout_s = timeout_s
 
     def close(self) -> None:
-        self._client.close()
+        with contextlib.suppress(OSError):  # the peer may have reset it already
+            self._client.close()
 
     def read_input_registers(self, address: int, count: int) -> list[int]:
         reply = self._request(
@@ -56,7 +58,7 @@ class _ModbusBackend:
             address,
             count=count,
         )
-        return list(reply.registers)
+        return self._registers(reply, count, address)
 
     def read_holding_registers(self, address: int, count: int) -> list[int]:
         reply = self._request(
@@ -65,7 +67,18 @@ class _ModbusBackend:
             address,
             count=count,
         )
-        return list(reply.registers)
+        return self._registers(reply, count, address)
+
+    def _registers(self, reply: Any, count: int, address: int) -> list[int]:
+        """The reply's registers, when there are as many as asked (a reply whose byte count
+        says otherwise is garbled: its words cannot be trusted to be the ones asked for)."""
+        registers = list(reply.registers)
+        if len(registers) != count:
+            raise DeviceError(
+                f"{self.description}: a garbled reply to a read of {count} register(s) at "
+                f"{address}: it holds {len(registers)}"
+            )
+        return registers
 
     def write_registers(self, address: int, values: Sequence[int]) -> None:
         self._request(
@@ -82,7 +95,7 @@ class _ModbusBackend:
             raise DeviceError(
                 f"{self.description}: no reply to {what} within {self.timeout_s} s ({error})"
             ) from None
-        except ConnectionException as error:
+        except (ConnectionException, OSError) as error:  # OSError: a reset, a broken pipe
             raise DeviceError(
                 f"{self.description}: connection lost during {what} ({error})"
             ) from None

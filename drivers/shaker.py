@@ -20,6 +20,9 @@ from dataclasses import dataclass
 from typing import Any, Protocol
 
 from drivers.amplifier_registers import (
+    DEVICE_MAX_AMPLITUDE_UM,
+    DEVICE_MAX_FREQUENCY_MHZ,
+    DEVICE_MAX_RAMP_RATE_UM_S,
     MAP_VERSION,
     MODEL_CODE,
     WATCHDOG_MAX_MS,
@@ -330,8 +333,14 @@ class ShakerAmplifier(ShakerDevice):
             int(Input.MEASURED_AMPLITUDE_UM) - int(Input.STATUS) + 1,
         )
         status = Status(regs[0])
+        frequency_mhz = join_u32(regs[2], regs[3])
+        if frequency_mhz > DEVICE_MAX_FREQUENCY_MHZ or regs[4] > DEVICE_MAX_AMPLITUDE_UM:
+            raise self._garbled(
+                "read measurements", f"a measured drive of {frequency_mhz / 1000:g} Hz, "
+                f"{regs[4] / 1000:g} mm"
+            )
         return MeasuredDrive(
-            frequency_hz=join_u32(regs[2], regs[3]) / 1000.0,
+            frequency_hz=frequency_mhz / 1000.0,
             amplitude_m=regs[4] * 1e-6,
             enabled=bool(status & Status.ENABLED),
             ramping=bool(status & Status.RAMPING),
@@ -347,8 +356,19 @@ class ShakerAmplifier(ShakerDevice):
             int(Holding.FREQUENCY_MHZ_HI),
             int(Holding.ENABLE) - int(Holding.FREQUENCY_MHZ_HI) + 1,
         )
+        frequency_mhz = join_u32(regs[0], regs[1])
+        if (
+            frequency_mhz > DEVICE_MAX_FREQUENCY_MHZ
+            or regs[2] > DEVICE_MAX_AMPLITUDE_UM
+            or regs[3] > DEVICE_MAX_RAMP_RATE_UM_S
+            or regs[4] > 1
+        ):
+            raise self._garbled(
+                "read setpoints", f"setpoints of {frequency_mhz / 1000:g} Hz, "
+                f"{regs[2] / 1000:g} mm, ramp {regs[3] / 1000:g} mm/s, enable {regs[4]}"
+            )
         return Setpoints(
-            frequency_hz=join_u32(regs[0], regs[1]) / 1000.0,
+            frequency_hz=frequency_mhz / 1000.0,
             amplitude_m=regs[2] * 1e-6,
             ramp_rate_m_s=regs[3] * 1e-6,
             enabled=bool(regs[4]),
@@ -360,6 +380,17 @@ class ShakerAmplifier(ShakerDevice):
         return fault_words(bits)
 
     # ------------------------------------------------------------------ internals
+
+    def _garbled(self, what: str, words: str) -> DeviceError:
+        """A reply no amplifier gives (beyond its own ranges): garbled on the way, so the
+        link is not trusted (``_failed``), and nothing of it is passed on."""
+        return self._failed(
+            what,
+            DeviceError(
+                f"{self.backend.description} reported {words}, beyond the amplifier's own "
+                "range: a garbled reply"
+            ),
+        )
 
     def _failed(self, what: str, error: DeviceError) -> DeviceError:
         """A refusal leaves the link trusted; any other failure stops the heartbeat (the

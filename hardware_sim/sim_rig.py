@@ -127,6 +127,34 @@ class SimRig:
         """Latch a hardware fault in the amplifier (over-current, over-temperature ...)."""
         self.firmware.trip(fault)
 
+    def replug_daq(self, away_s: float = 0.0) -> str:
+        """The DAQ board unplugged and plugged in again (a knocked cable, a board reset).
+
+        The board's pty closes; after ``away_s`` seconds (the rig's physics running on
+        meanwhile) a fresh board, its sample counter at 0 again, serves a new pty, whose
+        path is returned.  No-op returning "" when no board was started.
+        """
+        if self.daq is None:
+            return ""
+        self.daq.close()
+        if away_s > 0:
+            time.sleep(away_s)
+        self.daq = DaqEmulator(self.rig, speed=self.rig.speed_factor).start()
+        return self.daq.port
+
+    def restart_amplifier(self, away_s: float = 0.0) -> None:
+        """The amplifier's controller restarted: its Modbus server goes away (every
+        connection dropped) and, after ``away_s`` seconds, serves again on the same
+        address.  Its firmware (setpoints, watchdog, the table it moves) carries on."""
+        old = self.amplifier
+        old.stop()
+        if away_s > 0:
+            time.sleep(away_s)
+        self.amplifier = AmplifierEmulator(
+            self.firmware, host=old.host, port=old.port or 0, tcp=True, rtu=False
+        ).start()
+        self.amplifier.fault = old.fault
+
     def _generator_changed(self, state: GeneratorState) -> None:
         """The generator's output through the amplifier (gain) moves the table."""
         vpp = state.amplitude_vpp * (2.0 * math.sqrt(2.0) if state.unit == "VRMS" else 1.0)
