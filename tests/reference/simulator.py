@@ -318,10 +318,13 @@ class _Equations:
         tau = self.lowpass_tau_s
 
         def sliding(t: float, y: np.ndarray) -> list[float]:
-            acc = self.acceleration_without_friction(t, y[0], y[1]) - friction
+            # Python floats, not numpy scalars: the same IEEE operations in the same order
+            # (bit for bit the same motion), each several times cheaper
+            theta, theta_dot = float(y[0]), float(y[1])
+            acc = self.acceleration_without_friction(float(t), theta, theta_dot) - friction
             if tau is None:
-                return [y[1], acc]
-            return [y[1], acc, (y[0] - y[2]) / tau]
+                return [theta_dot, acc]
+            return [theta_dot, acc, (theta - float(y[2])) / tau]
 
         def stuck(t: float, y: np.ndarray) -> list[float]:
             if tau is None:

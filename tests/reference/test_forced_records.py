@@ -36,16 +36,30 @@ def case_23() -> ForcedCase:
     return draw_forced_case(23, **SHORT)
 
 
-def test_same_seed_gives_the_same_bytes(tmp_path, case_23):
-    paths = []
-    for name in ("a", "b"):
-        (tmp_path / name).mkdir()
-        paths.append(write_forced_case(draw_forced_case(21, **SHORT), tmp_path / name))
-    other = write_forced_case(case_23, tmp_path)
-    for suffix in (".csv", ".json"):
-        first, second = (path.with_suffix(suffix).read_bytes() for path in paths)
-        assert first == second
-    assert other.read_bytes() != paths[0].read_bytes()
+def _draw_24() -> ForcedCase:
+    return draw_forced_case(24, "excitation_distortion", laser=True, **SHORT)
+
+
+@pytest.fixture(scope="module")
+def case_24() -> ForcedCase:
+    """A short draw with a cause and the laser, which two tests share."""
+    return _draw_24()
+
+
+def test_same_seed_gives_the_same_bytes(tmp_path, case_23, case_24):
+    # each shared draw beside a fresh one from the same seed and arguments: seed 23 with
+    # every choice drawn from the seed, seed 24 with a cause sized to show
+    for seed, shared, fresh in ((23, case_23, draw_forced_case(23, **SHORT)),
+                                (24, case_24, _draw_24())):
+        paths = []
+        for name, case in (("a", shared), ("b", fresh)):
+            (tmp_path / f"{name}{seed}").mkdir()
+            paths.append(write_forced_case(case, tmp_path / f"{name}{seed}"))
+        for suffix in (".csv", ".json"):
+            first, second = (path.with_suffix(suffix).read_bytes() for path in paths)
+            assert first == second, (seed, suffix)
+    assert (tmp_path / "a23" / "record.csv").read_bytes() != \
+        (tmp_path / "a24" / "record.csv").read_bytes()
 
 
 def test_given_choices_fix_their_draws_and_leave_the_rest(case_23):
@@ -70,8 +84,8 @@ def test_bad_requests_are_named():
         draw_forced_case(1, regime="wobbly")
 
 
-def test_files_reveal_nothing_of_the_truth(tmp_path):
-    case = draw_forced_case(24, "excitation_distortion", laser=True, **SHORT)
+def test_files_reveal_nothing_of_the_truth(tmp_path, case_24):
+    case = case_24
     csv_path = write_forced_case(case, tmp_path)
     meta = json.loads(csv_path.with_suffix(".json").read_text())
     assert set(meta) == {"format_version", "experiment", "rig", "drive", "notes"}
