@@ -66,7 +66,8 @@ def test_one_rig_for_every_step_holds_the_truth_in_its_intervals(analysed) -> No
         assert step["drive"]["table"] is not None and "drive_phase_rad" in step["own"]
     assert sweep["set_aside"] == [
         {"step": 3, "reason": "interrupted: the sweep stopped during this step"}]
-    assert sweep["diagram"] is None and js["policy"]["bic_margin"]["value"] > 0
+    assert sweep["diagram"]["named"] == ["barrier_offset"]
+    assert js["policy"]["bic_margin"]["value"] > 0
 
 
 def _within(estimate: dict, value: float) -> bool:
