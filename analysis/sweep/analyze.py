@@ -104,9 +104,9 @@ class SweepAnalysis:
     causes: SweepCauses
     findings: list[Finding]
     timings: dict[str, float]
-    # Hook for the diagram comparison (analysis.sweep.diagram, added by the lead): the
-    # measured, baseline and explained bifurcation diagrams compared step by step, as the
-    # report's ``sweep.diagram``; None until that comparison runs.
+    # The baseline's and the explained model's diagrams compared with the measured one
+    # step by step (SweepDiagram.as_json), the report's ``sweep.diagram``; None when
+    # analyze_sweep was told not to compare them.
     diagram: dict[str, Any] | None = None
     warnings: list[str] = field(default_factory=list)
     # The diagrams themselves (samples and clouds, for the figures); None when not compared.
