@@ -46,8 +46,15 @@ that explains the steps only with a different size on each is not named, and how
 size would have to vary with the drive is reported (as is a rig parameter the steps,
 each fitted alone, put at different values). The report's `sweep` section (docs/MODEL.md)
 lists the shared parameters, the causes and every step: setting, drive measured, regime,
-residual; --report writes a page with a table of the steps. Progress (steps identified
-k of n, each fit's stage) goes to stderr.
+residual. Then the baseline (the rig, no cause) and the explained model (the rig with
+the causes named) are run through the sweep as the rig ran it, each step at its measured
+drive, and their bifurcation diagrams compared with the measured one step by step (the
+regimes, the stroboscopic clouds' distance in noise units, where the regime changes):
+the report's `sweep.diagram` and its summary line. --report writes a page that leads with
+the diagrams and a table of the steps' regimes. These simulations run on a local Dask
+cluster with --workers N (N > 1) or on a scheduler's workers with --scheduler ADDRESS, as
+`impact-rig map` does, with the same figures. Progress (steps identified k of n, each
+fit's stage) goes to stderr.
 
 FILE is an exchange CSV (NAME.json beside it, or --meta) or an HDF5 recording.
 """
@@ -62,6 +69,7 @@ examples:
   impact-rig analyze decay.csv --rule bic_margin=6            # a looser information criterion
   impact-rig analyze sweep_10Hz.h5 --report out/              # a sweep: one rig, every step
   impact-rig analyze sweep_step*.csv --json sweep.json        # per-step files, in this order
+  impact-rig analyze sweep_10Hz.h5 --scheduler tcp://10.0.0.5:8786   # diagrams on a cluster
 """
 
 
