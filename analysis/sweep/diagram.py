@@ -43,12 +43,16 @@ ATOL = 1e-11
 # A cloud's settled part: a periodic step's points after its transient, otherwise the
 # second half of the dwell.
 UNSETTLED_FRACTION = 0.5
+# The regime of a step on which (or after which) the model's simulation went over the top.
+OVER_THE_TOP = "over_the_top"
 
 
 @dataclass(frozen=True)
 class SimulatedStep:
     """One step of a sweep as the model ran it: the dwell's samples (time from the dwell's
-    start), the drive phase at the dwell's first sample, and the state at its end."""
+    start), the drive phase at the dwell's first sample, and the state at its end.  When
+    the model's simulation stopped on this step or an earlier one (over the top), no
+    samples and ``stopped`` says why."""
 
     number: int
     drive: Drive
@@ -57,6 +61,7 @@ class SimulatedStep:
     fs_hz: float
     dwell_phase_rad: float
     end_state: tuple[float, float]
+    stopped: str = ""
 
 
 @dataclass(frozen=True)
@@ -159,11 +164,16 @@ def sweep_task(
 
 def simulate_steps(task: SweepTask) -> tuple[SimulatedStep, ...]:
     """The task's model run through its steps, the state and the drive phase carried from
-    each step into the next."""
+    each step into the next; when its simulation stops (the pendulum over the top), that
+    step and the ones after it have no samples and say so (``SimulatedStep.stopped``)."""
     model = model_from_fields(task.model)
     state, phase = task.start, task.start_phase_rad
-    out = []
+    out: list[SimulatedStep] = []
+    stopped = ""
     for plan in task.steps:
+        if stopped:
+            out.append(_no_samples(plan, stopped))
+            continue
         fs, total = plan.fs_hz, plan.settle_samples + plan.dwell_samples
         p = replace(model, drive=plan.drive).pack()
         p[P.PHASE0] = phase
@@ -172,8 +182,9 @@ def simulate_steps(task: SweepTask) -> tuple[SimulatedStep, ...]:
             duration_s=(total + 1.5) / fs, fs_hz=fs, poincare_phase=None, rtol=RTOL,
             atol=ATOL))
         if result.status != "ok" or result.theta.size < total + 1:
-            raise RuntimeError(f"step {plan.number}: the model's simulation stopped "
-                               f"({result.status})")
+            stopped = f"the model's simulation stopped on step {plan.number} ({result.status})"
+            out.append(_no_samples(plan, stopped))
+            continue
         omega = plan.drive.Omega_rad_s
         out.append(SimulatedStep(
             number=plan.number,
@@ -190,6 +201,12 @@ def simulate_steps(task: SweepTask) -> tuple[SimulatedStep, ...]:
     return tuple(out)
 
 
+def _no_samples(plan: StepPlan, stopped: str) -> SimulatedStep:
+    empty = np.zeros(0)
+    return SimulatedStep(plan.number, plan.drive, empty, empty, plan.fs_hz, math.nan,
+                         (math.nan, math.nan), stopped)
+
+
 def run_sweep_task(task: SweepTask) -> tuple[tuple[SimulatedStep, ...], tuple[JudgedStep, ...]]:
     """Simulate the task's sweep and judge each simulated dwell read as its measured step
     was (the model's measurement causes, the step's noise level, seeded by its number):
@@ -198,6 +215,11 @@ def run_sweep_task(task: SweepTask) -> tuple[tuple[SimulatedStep, ...], tuple[Ju
     simulated = simulate_steps(task)
     judged = []
     for step, plan in zip(simulated, task.steps, strict=True):
+        if step.stopped:  # no regime: the model went over the top
+            empty = np.zeros((0, 8))
+            judged.append(JudgedStep(step.number, OVER_THE_TOP, None, step.stopped,
+                                     plan.noise_rad, empty, empty))
+            continue
         t = np.arange(step.theta_rad.size) / step.fs_hz
         reading = MeasurementModel(noise_std_rad=plan.noise_rad,
                                    seed=NOISE_SEED * 1000 + step.number).apply(
