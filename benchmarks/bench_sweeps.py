@@ -12,8 +12,10 @@ without it) are simulated through the sweep as the rig ran it with the project's
 simulator and compared with the measured diagram step by step
 (:mod:`analysis.sweep.diagram`): the steps agreeing on their regime and the distance of the
 stroboscopic clouds in units of the noise.  The sweep explanation (``analysis.sweep``'s
-shared fit, another branch) is called at the place marked EXPLANATION below and its named
-causes scored when it is there.
+shared fit and its diagrams) is called at the place marked EXPLANATION below and scored:
+the hidden cause named with its parameters within their 95 % intervals, no cause on the
+clean sweeps, and the explained model's regime on the steps the fitted baseline's
+diagram gets wrong.
 
 Also the time of simulating a 16-step sweep of 20 s steps (8 s settle, 12 s dwell) for the
 baseline and the true model, with 1 and with 2 workers (the ``impact-rig map`` Dask path),
@@ -41,6 +43,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from analysis.json_output import to_json_text, write_json
 from analysis.maps import MapRunner
 from analysis.records import Record
+from analysis.sweep.analyze import SweepAnalysis, analyze_sweep
 from analysis.sweep.diagram import (
     DiagramComparison,
     JudgedStep,
@@ -76,23 +79,47 @@ def _draw(request: tuple[int, str, str, int, float, float]) -> tuple[Any, Any, f
     return generated.truth, generated.run, time.perf_counter() - clock
 
 
-def explain(sweep: Sweep) -> list[str] | None:
-    """EXPLANATION: the causes the sweep explanation names (``analysis.sweep.analyze``,
-    merged from the shared-fit branch), or None while it is not in this tree.
+def explain(sweep: Sweep) -> SweepAnalysis:
+    """EXPLANATION: the sweep's analysis (``analysis.sweep.analyze``): one rig, the causes
+    named across the steps, and its baseline's and explained model's diagrams."""
+    return analyze_sweep(sweep)
 
-    When it is, the lead adds here the explained model (the shared fit's rig with its
-    named causes) and passes it to :func:`compare_diagrams` beside the baseline, so that the
-    figures below gain the explained model's agreement."""
-    try:
-        from analysis.sweep.analyze import analyze_sweep  # type: ignore[import-not-found]
-    except ImportError:
-        return None
-    return list(analyze_sweep(sweep).causes.named)
+
+def _explanation(truth: Any, analysis: SweepAnalysis) -> dict[str, Any]:
+    """The explanation scored: the causes named, the hidden cause's parameters within
+    their 95 % intervals, and the fitted baseline's and explained model's agreement
+    (over every step, and on the steps the fitted baseline gets wrong)."""
+    named = list(analysis.causes.named)
+    estimates = analysis.causes.final.full.estimates
+    within = None
+    if truth.cause != "none" and truth.cause in named:
+        checks = []
+        for parameter, value in truth.causes[truth.cause].items():
+            e = estimates.get(parameter)
+            checks.append(e is not None and e.ci95 is not None
+                          and e.ci95[0] <= value <= e.ci95[1])
+        within = all(checks)
+    diagrams = analysis.diagrams
+    base = diagrams.baseline
+    explained = diagrams.explained or base
+    missed = [k for k, step in enumerate(base.steps)
+              if not step.agrees and step.measured != "undetermined"]
+    return {
+        "named": named,
+        "named_right": named == [] if truth.cause == "none" else truth.cause in named,
+        "parameters_within_ci95": within,
+        "fitted_baseline_agreeing": base.agreeing,
+        "explained_agreeing": explained.agreeing,
+        "baseline_missed_steps": len(missed),
+        "explained_agreeing_where_baseline_missed": sum(explained.steps[k].agrees
+                                                        for k in missed),
+        "diagram_summary": diagrams.summary(),
+    }
 
 
 def _row(seed: int, truth: Any, seconds: float, measured: tuple[JudgedStep, ...],
          true: DiagramComparison, baseline: DiagramComparison,
-         named: list[str] | None) -> dict[str, Any]:
+         explanation: dict[str, Any]) -> dict[str, Any]:
     def distance(comparison: DiagramComparison) -> float:
         values = [s.distance for s in comparison.steps if math.isfinite(s.distance)]
         return float(np.median(values)) if values else math.nan
@@ -112,9 +139,7 @@ def _row(seed: int, truth: Any, seconds: float, measured: tuple[JudgedStep, ...]
         "baseline_median_distance": distance(baseline),
         "true_summary": true.summary(),
         "baseline_summary": baseline.summary(),
-        "named": named,
-        "named_right": None if named is None else (
-            named == [] if truth.cause == "none" else truth.cause in named),
+        **explanation,
         "generation_s": seconds,
     }
 
@@ -222,13 +247,22 @@ def _compare(seed: int, truth: Any, run: Any, seconds: float) -> dict[str, Any]:
     true, baseline = compare_diagrams([
         ("true", truth_model(truth), sweep, measured, start),
         ("baseline", truth_model(truth, with_cause=False), sweep, measured, start)])
-    named = explain(sweep)  # EXPLANATION: the shared fit's named causes (None: absent)
-    row = _row(seed, truth, seconds, measured, true, baseline, named)
+    try:
+        explanation = _explanation(truth, explain(sweep))  # EXPLANATION
+    except Exception as error:  # a failed explanation is a figure, not the end of the run
+        explanation = {"named": None, "named_right": False, "parameters_within_ci95": None,
+                       "fitted_baseline_agreeing": None, "explained_agreeing": None,
+                       "baseline_missed_steps": 0,
+                       "explained_agreeing_where_baseline_missed": 0,
+                       "diagram_summary": f"the explanation failed: {error}",
+                       "explanation_error": f"{type(error).__name__}: {error}"}
+    row = _row(seed, truth, seconds, measured, true, baseline, explanation)
     print(f"seed {seed} {truth.parameter:9s} {truth.cause:22s} measured "
           f"{' '.join(row['measured'])}")
     print(f"    {true.summary()}; median distance {row['true_median_distance']:.3g}")
     print(f"    {baseline.summary()}; median distance {row['baseline_median_distance']:.3g}"
-          + ("" if named is None else f"; explanation names {named or 'nothing'}"), flush=True)
+          + f"; explanation names {row['named'] or 'nothing'}")
+    print(f"    explanation: {row['diagram_summary']}", flush=True)
     return row
 
 
@@ -242,7 +276,8 @@ def _write(args: argparse.Namespace, figures: dict[str, Any],
 def _figures(rows: list[dict[str, Any]]) -> dict[str, Any]:
     steps = sum(r["steps"] for r in rows)
     moving = [r for r in rows if r["moves_diagram"]]
-    scored = [r for r in rows if r["named_right"] is not None]
+    hidden = [r for r in rows if r["cause"] != "none"]
+    clean = [r for r in rows if r["cause"] == "none"]
     return {
         "sweeps": len(rows),
         "steps": steps,
@@ -267,10 +302,22 @@ def _figures(rows: list[dict[str, Any]]) -> dict[str, Any]:
             1, sum(m != "undetermined" for r in rows for m in r["measured"])),
         "baseline_judged_steps_agreeing": sum(r["baseline_agreeing"] for r in rows) / max(
             1, sum(m != "undetermined" for r in rows for m in r["measured"])),
-        "explanation": ("not in this tree (analysis.sweep.analyze)" if not scored else
-                        {"scored": len(scored),
-                         "named_right": sum(r["named_right"] for r in scored) / len(scored)}),
+        "explanation": {
+            "hidden_cause_named": _share([r["named_right"] for r in hidden]),
+            "hidden_cause_named_within_ci95": _share([bool(r["parameters_within_ci95"])
+                                                      for r in hidden]),
+            "clean_sweeps_no_cause": _share([r["named_right"] for r in clean]),
+            "explained_agreeing_where_baseline_missed": (
+                sum(r["explained_agreeing_where_baseline_missed"] for r in rows)
+                / max(1, sum(r["baseline_missed_steps"] for r in rows))),
+            "baseline_missed_steps": sum(r["baseline_missed_steps"] for r in rows),
+            "failed": sum("explanation_error" in r for r in rows),
+        },
     }
+
+
+def _share(flags: list[bool]) -> float | None:
+    return sum(flags) / len(flags) if flags else None
 
 
 if __name__ == "__main__":

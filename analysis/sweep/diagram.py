@@ -43,12 +43,16 @@ ATOL = 1e-11
 # A cloud's settled part: a periodic step's points after its transient, otherwise the
 # second half of the dwell.
 UNSETTLED_FRACTION = 0.5
+# The regime of a step on which (or after which) the model's simulation went over the top.
+OVER_THE_TOP = "over_the_top"
 
 
 @dataclass(frozen=True)
 class SimulatedStep:
     """One step of a sweep as the model ran it: the dwell's samples (time from the dwell's
-    start), the drive phase at the dwell's first sample, and the state at its end."""
+    start), the drive phase at the dwell's first sample, and the state at its end.  When
+    the model's simulation stopped on this step or an earlier one (over the top), no
+    samples and ``stopped`` says why."""
 
     number: int
     drive: Drive
@@ -57,6 +61,7 @@ class SimulatedStep:
     fs_hz: float
     dwell_phase_rad: float
     end_state: tuple[float, float]
+    stopped: str = ""
 
 
 @dataclass(frozen=True)
@@ -159,11 +164,16 @@ def sweep_task(
 
 def simulate_steps(task: SweepTask) -> tuple[SimulatedStep, ...]:
     """The task's model run through its steps, the state and the drive phase carried from
-    each step into the next."""
+    each step into the next; when its simulation stops (the pendulum over the top), that
+    step and the ones after it have no samples and say so (``SimulatedStep.stopped``)."""
     model = model_from_fields(task.model)
     state, phase = task.start, task.start_phase_rad
-    out = []
+    out: list[SimulatedStep] = []
+    stopped = ""
     for plan in task.steps:
+        if stopped:
+            out.append(_no_samples(plan, stopped))
+            continue
         fs, total = plan.fs_hz, plan.settle_samples + plan.dwell_samples
         p = replace(model, drive=plan.drive).pack()
         p[P.PHASE0] = phase
@@ -172,8 +182,9 @@ def simulate_steps(task: SweepTask) -> tuple[SimulatedStep, ...]:
             duration_s=(total + 1.5) / fs, fs_hz=fs, poincare_phase=None, rtol=RTOL,
             atol=ATOL))
         if result.status != "ok" or result.theta.size < total + 1:
-            raise RuntimeError(f"step {plan.number}: the model's simulation stopped "
-                               f"({result.status})")
+            stopped = f"the model's simulation stopped on step {plan.number} ({result.status})"
+            out.append(_no_samples(plan, stopped))
+            continue
         omega = plan.drive.Omega_rad_s
         out.append(SimulatedStep(
             number=plan.number,
@@ -190,6 +201,12 @@ def simulate_steps(task: SweepTask) -> tuple[SimulatedStep, ...]:
     return tuple(out)
 
 
+def _no_samples(plan: StepPlan, stopped: str) -> SimulatedStep:
+    empty = np.zeros(0)
+    return SimulatedStep(plan.number, plan.drive, empty, empty, plan.fs_hz, math.nan,
+                         (math.nan, math.nan), stopped)
+
+
 def run_sweep_task(task: SweepTask) -> tuple[tuple[SimulatedStep, ...], tuple[JudgedStep, ...]]:
     """Simulate the task's sweep and judge each simulated dwell read as its measured step
     was (the model's measurement causes, the step's noise level, seeded by its number):
@@ -198,6 +215,11 @@ def run_sweep_task(task: SweepTask) -> tuple[tuple[SimulatedStep, ...], tuple[Ju
     simulated = simulate_steps(task)
     judged = []
     for step, plan in zip(simulated, task.steps, strict=True):
+        if step.stopped:  # no regime: the model went over the top
+            empty = np.zeros((0, 8))
+            judged.append(JudgedStep(step.number, OVER_THE_TOP, None, step.stopped,
+                                     plan.noise_rad, empty, empty))
+            continue
         t = np.arange(step.theta_rad.size) / step.fs_hz
         reading = MeasurementModel(noise_std_rad=plan.noise_rad,
                                    seed=NOISE_SEED * 1000 + step.number).apply(
@@ -435,13 +457,26 @@ def compare_diagram(
 def compare_diagrams(
     cases: Sequence[tuple[str, Model, Sweep, Sequence[JudgedStep], tuple[float, float]]],
     run_map: Callable[[Callable[[Any], Any], Sequence[Any]], list[Any]] | None = None,
+    *,
+    drives: Sequence[Sequence[Drive | None] | None] | None = None,
+    start_phases: Sequence[float] | None = None,
 ) -> list[DiagramComparison]:
     """Many models through many sweeps (``cases``: name, model, sweep, its judged steps,
     start), each pair one task; ``run_map`` spreads them over workers
     (``analysis.maps.MapRunner.map``: this process, a local Dask cluster or a scheduler),
-    with the same results wherever they ran.  Without it they run here, in order."""
-    tasks = [sweep_task(model, sweep, measured, start=start)
-             for _, model, sweep, measured, start in cases]
+    with the same results wherever they ran.  Without it they run here, in order.
+    ``drives``: for each case, each step's measured drive (as :func:`sweep_task`; None:
+    the steps' settings); ``start_phases``: for each case, the drive's phase at its start
+    (default 0)."""
+    if drives is not None and len(drives) != len(cases):
+        raise ValueError(f"{len(drives)} drive lists for {len(cases)} cases; expected one "
+                         "per case (None: the steps' settings)")
+    each = drives if drives is not None else [None] * len(cases)
+    phases = start_phases if start_phases is not None else [0.0] * len(cases)
+    tasks = [sweep_task(model, sweep, measured, drives=case_drives, start=start,
+                        start_phase_rad=phase)
+             for (_, model, sweep, measured, start), case_drives, phase
+             in zip(cases, each, phases, strict=True)]
     results = (run_map(run_sweep_task, tasks) if run_map is not None
                else [run_sweep_task(task) for task in tasks])
     return [assemble(name, model, sweep, tuple(measured), result)
@@ -478,13 +513,14 @@ def assemble(
 
 def model_orbits(
     comparison: DiagramComparison, model: Model, sweep: Sweep, *,
-    max_points: int = 400,
+    max_points: int = 400, progress: Callable[[str], None] | None = None,
 ) -> ContinuationResult | None:
     """The model's periodic orbits, stable and unstable, over the sweep's way up: the
     continuation (:mod:`analysis.dynamics.continuation`) of the orbit the simulation
     settled on at the first step it judged periodic, towards the top setting, with the
     branches born at its period-doublings.  None when no simulated step is periodic or
-    Newton's method finds no orbit there."""
+    Newton's method finds no orbit there.  ``progress`` hears of each point found (it may
+    raise to stop the continuation)."""
     up = [i for i, s in enumerate(sweep.steps) if s.direction != DOWN]
     first = next((i for i in up if comparison.judged[i].kind == "periodic"), None)
     if first is None:
@@ -506,6 +542,7 @@ def model_orbits(
     period_map = PeriodMap(replace(model, drive=simulated.drive), parameter,
                            comparison.judged[first].period or 1)
     try:
-        return continue_orbits(period_map, start, top, guess, max_points=max_points)
+        return continue_orbits(period_map, start, top, guess, max_points=max_points,
+                               progress=progress)
     except ContinuationError:
         return None

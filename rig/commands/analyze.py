@@ -46,8 +46,15 @@ that explains the steps only with a different size on each is not named, and how
 size would have to vary with the drive is reported (as is a rig parameter the steps,
 each fitted alone, put at different values). The report's `sweep` section (docs/MODEL.md)
 lists the shared parameters, the causes and every step: setting, drive measured, regime,
-residual; --report writes a page with a table of the steps. Progress (steps identified
-k of n, each fit's stage) goes to stderr.
+residual. Then the baseline (the rig, no cause) and the explained model (the rig with
+the causes named) are run through the sweep as the rig ran it, each step at its measured
+drive, and their bifurcation diagrams compared with the measured one step by step (the
+regimes, the stroboscopic clouds' distance in noise units, where the regime changes):
+the report's `sweep.diagram` and its summary line. --report writes a page that leads with
+the diagrams and a table of the steps' regimes. These simulations run on a local Dask
+cluster with --workers N (N > 1) or on a scheduler's workers with --scheduler ADDRESS, as
+`impact-rig map` does, with the same figures. Progress (steps identified k of n, each
+fit's stage) goes to stderr.
 
 FILE is an exchange CSV (NAME.json beside it, or --meta) or an HDF5 recording.
 """
@@ -62,6 +69,7 @@ examples:
   impact-rig analyze decay.csv --rule bic_margin=6            # a looser information criterion
   impact-rig analyze sweep_10Hz.h5 --report out/              # a sweep: one rig, every step
   impact-rig analyze sweep_step*.csv --json sweep.json        # per-step files, in this order
+  impact-rig analyze sweep_10Hz.h5 --scheduler tcp://10.0.0.5:8786   # diagrams on a cluster
 """
 
 
@@ -97,7 +105,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="forced records: an impact decay of the same rig; its K and mu0 only start the fit",
     )
     parser.add_argument(
-        "--workers", type=int, default=None, help="processes fitting candidates (default: 2)"
+        "--workers", type=int, default=None,
+        help="processes fitting candidates (default: 2); a sweep's diagram simulations run "
+        "on a local Dask cluster of N worker processes when N > 1 (as impact-rig map)",
+    )
+    parser.add_argument(
+        "--scheduler", metavar="ADDRESS",
+        help="a sweep: run its diagram simulations on the workers of a running Dask "
+        "scheduler, e.g. tcp://127.0.0.1:8786 (as impact-rig map); the same figures as here",
     )
     parser.add_argument(
         "--rule", action="append", default=[], metavar="NAME=VALUE",
@@ -121,6 +136,9 @@ def run(args: argparse.Namespace) -> int:
         raise CommandError(f"--rule: {error}") from error
     if is_sweep(args.files, args.meta):
         return _run_sweep(args, policy)
+    if args.scheduler is not None:
+        raise CommandError(f"--scheduler {args.scheduler}: only a sweep's diagram runs on a "
+                           "Dask scheduler; analyse a single record without it")
     from analysis.discrepancy import AnalysisError, analyze_record
     from analysis.identify import IdentificationError
     from analysis.json_output import to_json_text
@@ -162,12 +180,21 @@ def _run_sweep(args: argparse.Namespace, policy) -> int:
     from analysis.discrepancy import AnalysisError
     from analysis.identify import IdentificationError
     from analysis.json_output import to_json_text
+    from analysis.maps import MapRunner, SchedulerError
     from analysis.provenance import provenance
     from analysis.report.sweep import sweep_report_json, write_sweep_report
     from analysis.sweep.analyze import analyze_sweep
 
+    if args.workers is not None and args.workers < 1:
+        raise CommandError(f"--workers {args.workers}: need at least 1")
+    # the diagram's simulations: here unless told of workers (--workers N > 1, --scheduler)
+    workers = 1 if args.workers is None and args.scheduler is None else args.workers
     try:
-        analysis = analyze_sweep(sweep, threads=args.workers, progress=progress, policy=policy)
+        with MapRunner(workers, args.scheduler) as runner:
+            analysis = analyze_sweep(sweep, threads=args.workers, progress=progress,
+                                     policy=policy, run_map=runner.map)
+    except SchedulerError as error:
+        raise CommandError(str(error)) from None
     except (AnalysisError, IdentificationError, ValueError) as error:
         raise cannot_analyse(args.file, error) from error
     js = sweep_report_json(analysis)
@@ -212,6 +239,8 @@ def _print_sweep_summary(js: dict) -> None:
         print(f"step {step['step']} set aside: {step['reason']}")
     for finding in sweep["residual_findings"]:
         print(f"residual finding ({finding['kind']}): {finding['text']}")
+    if sweep["diagram"] is not None:
+        print(f"diagram: {sweep['diagram']['summary']}")
     for warning in js["warnings"]:
         print(f"caution: {warning}")
 
