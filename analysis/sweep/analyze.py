@@ -8,13 +8,20 @@ identified alone is reported beside the joint fit (``alone``), to read, not to j
 over one short dwell a cold start's short segments can trade the barrier against the
 sensor's zero, and their scatter from step to step is no finding (a clean reference
 sweep's steps put them 3 mrad apart, in opposite directions, at 4.7 standard errors).
+
+The gain where a lab looks (:func:`compare_with_measured`): the baseline (the shared rig,
+no cause) and the explained model (the rig with the causes named) are run through the
+sweep as the rig ran it, each step with its measured drive
+(:mod:`analysis.sweep.diagram`), and their bifurcation diagrams compared with the
+measured one step by step: the report's ``sweep.diagram``.  When no cause is named the
+explained model is the baseline, and it is compared once.
 """
 
 from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -22,16 +29,68 @@ import numpy as np
 
 from analysis.discrepancy.policy import DEFAULT_POLICY, SelectionPolicy
 from analysis.discrepancy.residual_reading import Finding
+from analysis.model import Drive, Model
+from analysis.model_values import model_from_values
 from analysis.sweep.causes import SweepCauses, causes_json, select_causes
+from analysis.sweep.diagram import (
+    DiagramComparison,
+    JudgedStep,
+    compare_diagrams,
+    judge_measured,
+)
 from analysis.sweep.fit import (
     SweepIdentification,
     identify_sweep,
     shared_json,
+    step_name,
     sweep_data,
 )
 from analysis.sweep.steps import Sweep
 
 Progress = Callable[[str], None]
+RunMap = Callable[[Callable[[Any], Any], Sequence[Any]], list[Any]]
+# Where the simulated sweeps start: the pendulum at rest at the first settle's start, as a
+# rig starts a sweep (the settle carries it onto the first step's motion).
+REST = (0.0, 0.0)
+BASELINE_NAME = "baseline"
+EXPLAINED_NAME = "explained model"
+
+
+@dataclass(frozen=True)
+class SweepDiagram:
+    """The measured diagram against the baseline's and the explained model's.
+
+    ``explained`` is None when no cause is named (the explained model is the baseline);
+    ``models`` the models simulated, by name."""
+
+    measured: tuple[JudgedStep, ...]
+    baseline: DiagramComparison
+    explained: DiagramComparison | None
+    named: tuple[str, ...]
+    models: dict[str, Model]
+    sweep: Sweep  # the sweep the models ran through
+
+
+    @property
+    def comparisons(self) -> list[DiagramComparison]:
+        """The comparisons made: the baseline's, then the explained model's if any."""
+        return [self.baseline] + ([self.explained] if self.explained is not None else [])
+
+    def summary(self) -> str:
+        """'baseline: 6 of 16 steps agree, the first period-doubling at beta 0.083 against
+        0.099 measured; explained model: 15 of 16 steps agree, ...'."""
+        if self.explained is None:
+            return (self.baseline.summary() + "; no cause named: the explained model is the "
+                    "baseline")
+        return f"{self.baseline.summary()}; {self.explained.summary()}"
+
+    def as_json(self) -> dict[str, Any]:
+        """The report's ``sweep.diagram`` (docs/MODEL.md, "The sweep section")."""
+        return {"start": list(REST), "named": list(self.named),
+                "explained_is_baseline": self.explained is None,
+                "baseline": self.baseline.as_json(),
+                "explained": None if self.explained is None else self.explained.as_json(),
+                "summary": self.summary()}
 
 
 @dataclass
@@ -49,14 +108,54 @@ class SweepAnalysis:
     # report's ``sweep.diagram``; None until that comparison runs.
     diagram: dict[str, Any] | None = None
     warnings: list[str] = field(default_factory=list)
+    # The diagrams themselves (samples and clouds, for the figures); None when not compared.
+    diagrams: SweepDiagram | None = None
+
+
+def step_drives(ident: SweepIdentification, values: dict[str, float]) -> list[Drive]:
+    """Each step's measured drive as a model runs it: the stated amplitude, a pure sine,
+    at the frequency measured on the step (or fitted as its own, ``drive_frequency_hz@N``);
+    the model's drive causes shape it."""
+    return [d.drive.model_drive(values.get(step_name("drive_frequency_hz", n)))
+            for d, n in zip(ident.data.steps, ident.data.numbers, strict=True)]
+
+
+def compare_with_measured(
+    ident: SweepIdentification, causes: SweepCauses, *, run_map: RunMap | None = None,
+) -> SweepDiagram:
+    """The baseline and the explained model (the rig with the causes named, of one size
+    for every step) through the sweep as the rig ran it, each step at its measured drive,
+    against the measured diagram; ``run_map`` spreads the simulations over workers
+    (``analysis.maps.MapRunner.map``) with the same figures wherever they ran."""
+    data = ident.data
+    rig = data.steps[0].rig
+    named = tuple(causes.named)
+    fits = [(BASELINE_NAME, causes.base.full.values, causes.base.model.causes)]
+    if named:
+        # the final fit's values; a cause selected but not named (its size differs from
+        # step to step) is left out of the model compared
+        fits.append((EXPLAINED_NAME, causes.final.full.values,
+                     tuple(c for c in causes.final.model.causes if c not in causes.dropped)))
+    measured = judge_measured(data.sweep)
+    models, drives = {}, []
+    for name, values, switched_on in fits:
+        drives.append(step_drives(ident, values))
+        models[name] = model_from_values(rig, drives[-1][0], True, values, switched_on)
+    cases = [(name, model, data.sweep, measured, REST) for name, model in models.items()]
+    compared = compare_diagrams(cases, run_map, drives=drives)
+    return SweepDiagram(measured, compared[0], compared[1] if named else None, named, models,
+                        data.sweep)
 
 
 def analyze_sweep(
     sweep: Sweep, *, threads: int | None = None, progress: Progress | None = None,
-    policy: SelectionPolicy = DEFAULT_POLICY,
+    policy: SelectionPolicy = DEFAULT_POLICY, diagram: bool = True,
+    run_map: RunMap | None = None,
 ) -> SweepAnalysis:
-    """Identify one rig for every step of ``sweep`` and select the causes that hold
-    across its steps (see the module's docstring)."""
+    """Identify one rig for every step of ``sweep``, select the causes that hold across
+    its steps and (``diagram``) compare the baseline's and the explained model's diagrams
+    with the measured one, their simulations spread by ``run_map`` (see the module's
+    docstring)."""
     say = progress or (lambda message: None)
     clock = time.perf_counter()
     n = len(sweep.steps)
@@ -77,7 +176,17 @@ def analyze_sweep(
     if misfit > 3.0:
         warnings.append(f"poor fit: on some step the residual is {misfit:.3g} x that step's "
                         "noise; one rig with these parameters does not explain every step")
-    return SweepAnalysis(sweep, ident, policy, causes, findings, timings, warnings=warnings)
+    analysis = SweepAnalysis(sweep, ident, policy, causes, findings, timings,
+                             warnings=warnings)
+    if diagram:
+        say("the baseline's and the explained model's diagrams against the measured one")
+        clock = time.perf_counter()
+        diagrams = compare_with_measured(ident, causes, run_map=run_map)
+        timings["diagram"] = time.perf_counter() - clock
+        analysis.diagrams = diagrams
+        analysis.diagram = diagrams.as_json()
+        say("  " + diagrams.summary())
+    return analysis
 
 
 def sweep_json(analysis: SweepAnalysis) -> dict[str, Any]:

@@ -435,13 +435,22 @@ def compare_diagram(
 def compare_diagrams(
     cases: Sequence[tuple[str, Model, Sweep, Sequence[JudgedStep], tuple[float, float]]],
     run_map: Callable[[Callable[[Any], Any], Sequence[Any]], list[Any]] | None = None,
+    *,
+    drives: Sequence[Sequence[Drive | None] | None] | None = None,
 ) -> list[DiagramComparison]:
     """Many models through many sweeps (``cases``: name, model, sweep, its judged steps,
     start), each pair one task; ``run_map`` spreads them over workers
     (``analysis.maps.MapRunner.map``: this process, a local Dask cluster or a scheduler),
-    with the same results wherever they ran.  Without it they run here, in order."""
-    tasks = [sweep_task(model, sweep, measured, start=start)
-             for _, model, sweep, measured, start in cases]
+    with the same results wherever they ran.  Without it they run here, in order.
+    ``drives``: for each case, each step's measured drive (as :func:`sweep_task`; None:
+    the steps' settings)."""
+    if drives is not None and len(drives) != len(cases):
+        raise ValueError(f"{len(drives)} drive lists for {len(cases)} cases; expected one "
+                         "per case (None: the steps' settings)")
+    each = drives if drives is not None else [None] * len(cases)
+    tasks = [sweep_task(model, sweep, measured, drives=case_drives, start=start)
+             for (_, model, sweep, measured, start), case_drives in zip(cases, each,
+                                                                        strict=True)]
     results = (run_map(run_sweep_task, tasks) if run_map is not None
                else [run_sweep_task(task) for task in tasks])
     return [assemble(name, model, sweep, tuple(measured), result)
@@ -478,13 +487,14 @@ def assemble(
 
 def model_orbits(
     comparison: DiagramComparison, model: Model, sweep: Sweep, *,
-    max_points: int = 400,
+    max_points: int = 400, progress: Callable[[str], None] | None = None,
 ) -> ContinuationResult | None:
     """The model's periodic orbits, stable and unstable, over the sweep's way up: the
     continuation (:mod:`analysis.dynamics.continuation`) of the orbit the simulation
     settled on at the first step it judged periodic, towards the top setting, with the
     branches born at its period-doublings.  None when no simulated step is periodic or
-    Newton's method finds no orbit there."""
+    Newton's method finds no orbit there.  ``progress`` hears of each point found (it may
+    raise to stop the continuation)."""
     up = [i for i, s in enumerate(sweep.steps) if s.direction != DOWN]
     first = next((i for i in up if comparison.judged[i].kind == "periodic"), None)
     if first is None:
@@ -506,6 +516,7 @@ def model_orbits(
     period_map = PeriodMap(replace(model, drive=simulated.drive), parameter,
                            comparison.judged[first].period or 1)
     try:
-        return continue_orbits(period_map, start, top, guess, max_points=max_points)
+        return continue_orbits(period_map, start, top, guess, max_points=max_points,
+                               progress=progress)
     except ContinuationError:
         return None

@@ -97,7 +97,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="forced records: an impact decay of the same rig; its K and mu0 only start the fit",
     )
     parser.add_argument(
-        "--workers", type=int, default=None, help="processes fitting candidates (default: 2)"
+        "--workers", type=int, default=None,
+        help="processes fitting candidates (default: 2); a sweep's diagram simulations run "
+        "on a local Dask cluster of N worker processes when N > 1 (as impact-rig map)",
+    )
+    parser.add_argument(
+        "--scheduler", metavar="ADDRESS",
+        help="a sweep: run its diagram simulations on the workers of a running Dask "
+        "scheduler, e.g. tcp://127.0.0.1:8786 (as impact-rig map); the same figures as here",
     )
     parser.add_argument(
         "--rule", action="append", default=[], metavar="NAME=VALUE",
@@ -121,6 +128,9 @@ def run(args: argparse.Namespace) -> int:
         raise CommandError(f"--rule: {error}") from error
     if is_sweep(args.files, args.meta):
         return _run_sweep(args, policy)
+    if args.scheduler is not None:
+        raise CommandError(f"--scheduler {args.scheduler}: only a sweep's diagram runs on a "
+                           "Dask scheduler; analyse a single record without it")
     from analysis.discrepancy import AnalysisError, analyze_record
     from analysis.identify import IdentificationError
     from analysis.json_output import to_json_text
@@ -162,12 +172,21 @@ def _run_sweep(args: argparse.Namespace, policy) -> int:
     from analysis.discrepancy import AnalysisError
     from analysis.identify import IdentificationError
     from analysis.json_output import to_json_text
+    from analysis.maps import MapRunner, SchedulerError
     from analysis.provenance import provenance
     from analysis.report.sweep import sweep_report_json, write_sweep_report
     from analysis.sweep.analyze import analyze_sweep
 
+    if args.workers is not None and args.workers < 1:
+        raise CommandError(f"--workers {args.workers}: need at least 1")
+    # the diagram's simulations: here unless told of workers (--workers N > 1, --scheduler)
+    workers = 1 if args.workers is None and args.scheduler is None else args.workers
     try:
-        analysis = analyze_sweep(sweep, threads=args.workers, progress=progress, policy=policy)
+        with MapRunner(workers, args.scheduler) as runner:
+            analysis = analyze_sweep(sweep, threads=args.workers, progress=progress,
+                                     policy=policy, run_map=runner.map)
+    except SchedulerError as error:
+        raise CommandError(str(error)) from None
     except (AnalysisError, IdentificationError, ValueError) as error:
         raise cannot_analyse(args.file, error) from error
     js = sweep_report_json(analysis)
@@ -212,6 +231,8 @@ def _print_sweep_summary(js: dict) -> None:
         print(f"step {step['step']} set aside: {step['reason']}")
     for finding in sweep["residual_findings"]:
         print(f"residual finding ({finding['kind']}): {finding['text']}")
+    if sweep["diagram"] is not None:
+        print(f"diagram: {sweep['diagram']['summary']}")
     for warning in js["warnings"]:
         print(f"caution: {warning}")
 
