@@ -90,8 +90,7 @@ def diagram_points(steps: Sequence[_DiagramStep], unit: DisplayUnit,
     """The diagram's points of ``steps`` (those of one ``direction`` when given): x the swept
     value in ``unit``, the way down shifted right by DOWN_SHIFT of the steps' spacing, y the
     angle in display units."""
-    settings = sorted({unit.show(s.setting) for s in steps})
-    spacing = min((b - a for a, b in pairwise(settings)), default=1.0)
+    spacing = step_spacing([unit.show(s.setting) for s in steps])
     xs, ys = [np.zeros(0)], [np.zeros(0)]
     for step in steps:
         if direction is not None and step.direction != direction:
@@ -100,3 +99,8 @@ def diagram_points(steps: Sequence[_DiagramStep], unit: DisplayUnit,
         xs.append(np.full(step.points_rad.size, unit.show(step.setting) + shift))
         ys.append(DISPLAY["angle"].show(step.points_rad))
     return np.concatenate(xs), np.concatenate(ys)
+
+
+def step_spacing(settings: Sequence[float]) -> float:
+    """The least spacing between distinct settings (1 when there is only one)."""
+    return min((b - a for a, b in pairwise(sorted(set(settings)))), default=1.0)

@@ -5,12 +5,15 @@ report's JSON and the report's own figures)."""
 from __future__ import annotations
 
 import tempfile
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from analysis.sweep.diagram import JudgedStep
 
 
 @dataclass(frozen=True)
@@ -27,13 +30,15 @@ class MeasuredStep:
 
 @dataclass(frozen=True)
 class SweepExplanation:
-    """What the analysis of a sweep found (its JSON report), the measured diagram, and the
-    figures the report draws (PNG bytes by file name)."""
+    """What the analysis of a sweep found (its JSON report), the measured diagram, each
+    model's diagram as simulated through the sweep (name, its steps; none when the analysis
+    did not compare them), and the figures the report draws (PNG bytes by file name)."""
 
     report: dict[str, Any]
     parameter: str
     steps: tuple[MeasuredStep, ...]
     figures: tuple[tuple[str, bytes], ...]
+    models: tuple[tuple[str, tuple[MeasuredStep, ...]], ...] = ()
 
 
 def is_sweep_recording(path: str | Path) -> bool:
@@ -54,14 +59,22 @@ def explain_sweep(path: str | Path,
 
     sweep = load_sweep([path])
     analysis = analyze_sweep(sweep, threads=1, progress=progress)
-    steps = tuple(
-        MeasuredStep(step.number, step.direction, sweep.setting(step), judged.short,
-                     judged.cloud[:, 0] if judged.cloud.size else np.zeros(0))
-        for step, judged in zip(sweep.steps, judge_measured(sweep), strict=True))
+    diagrams = analysis.diagrams
+    measured = judge_measured(sweep) if diagrams is None else diagrams.measured
+    setting = {step.number: (step.direction, sweep.setting(step)) for step in sweep.steps}
+
+    def shown(judged: Sequence[JudgedStep]) -> tuple[MeasuredStep, ...]:
+        return tuple(MeasuredStep(j.number, *setting[j.number], j.short,
+                                  j.cloud[:, 0] if j.cloud.size else np.zeros(0))
+                     for j in judged)
+
+    models = () if diagrams is None else tuple(
+        (comparison.name, shown(comparison.judged)) for comparison in diagrams.comparisons)
     with tempfile.TemporaryDirectory(prefix="impact-rig-sweep-") as folder:
         write_sweep_report(analysis, folder)
         figures = tuple((png.name, png.read_bytes()) for png in sorted(Path(folder).rglob("*.png")))
-    return SweepExplanation(sweep_report_json(analysis), sweep.parameter, steps, figures)
+    return SweepExplanation(sweep_report_json(analysis), sweep.parameter, shown(measured),
+                            figures, models)
 
 
 def sweep_lines(explanation: SweepExplanation) -> list[str]:
@@ -84,13 +97,18 @@ def sweep_lines(explanation: SweepExplanation) -> list[str]:
 
 
 def step_table(explanation: SweepExplanation) -> list[str]:
-    """The per-step table: setting, direction, the measured regime, residual / noise."""
+    """The per-step table: setting, direction, the regime measured and each model's,
+    residual / noise."""
     unit = "m" if explanation.parameter == "amplitude" else "Hz"
-    lines = [f"step  dir   setting [{unit}]  regime measured   rms/noise  explained/noise"]
-    regimes = {s.step: s.regime for s in explanation.steps}
+    regimes = [{s.step: s.regime for s in explanation.steps}]
+    regimes += [{s.step: s.regime for s in steps} for _, steps in explanation.models]
+    names = ["measured", *(name for name, _ in explanation.models)]
+    lines = [f"step  dir   setting [{unit}]  " + "".join(f"{n[:16]:<17}" for n in names)
+             + " rms/noise  explained/noise"]
     for step in explanation.report["sweep"]["steps"]:
         direction = {1: "up", -1: "down"}.get(step["direction"], "-")
         lines.append(f"{step['step']:>4}  {direction:<4}  {step['setting']:>12.4g}  "
-                     f"{regimes.get(step['step'], step['regime']):<16}  "
-                     f"{step['rms_over_noise']:>9.3g}  {step['explained_rms_over_noise']:>15.3g}")
+                     + "".join(f"{r.get(step['step'], '-'):<17}" for r in regimes)
+                     + f" {step['rms_over_noise']:>9.3g}  "
+                     f"{step['explained_rms_over_noise']:>15.3g}")
     return lines

@@ -38,6 +38,7 @@ if TYPE_CHECKING:
 
 EXPERIMENTS = ("as recorded", *NAMES)
 CURVE_COLOURS = ("#1f4e9c", "#d06000", "#1a8a3a")  # measured, model, extended model
+MODEL_SHIFT = 0.06  # a model's diagram points sit this fraction of a step beside the measured
 
 
 class AnalysisPanel(QWidget):
@@ -80,6 +81,10 @@ class AnalysisPanel(QWidget):
         self.diagram_points = pg.ScatterPlotItem(size=5, pen=None,
                                                  brush=pg.mkBrush(CURVE_COLOURS[0]))
         self.plot.addItem(self.diagram_points)
+        self.model_points = [pg.ScatterPlotItem(size=6, symbol="x", pen=pg.mkPen(colour),
+                                                brush=None) for colour in CURVE_COLOURS[1:]]
+        for item in self.model_points:
+            self.plot.addItem(item)
         self.figures = QWidget()  # a sweep report's figures, as the report draws them
         self.figures_layout = QVBoxLayout(self.figures)
         self.figure_labels: list[QLabel] = []
@@ -158,6 +163,8 @@ class AnalysisPanel(QWidget):
         (a legend inside would sit on the data)."""
         self.plot.enableAutoRange()  # a new result is shown whole, whatever the last zoom
         self.diagram_points.setData([], [])
+        for item in self.model_points:
+            item.setData([], [])
         label_axis(self.plot, "bottom", "time from the start", DISPLAY["time"])
         self.key = []
         key_html = []
@@ -213,7 +220,7 @@ class AnalysisPanel(QWidget):
         """Show what the analysis of a sweep found: the measured diagram (the points at drive
         phase 0 of every settled period, step by step, the way down shifted right), the
         per-step table, and the report's figures."""
-        from gui.live_sweep import diagram_points
+        from gui.live_sweep import diagram_points, step_spacing
         from gui.sweep_explanation import step_table, sweep_lines
 
         self.explained = explanation.report
@@ -225,7 +232,16 @@ class AnalysisPanel(QWidget):
         label_axis(self.plot, "left", "angle at drive phase 0", DISPLAY["angle"])
         self.diagram_points.setData(*diagram_points(explanation.steps, unit))
         self.key = ["measured"]
-        self.plot.setTitle("measured stroboscopic points (the way down shifted right)",
+        key_html = [f'<span style="color:{CURVE_COLOURS[0]}">&#9679; measured</span>']
+        spacing = step_spacing([unit.show(s.setting) for s in explanation.steps])
+        for number, (item, colour, (name, steps)) in enumerate(
+                zip(self.model_points, CURVE_COLOURS[1:], explanation.models, strict=False)):
+            x, y = diagram_points(steps, unit)
+            item.setData(x + MODEL_SHIFT * spacing * (number + 1), y)
+            self.key.append(name)
+            key_html.append(f'<span style="color:{colour}">&#215; {html.escape(name)}</span>')
+        self.plot.setTitle("&nbsp;&nbsp;&nbsp;".join(key_html)
+                           + "&nbsp;&nbsp;(angle at drive phase 0; the way down shifted right)",
                            size="9pt")
         lines = sweep_lines(explanation)
         self.explanation.setPlainText("\n".join([*lines, "", "how the analysis went:",
@@ -251,3 +267,4 @@ class AnalysisPanel(QWidget):
         """Identification or the analysis failed: say why, in words."""
         self._show_busy(False)
         self.state.setText(f"cannot {self._verb}: {error}")
+

@@ -46,6 +46,19 @@ def test_a_sweep_recording_is_explained_with_its_diagram_and_step_table(qapp, wi
     shown = {round(v, 6) for v in x}
     up = {round(DISPLAY["displacement"].show(s.amplitude_m), 6) for s in sweep.steps[:2]}
     assert up <= shown and len(shown) == 3 and np.all(np.isfinite(y))
+    # each model's diagram over the measured one, and its regimes in the table, as the
+    # analysis compared them step by step
+    diagram = panel.explained["sweep"]["diagram"]
+    models = [diagram["baseline"]] + ([diagram["explained"]] if diagram["explained"] else [])
+    assert panel.key == ["measured", *(model["model"] for model in models)]
+    for column, (model, item) in enumerate(zip(models, panel.model_points, strict=False)):
+        for row, step in zip(rows, model["steps"], strict=True):
+            assert row.split()[3] == step["measured"]
+            assert row.split()[4 + column] == step["simulated"]
+        model_x, model_y = item.getData()
+        assert model_x.size and np.all(np.isfinite(model_y))
+        assert np.all(np.min(np.abs(model_x[:, None] - np.array(sorted(shown))), axis=1) > 0)
+    assert diagram["summary"] in panel.explanation.toPlainText()
     # whatever figures the sweep report draws are shown, each a picture
     assert all(not label.pixmap().isNull() for label in panel.figure_labels)
 
