@@ -290,7 +290,9 @@ def test_the_demo_explains_its_sweep_as_one_and_says_whether_the_diagrams_agree(
     sweep = _json(folder, "demo.json")["sweep"]
     analysed = _json(folder / "analysis", "sweep.json")["sweep"]
     assert sweep["page"] == "analysis/sweep.md" and (folder / sweep["page"]).is_file()
-    assert sweep["steps"] == len(analysed["steps"]) == 5
+    # five steps, each analysed or set aside with its reason (lost samples on a busy machine)
+    assert sweep["steps"] == len(analysed["steps"]) and sweep["steps"] >= 2
+    assert sweep["steps"] + sweep["set_aside"] == 5
     assert sweep["causes"] == analysed["causes"]["named"]
     diagram = analysed["diagram"]
     models = [diagram["baseline"]] + ([diagram["explained"]] if diagram["explained"] else [])
