@@ -1,17 +1,57 @@
-"""Write a sweep's analysis as JSON and as a page (Markdown and HTML): the one rig's
-shared parameters, then a table of the steps (setting, drive measured, regime, residual)
-and the steps set aside."""
+"""Write a sweep's analysis as JSON and as a page (Markdown and HTML): it leads with the
+bifurcation diagrams (the baseline's and the explained model's over the measured points,
+the explained model's periodic orbits under them) and a table of the steps' regimes,
+measured and simulated; then the one rig's shared parameters, a table of the steps
+(setting, drive measured, regime, residual) and the steps set aside."""
 
 from __future__ import annotations
 
+import time
 from pathlib import Path
 from typing import Any
 
+from analysis.dynamics.continuation import ContinuationResult
 from analysis.estimate_text import estimate_text
 from analysis.json_output import json_ready, write_json
 from analysis.provenance import markdown_provenance, provenance
 from analysis.report.pages import write_page
-from analysis.sweep.analyze import SweepAnalysis, report_json
+from analysis.sweep.analyze import EXPLAINED_NAME, SweepAnalysis, SweepDiagram, report_json
+from analysis.sweep.diagram import model_orbits
+from analysis.sweep.figure import draw_diagrams
+
+# The explained model's orbits are drawn when their continuation ends within this time
+# and this many points on a branch.
+ORBITS_SECONDS = 60.0
+ORBIT_POINTS = 150
+
+
+class _OutOfTimeError(Exception):
+    """The continuation ran past its time."""
+
+
+def explained_orbits(diagrams: SweepDiagram, *, seconds: float = ORBITS_SECONDS
+                     ) -> tuple[ContinuationResult | None, str]:
+    """The explained model's periodic orbits over the sweep's way up
+    (:func:`analysis.sweep.diagram.model_orbits`), given up after ``seconds``; with why
+    there are none (empty when there are)."""
+    comparison = diagrams.explained or diagrams.baseline
+    model = diagrams.models[comparison.name]
+    deadline = time.perf_counter() + seconds
+
+    def in_time(message: str) -> None:
+        if time.perf_counter() > deadline:
+            raise _OutOfTimeError
+
+    try:
+        orbits = model_orbits(comparison, model, diagrams.sweep,
+                              max_points=ORBIT_POINTS, progress=in_time)
+    except _OutOfTimeError:
+        return None, f"their continuation took longer than {seconds:g} s"
+    if orbits is None:
+        return None, ("no periodic orbit to continue from: no step of the way up was "
+                      "judged periodic in the simulation, or Newton's method found no orbit "
+                      "there")
+    return orbits, ""
 
 
 def sweep_report_json(analysis: SweepAnalysis) -> dict[str, Any]:
@@ -39,9 +79,11 @@ def write_sweep_report(
                overwrite=overwrite)
     sweep = js["sweep"]
     unit = "m" if sweep["parameter"] == "amplitude" else "Hz"
-    lines = [
-        f"# Sweep analysis: {Path(sweep['source']).name or 'sweep'}",
-        "",
+    lines = [f"# Sweep analysis: {Path(sweep['source']).name or 'sweep'}", ""]
+    if analysis.diagrams is not None:
+        lines += _diagram_section(analysis.diagrams, sweep["diagram"], directory, name)
+        lines += ["## One rig for every step", ""]
+    lines += [
         f"- {len(sweep['steps'])} steps over the drive's {sweep['parameter']}, one rig "
         f"fitted to all of them (model: {', '.join(sweep['model']) or 'baseline'})",
         f"- rms residual {sweep['rms_residual']:.3g} rad over every step (noise "
@@ -81,3 +123,58 @@ def write_sweep_report(
     lines += ["", f"Rules: {analysis.policy.summary()}."]
     lines += markdown_provenance()
     return write_page(lines, directory / f"{name}.md")
+
+
+def _diagram_section(diagrams: SweepDiagram, js: dict[str, Any], directory: Path,
+                     name: str) -> list[str]:
+    """The diagrams over the measured points and the per-step table of regimes."""
+    title = Path(diagrams.sweep.source).name
+    lines = ["## Bifurcation diagram", "", f"**{js['summary']}**", ""]
+    base_png = draw_diagrams([diagrams.baseline], diagrams.measured,
+                             directory / f"{name}_diagram_baseline.png",
+                             title=f"{title}: baseline")
+    lines += [f"![baseline over the measured diagram]({base_png.name})", ""]
+    orbits, why = explained_orbits(diagrams)
+    explained = diagrams.explained or diagrams.baseline
+    label = EXPLAINED_NAME if diagrams.explained is not None else "baseline"
+    if diagrams.explained is not None:
+        png = draw_diagrams([diagrams.explained], diagrams.measured,
+                            directory / f"{name}_diagram_explained.png",
+                            title=f"{title}: {EXPLAINED_NAME} "
+                            f"({', '.join(diagrams.named)})",
+                            orbits=orbits, orbits_of=label)
+        lines += [f"![explained model over the measured diagram]({png.name})", ""]
+    else:
+        lines += ["No cause is named: the explained model is the baseline.", ""]
+        if orbits is not None:
+            png = draw_diagrams([diagrams.baseline], diagrams.measured,
+                                directory / f"{name}_diagram_orbits.png",
+                                title=f"{title}: baseline and its orbits",
+                                orbits=orbits, orbits_of=label)
+            lines += [f"![the baseline's periodic orbits]({png.name})", ""]
+    lines.append(f"The {label}'s periodic orbits (stable solid, unstable dashed) are drawn "
+                 "under its points." if orbits is not None else
+                 f"The {label}'s periodic orbits are not drawn: {why}.")
+    setting = "beta" if diagrams.baseline.parameter == "amplitude" else "f [Hz]"
+    lines += ["", "| step | direction | " + setting + " | measured | baseline | "
+              "distance / noise | explained | distance / noise |",
+              "|---|---|---|---|---|---|---|---|"]
+    for k, base in enumerate(diagrams.baseline.steps):
+        ex = explained.steps[k]
+        direction = {1: "up", -1: "down"}.get(base.direction, "-")
+        lines.append(
+            f"| {base.number} | {direction} | {base.setting:.4g} | {base.measured} | "
+            f"{_regime(base.simulated, base.agrees)} | {_distance(base.distance)} | "
+            f"{_regime(ex.simulated, ex.agrees)} | {_distance(ex.distance)} |")
+    lines += ["", "A regime in bold agrees with the measured one; the distance is between "
+              "the settled stroboscopic clouds, in units of the measured points' noise "
+              "(about 1: one orbit seen through the noise).", ""]
+    return lines
+
+
+def _regime(regime: str, agrees: bool) -> str:
+    return f"**{regime}**" if agrees else regime
+
+
+def _distance(value: float) -> str:
+    return "-" if value != value else f"{value:.3g}"

@@ -22,7 +22,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -49,8 +49,8 @@ from analysis.sweep.steps import Sweep
 
 Progress = Callable[[str], None]
 RunMap = Callable[[Callable[[Any], Any], Sequence[Any]], list[Any]]
-# Where the simulated sweeps start: the pendulum at rest at the first settle's start, as a
-# rig starts a sweep (the settle carries it onto the first step's motion).
+# Where a simulated sweep starts when its fit did not reach the first dwell's first
+# sample: the pendulum at rest at the first settle's start, drive phase 0.
 REST = (0.0, 0.0)
 BASELINE_NAME = "baseline"
 EXPLAINED_NAME = "explained model"
@@ -69,6 +69,7 @@ class SweepDiagram:
     named: tuple[str, ...]
     models: dict[str, Model]
     sweep: Sweep  # the sweep the models ran through
+    start: str  # where they started: 'first dwell' or 'rest'
 
 
     @property
@@ -86,7 +87,7 @@ class SweepDiagram:
 
     def as_json(self) -> dict[str, Any]:
         """The report's ``sweep.diagram`` (docs/MODEL.md, "The sweep section")."""
-        return {"start": list(REST), "named": list(self.named),
+        return {"start": self.start, "named": list(self.named),
                 "explained_is_baseline": self.explained is None,
                 "baseline": self.baseline.as_json(),
                 "explained": None if self.explained is None else self.explained.as_json(),
@@ -137,14 +138,38 @@ def compare_with_measured(
         fits.append((EXPLAINED_NAME, causes.final.full.values,
                      tuple(c for c in causes.final.model.causes if c not in causes.dropped)))
     measured = judge_measured(data.sweep)
-    models, drives = {}, []
-    for name, values, switched_on in fits:
+    models, drives, cases = {}, [], []
+    started = {_first_state(ident, fit) is not None
+               for fit in [causes.base.full] + ([causes.final.full] if named else [])}
+    from_dwell = started == {True}
+    for (name, values, switched_on), fit in zip(fits, (causes.base.full, causes.final.full),
+                                                strict=False):
         drives.append(step_drives(ident, values))
-        models[name] = model_from_values(rig, drives[-1][0], True, values, switched_on)
-    cases = [(name, model, data.sweep, measured, REST) for name, model in models.items()]
-    compared = compare_diagrams(cases, run_map, drives=drives)
+        model = model_from_values(rig, drives[-1][0], True, values, switched_on)
+        models[name] = model
+        if from_dwell:
+            # the fitted state and drive phase at the first dwell's first sample, the
+            # first settle (already run by the rig) not simulated
+            first = data.sweep.steps[0]
+            sweep = replace(data.sweep, steps=(replace(first, settle_s=0.0),
+                                               *data.sweep.steps[1:]))
+            phase = values.get(step_name("drive_phase_rad", data.numbers[0]),
+                               data.steps[0].drive.phase0_rad)
+            cases.append((name, model, sweep, measured, _first_state(ident, fit), phase))
+        else:
+            cases.append((name, model, data.sweep, measured, REST, 0.0))
+    compared = compare_diagrams([case[:5] for case in cases], run_map, drives=drives,
+                                start_phases=[case[5] for case in cases])
     return SweepDiagram(measured, compared[0], compared[1] if named else None, named, models,
-                        data.sweep)
+                        data.sweep, "first dwell" if from_dwell else "rest")
+
+
+def _first_state(ident: SweepIdentification, fit: Any) -> tuple[float, float] | None:
+    """The fit's true state (theta, theta') at the first dwell's first sample; None when
+    no fitted segment starts there."""
+    first = ident.data.step_slice(0).start
+    theta, rate = float(fit.true_angle[first]), float(fit.rate[first])
+    return (theta, rate) if math.isfinite(theta) and math.isfinite(rate) else None
 
 
 def analyze_sweep(

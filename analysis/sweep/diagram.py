@@ -437,20 +437,24 @@ def compare_diagrams(
     run_map: Callable[[Callable[[Any], Any], Sequence[Any]], list[Any]] | None = None,
     *,
     drives: Sequence[Sequence[Drive | None] | None] | None = None,
+    start_phases: Sequence[float] | None = None,
 ) -> list[DiagramComparison]:
     """Many models through many sweeps (``cases``: name, model, sweep, its judged steps,
     start), each pair one task; ``run_map`` spreads them over workers
     (``analysis.maps.MapRunner.map``: this process, a local Dask cluster or a scheduler),
     with the same results wherever they ran.  Without it they run here, in order.
     ``drives``: for each case, each step's measured drive (as :func:`sweep_task`; None:
-    the steps' settings)."""
+    the steps' settings); ``start_phases``: for each case, the drive's phase at its start
+    (default 0)."""
     if drives is not None and len(drives) != len(cases):
         raise ValueError(f"{len(drives)} drive lists for {len(cases)} cases; expected one "
                          "per case (None: the steps' settings)")
     each = drives if drives is not None else [None] * len(cases)
-    tasks = [sweep_task(model, sweep, measured, drives=case_drives, start=start)
-             for (_, model, sweep, measured, start), case_drives in zip(cases, each,
-                                                                        strict=True)]
+    phases = start_phases if start_phases is not None else [0.0] * len(cases)
+    tasks = [sweep_task(model, sweep, measured, drives=case_drives, start=start,
+                        start_phase_rad=phase)
+             for (_, model, sweep, measured, start), case_drives, phase
+             in zip(cases, each, phases, strict=True)]
     results = (run_map(run_sweep_task, tasks) if run_map is not None
                else [run_sweep_task(task) for task in tasks])
     return [assemble(name, model, sweep, tuple(measured), result)

@@ -16,6 +16,9 @@ from pathlib import Path
 import pytest
 
 from analysis.identify.intervals import Z95
+from analysis.json_output import json_ready
+from analysis.sweep import analyze
+from analysis.sweep.analyze import compare_with_measured
 from rig.cli import main
 from tests.sweep.generated import generate_sweep
 
@@ -29,9 +32,20 @@ def analysed(tmp_path_factory) -> tuple[dict, Path, object]:
     path = folder / "sweep.h5"
     truth = generate_sweep(path, seed=1, theta_b_rad=THETA_B_RAD, betas=(0.02, 0.03, 0.04, 0.05),
                            interrupted_at=3)
-    assert main(["analyze", str(path), "--json", str(folder / "out.json"), "--report",
-                 str(folder / "report"), "--workers", "2"]) == 0
+    with pytest.MonkeyPatch.context() as patch:  # what the diagrams were compared from
+        patch.setattr(analyze, "compare_with_measured", _remembered)
+        # --workers 2: the diagrams' simulations on a local Dask cluster of 2 processes
+        assert main(["analyze", str(path), "--json", str(folder / "out.json"), "--report",
+                     str(folder / "report"), "--workers", "2"]) == 0
     return json.loads((folder / "out.json").read_text()), folder, truth
+
+
+COMPARED: list = []
+
+
+def _remembered(ident, causes, **kwargs):
+    COMPARED.append((ident, causes))
+    return compare_with_measured(ident, causes, **kwargs)
 
 
 def test_one_rig_for_every_step_holds_the_truth_in_its_intervals(analysed) -> None:
@@ -82,7 +96,27 @@ def test_a_clean_sweep_names_no_cause(tmp_path: Path) -> None:
 def test_report_page_has_a_row_per_step_and_the_step_set_aside(analysed) -> None:
     _, folder, _ = analysed
     page = (folder / "report" / "sweep.md").read_text()
-    rows = [line for line in page.splitlines() if line.startswith("| ") and " up " in line]
+    diagram, steps = page.split("\n## Steps\n")
+    # the page leads with the diagrams and a row per step of their regimes
+    assert diagram.split("\n## ")[1].startswith("Bifurcation diagram")
+    assert "![baseline over the measured diagram](sweep_diagram_baseline.png)" in diagram
+    assert (folder / "report" / "sweep_diagram_baseline.png").read_bytes()[:4] == b"\x89PNG"
+    assert len([line for line in diagram.splitlines() if line.startswith("| ")
+                and " up " in line]) == 3
+    rows = [line for line in steps.splitlines() if line.startswith("| ") and " up " in line]
     assert len(rows) == 3
     assert "step 3: interrupted" in page
     assert (folder / "report" / "sweep.html").exists()
+
+
+def test_the_diagrams_run_on_two_workers_as_here(analysed) -> None:
+    """The JSON's sweep.diagram, simulated on a local cluster of 2 worker processes, holds
+    the same figures as the comparison made again in this process."""
+    diagram = analysed[0]["sweep"]["diagram"]
+    assert diagram["named"] == ["barrier_offset"] and not diagram["explained_is_baseline"]
+    assert [s["step"] for s in diagram["explained"]["steps"]] == [0, 1, 2]
+    assert diagram["summary"].startswith("baseline: ")
+    assert "; explained model: " in diagram["summary"]
+    (ident, causes), = COMPARED
+    here = json_ready(compare_with_measured(ident, causes).as_json())
+    assert here == diagram

@@ -33,7 +33,7 @@ NO_SWEEP: Any = None  # the summary reads no sweep
 
 
 def test_summary_puts_the_baseline_beside_the_explained_model() -> None:
-    diagram = SweepDiagram((), BASELINE, EXPLAINED, ("barrier_offset",), {}, NO_SWEEP)
+    diagram = SweepDiagram((), BASELINE, EXPLAINED, ("barrier_offset",), {}, NO_SWEEP, "rest")
     assert diagram.summary() == (
         "baseline: 3 of 5 steps agree, the first period-doubling at beta 0.07 against 0.05 "
         "measured; explained model: 5 of 5 steps agree, the first period-doubling at beta "
@@ -46,7 +46,7 @@ def test_summary_puts_the_baseline_beside_the_explained_model() -> None:
 
 
 def test_no_cause_named_compares_the_baseline_once_and_says_so() -> None:
-    diagram = SweepDiagram((), BASELINE, None, (), {}, NO_SWEEP)
+    diagram = SweepDiagram((), BASELINE, None, (), {}, NO_SWEEP, "rest")
     assert [c.name for c in diagram.comparisons] == ["baseline"]
     assert diagram.summary().endswith("; no cause named: the explained model is the baseline")
     js = diagram.as_json()
