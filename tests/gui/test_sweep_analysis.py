@@ -59,7 +59,8 @@ def test_a_sweep_recording_is_explained_with_its_diagram_and_step_table(qapp, wi
         assert model_x.size and np.all(np.isfinite(model_y))
         assert np.all(np.min(np.abs(model_x[:, None] - np.array(sorted(shown))), axis=1) > 0)
     assert diagram["summary"] in panel.explanation.toPlainText()
-    # whatever figures the sweep report draws are shown, each a picture
+    # the sweep report's figures (its diagrams over the measured points) shown as pictures
+    assert "sweep_diagram_baseline.png" in [label.toolTip() for label in panel.figure_labels]
     assert all(not label.pixmap().isNull() for label in panel.figure_labels)
 
 
