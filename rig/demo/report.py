@@ -292,7 +292,7 @@ def write_report(result, settings, recordings, analyses, pages, figures, config)
             add(f"- {line.strip()}")
         add("")
         for figure in result.sweep["figures"]:
-            add(f"![sweep: the models' diagrams over the measured one]({figure})")
+            add(f"![{Path(figure).stem.replace('_', ' ')} over the measured one]({figure})")
             add("")
     add("## What the virtual rig hid")
     add("")
