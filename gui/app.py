@@ -29,6 +29,7 @@ from PySide6.QtWidgets import (
 
 from drivers.interfaces import LimitError
 from gui.live_data import LiveData, drive_description
+from gui.live_sweep import LiveStep, judge_dwell, step_dwell
 from gui.panels.analysis import AnalysisPanel
 from gui.panels.connection import RECORDING, RIG_FILE, VIRTUAL, ConnectionPanel
 from gui.panels.recording import RecordingPanel
@@ -39,6 +40,7 @@ from gui.settings import AppSettings
 from gui.views.phase_view import PhasePortraitView
 from gui.views.poincare_view import PoincareView
 from gui.views.spectrum_view import SpectrumView
+from gui.views.sweep_view import SweepDiagramView
 from gui.views.time_view import TimeTraceView
 from gui.worker import LiveSession, ReplaySession, Session, TaskRunner, speed_from_text
 from rig.config import load_config
@@ -51,7 +53,7 @@ STATUS_PERIOD_MS = 500
 # The GUI thread makes hundreds of Qt calls per frame and each gives up the GIL; with the
 # default 5 ms switch interval a busy acquisition thread can make every one of them wait.
 GIL_SWITCH_INTERVAL_S = 0.001
-VIEW_NAMES = ("time", "spectrum", "poincare", "phase", "analysis")
+VIEW_NAMES = ("time", "spectrum", "poincare", "phase", "analysis", "sweep")
 
 pg.setConfigOptions(background="w", foreground="k", antialias=False)
 
@@ -76,6 +78,7 @@ class MainWindow(QMainWindow):
         self.analysis_tasks = TaskRunner("gui-analysis", self)
         self.view_tasks = TaskRunner("gui-views", self)  # heavy view computations (spectrum)
         self.sweeps = TaskRunner("gui-sweep", self)  # the sweep procedure, for its whole run
+        self.step_judge = TaskRunner("gui-step-judge", self)  # a live sweep's completed steps
         self._spectrum_busy = False
         self.session: Session | None = None
         self.data: LiveData | None = None
@@ -86,6 +89,8 @@ class MainWindow(QMainWindow):
         self._last_status_poll_done = True
         self._sweep_total = 0
         self._sweep_first_mark = 0  # where the running sweep's step marks begin in data.steps
+        self._sweep_parameter = ""  # the live sweep's swept parameter ('' when none runs)
+        self._sweep_next_mark = 0  # the first of its step marks not yet sent to be judged
 
         # always visible: the stop button
         self.stop_button = QPushButton("STOP DRIVE")
@@ -113,12 +118,14 @@ class MainWindow(QMainWindow):
         self.poincare_view = PoincareView()
         self.phase_view = PhasePortraitView()
         self.analysis_panel = AnalysisPanel()
+        self.sweep_view = SweepDiagramView()
         self.tabs = QTabWidget()
         self.tabs.addTab(self.time_view, "Time traces")
         self.tabs.addTab(self.spectrum_view, "Spectrum")
         self.tabs.addTab(self.poincare_view, "Poincaré section")
         self.tabs.addTab(self.phase_view, "Phase portrait")
         self.tabs.addTab(self.analysis_panel, "Analysis")
+        self.tabs.addTab(self.sweep_view, "Sweep diagram")
         self.setCentralWidget(self.tabs)
 
         # panels
@@ -217,6 +224,7 @@ class MainWindow(QMainWindow):
 
     def _attach_live(self, session: LiveSession) -> None:
         self.session = session
+        self._sweep_parameter = ""  # a new source: the last live sweep is over
         self.data = LiveData(
             session.sample_rate_hz, equivalent_length_m=session.config.constants.L_m
         )
@@ -240,6 +248,7 @@ class MainWindow(QMainWindow):
             return
         self.settings.set("connection/recording", path)
         self.session = session
+        self._sweep_parameter = ""  # a new source: the last live sweep is over
         self.data = LiveData(
             session.sample_rate_hz,
             origin_index=session.span.first_index,
@@ -356,7 +365,9 @@ class MainWindow(QMainWindow):
         if not isinstance(session, LiveSession):
             return
         self._sweep_total = len(plan.steps())
-        self._sweep_first_mark = len(self.data.steps)
+        self._sweep_first_mark = self._sweep_next_mark = len(self.data.steps)
+        self._sweep_parameter = plan.parameter
+        self.sweep_view.start(plan.parameter)
         self.recording_panel.show_sweep(True, 0, self._sweep_total, "starting ...")
         self.recording_panel.show_recording(True, f"sweep recording to {path}")
         self.shaker_panel.setEnabled(False)  # the procedure alone drives until it ends
@@ -392,6 +403,32 @@ class MainWindow(QMainWindow):
             self.recording_panel.show_recording(False, text)
         self.recording_panel.show_sweep(False, done, self._sweep_total, text)
         self.shaker_panel.setEnabled(self.session is session)
+
+    def _judge_completed_steps(self, data: LiveData) -> None:
+        """Send each step of the live sweep that has ended, once its dwell's samples are all
+        in, to be judged off the GUI thread; its regime and points join the diagram."""
+        end = data.angle.end_index
+        while self._sweep_next_mark < len(data.steps):
+            mark = data.steps[self._sweep_next_mark]
+            if end is None or end < mark.dwell_end_index:
+                return  # the step's last samples are still on their way
+            self._sweep_next_mark += 1
+            if not mark.complete:
+                self.sweep_view.note(f"step {mark.step} was interrupted: not judged")
+                continue
+            dwell = step_dwell(data, mark, self._sweep_parameter)
+            if dwell is None:
+                self.sweep_view.note(f"step {mark.step}: its dwell has a gap: not judged")
+                continue
+            self.step_judge.submit(
+                lambda dwell=dwell: judge_dwell(dwell),
+                self._step_judged,
+                lambda error, step=mark.step: self.sweep_view.note(
+                    f"step {step} cannot be judged: {error}"),
+            )
+
+    def _step_judged(self, step: LiveStep) -> None:
+        self.sweep_view.add_step(step)
 
     def cancel_sweep(self) -> None:
         """Stop the running sweep (the drive ramps to zero, the file is closed)."""
@@ -453,19 +490,29 @@ class MainWindow(QMainWindow):
 
     def explain_recording(self, path: str, experiment: str) -> None:
         """Run ``analyze`` on ``path`` on the analysis thread (acquisition runs on), showing
-        its stages as it goes, then the explanation."""
-        from gui.model_overlay import explain_recording  # scipy and numba: load when needed
+        its stages as it goes, then the explanation; a sweep recording is explained as a
+        sweep (``analyze_sweep``)."""
+        # scipy and numba: load when needed
+        from gui.model_overlay import Explanation, explain_recording
+        from gui.sweep_explanation import explain_sweep, is_sweep_recording
 
         panel = self.analysis_panel
 
         def progress(text: str) -> None:  # on the analysis thread: hand over to the GUI's
             QTimer.singleShot(0, self, lambda: panel.show_progress(text))
 
-        self.analysis_tasks.submit(
-            lambda: explain_recording(path, experiment or None, progress),
-            panel.show_explanation,
-            panel.show_error,
-        )
+        def explain():  # a sweep (a file with sweep steps) is explained as one
+            if is_sweep_recording(path):
+                return explain_sweep(path, progress)
+            return explain_recording(path, experiment or None, progress)
+
+        def show(explanation) -> None:
+            if isinstance(explanation, Explanation):
+                panel.show_explanation(explanation)
+            else:
+                panel.show_sweep_explanation(explanation)
+
+        self.analysis_tasks.submit(explain, show, panel.show_error)
 
     # -- the frame and status timers ------------------------------------------------------------
 
@@ -476,6 +523,8 @@ class MainWindow(QMainWindow):
             return
         data.ingest(session.drain())
         self.drive_label.setText(drive_description(data))
+        if self._sweep_parameter:
+            self._judge_completed_steps(data)
         self.poincare_view.collect(data)
         current = self.tabs.currentWidget()
         if current is self.time_view:
@@ -552,7 +601,8 @@ class MainWindow(QMainWindow):
         return [b - a for a, b in itertools.pairwise(times)]
 
     def show_view(self, name: str) -> None:
-        """Bring a view to the front by name: time, spectrum, poincare, phase, analysis."""
+        """Bring a view to the front by name: time, spectrum, poincare, phase, analysis,
+        sweep."""
         self.tabs.setCurrentIndex(VIEW_NAMES.index(name))
 
     # -- settings -------------------------------------------------------------------------------
@@ -610,6 +660,7 @@ class MainWindow(QMainWindow):
         self.polls.shutdown()
         self.analysis_tasks.shutdown(wait=False)
         self.view_tasks.shutdown(wait=False)
+        self.step_judge.shutdown(wait=False)
 
     def closeEvent(self, event: QCloseEvent) -> None:
         self.shutdown()

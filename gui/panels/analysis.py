@@ -1,5 +1,7 @@
 """Analysis: identify the current or a chosen recording, or explain it (``analyze``: the causes,
-the residual before and after, the regime), on a worker thread; overlay the model."""
+the residual before and after, the regime), on a worker thread; overlay the model.  A sweep
+recording is explained as a sweep: its measured diagram, its per-step table and the sweep
+report's figures."""
 
 from __future__ import annotations
 
@@ -9,6 +11,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 import pyqtgraph as pg
 from PySide6.QtCore import Qt, Signal
+from PySide6.QtGui import QPixmap
 from PySide6.QtWidgets import (
     QComboBox,
     QFileDialog,
@@ -18,6 +21,7 @@ from PySide6.QtWidgets import (
     QPlainTextEdit,
     QProgressBar,
     QPushButton,
+    QScrollArea,
     QSplitter,
     QVBoxLayout,
     QWidget,
@@ -30,9 +34,11 @@ from gui.units import DISPLAY, DisplayUnit
 
 if TYPE_CHECKING:
     from gui.model_overlay import Explanation, ModelOverlay
+    from gui.sweep_explanation import SweepExplanation
 
 EXPERIMENTS = ("as recorded", *NAMES)
 CURVE_COLOURS = ("#1f4e9c", "#d06000", "#1a8a3a")  # measured, model, extended model
+MODEL_SHIFT = 0.06  # a model's diagram points sit this fraction of a step beside the measured
 
 
 class AnalysisPanel(QWidget):
@@ -72,6 +78,19 @@ class AnalysisPanel(QWidget):
             pen=pg.mkPen(CURVE_COLOURS[2], width=2, style=Qt.PenStyle.DashLine)
         )
         self.extended_curve.setVisible(False)
+        self.diagram_points = pg.ScatterPlotItem(size=5, pen=None,
+                                                 brush=pg.mkBrush(CURVE_COLOURS[0]))
+        self.plot.addItem(self.diagram_points)
+        self.model_points = [pg.ScatterPlotItem(size=6, symbol="x", pen=pg.mkPen(colour),
+                                                brush=None) for colour in CURVE_COLOURS[1:]]
+        for item in self.model_points:
+            self.plot.addItem(item)
+        self.figures = QWidget()  # a sweep report's figures, as the report draws them
+        self.figures_layout = QVBoxLayout(self.figures)
+        self.figure_labels: list[QLabel] = []
+        figures_scroll = QScrollArea()
+        figures_scroll.setWidget(self.figures)
+        figures_scroll.setWidgetResizable(True)
         self.key: list[str] = []  # the curves drawn, named in colour above the plot
         row = QHBoxLayout()
         row.addWidget(self.path, 1)
@@ -84,6 +103,8 @@ class AnalysisPanel(QWidget):
         texts = QSplitter(Qt.Orientation.Horizontal)
         texts.addWidget(self.explanation)
         texts.addWidget(self.report)
+        texts.addWidget(figures_scroll)
+        texts.setSizes([300, 300, 0])
         splitter = QSplitter(Qt.Orientation.Vertical)
         splitter.addWidget(self.plot)
         splitter.addWidget(texts)
@@ -141,6 +162,10 @@ class AnalysisPanel(QWidget):
         display units, decimated to the plot's width, named in their colours above the plot
         (a legend inside would sit on the data)."""
         self.plot.enableAutoRange()  # a new result is shown whole, whatever the last zoom
+        self.diagram_points.setData([], [])
+        for item in self.model_points:
+            item.setData([], [])
+        label_axis(self.plot, "bottom", "time from the start", DISPLAY["time"])
         self.key = []
         key_html = []
         items = (self.measured_curve, self.model_curve, self.extended_curve)
@@ -191,7 +216,55 @@ class AnalysisPanel(QWidget):
                                                  *self.stages]))
         self.state.setText(lines[0])
 
+    def show_sweep_explanation(self, explanation: SweepExplanation) -> None:
+        """Show what the analysis of a sweep found: the measured diagram (the points at drive
+        phase 0 of every settled period, step by step, the way down shifted right), the
+        per-step table, and the report's figures."""
+        from gui.live_sweep import diagram_points, step_spacing
+        from gui.sweep_explanation import step_table, sweep_lines
+
+        self.explained = explanation.report
+        self._show_busy(False)
+        self._draw(("", np.zeros(0), None), ("", np.zeros(0), None), ("", np.zeros(0), None),
+                   unit=DISPLAY["angle"])
+        unit = DISPLAY["frequency" if explanation.parameter == "frequency" else "displacement"]
+        label_axis(self.plot, "bottom", explanation.parameter, unit)
+        label_axis(self.plot, "left", "angle at drive phase 0", DISPLAY["angle"])
+        self.diagram_points.setData(*diagram_points(explanation.steps, unit))
+        self.key = ["measured"]
+        key_html = [f'<span style="color:{CURVE_COLOURS[0]}">&#9679; measured</span>']
+        spacing = step_spacing([unit.show(s.setting) for s in explanation.steps])
+        for number, (item, colour, (name, steps)) in enumerate(
+                zip(self.model_points, CURVE_COLOURS[1:], explanation.models, strict=False)):
+            x, y = diagram_points(steps, unit)
+            item.setData(x + MODEL_SHIFT * spacing * (number + 1), y)
+            self.key.append(name)
+            key_html.append(f'<span style="color:{colour}">&#215; {html.escape(name)}</span>')
+        self.plot.setTitle("&nbsp;&nbsp;&nbsp;".join(key_html)
+                           + "&nbsp;&nbsp;(angle at drive phase 0; the way down shifted right)",
+                           size="9pt")
+        lines = sweep_lines(explanation)
+        self.explanation.setPlainText("\n".join([*lines, "", "how the analysis went:",
+                                                 *self.stages]))
+        self.report.setPlainText("\n".join(step_table(explanation)))
+        self._show_figures(explanation.figures)
+        self.state.setText(lines[0])
+
+    def _show_figures(self, figures: tuple[tuple[str, bytes], ...]) -> None:
+        for label in self.figure_labels:
+            label.deleteLater()
+        self.figure_labels = []
+        for name, png in figures:
+            pixmap = QPixmap()
+            pixmap.loadFromData(png, "PNG")
+            label = QLabel()
+            label.setPixmap(pixmap)
+            label.setToolTip(name)
+            self.figures_layout.addWidget(label)
+            self.figure_labels.append(label)
+
     def show_error(self, error: BaseException) -> None:
         """Identification or the analysis failed: say why, in words."""
         self._show_busy(False)
         self.state.setText(f"cannot {self._verb}: {error}")
+

@@ -1,5 +1,6 @@
 """The demo's analysis of its recordings: identification, regimes of the sweep steps, the
-discrepancy analysis, the model it arrives at, and the bifurcation diagrams.
+discrepancy analysis, the sweep explained as one, the model it arrives at, and the
+bifurcation diagrams.
 
 Each step calls the project's analysis (``analysis.identify``, ``analysis.dynamics``,
 ``analysis.discrepancy``); what lives here is only the demo's choice of what to run on
@@ -21,6 +22,7 @@ from rig.demo.settings import NONE, DemoError, DemoSettings, Progress, indented
 if TYPE_CHECKING:  # the analysis's result types, for the hints only (imported when run)
     from analysis.discrepancy import Analysis
     from analysis.identify import IdentificationResult
+    from analysis.sweep.analyze import SweepAnalysis
 
 
 def load_records(results: Mapping[str, Any], notes: list[str]) -> dict[str, Any]:
@@ -274,3 +276,20 @@ def explained_parameters(
                 if k in extended:
                     out[k] = {**extended[k], "from": f"{name}, extended model"}
     return out, causes
+
+
+def explain_sweep(path: Any, say: Progress, notes: list[str]) -> SweepAnalysis | None:
+    """The sweep explained as one (``analysis.sweep.analyze_sweep``): one rig for every
+    step, the causes that hold across the steps, and, when the analysis compares them, the
+    baseline's and the explained model's diagrams with the measured one.  None (with a
+    note) when the sweep cannot be explained."""
+    from analysis.sweep.analyze import analyze_sweep
+    from analysis.sweep.load import load_sweep
+    from recording.errors import RecordFormatError
+
+    try:
+        return analyze_sweep(load_sweep([path]), threads=1, progress=indented(say))
+    except (RecordFormatError, ValueError) as error:
+        notes.append(f"the sweep cannot be explained as one: {error}")
+        return None
+

@@ -25,6 +25,7 @@ if TYPE_CHECKING:  # the analysis's result types, for the hints only (imported w
     from analysis.dynamics import BifurcationDiagram
     from analysis.identify import IdentificationResult
     from analysis.model import Model
+    from analysis.sweep.analyze import SweepAnalysis
 
 
 @dataclass
@@ -42,6 +43,8 @@ class DemoResult:
     regimes: list[dict[str, Any]]
     timings_s: dict[str, float]
     notes: list[str]
+    # the sweep explained as one (write_sweep_explanation); None when it could not be
+    sweep: dict[str, Any] | None = None
 
     def _cause_keys(self) -> list[str]:
         return [key for values in self.causes.values() for key in values]
@@ -68,6 +71,7 @@ class DemoResult:
                 for r in self.regimes
             )
             lines.append(f"  sweep regimes (beta, ^up/v down): {kinds}")
+        lines.extend(f"  {line}" for line in sweep_lines(self.sweep))
         lines.extend(f"  note: {n}" for n in self.notes)
         lines.append(f"  total {self.timings_s.get('total', math.nan):.0f} s")
         return "\n".join(lines)
@@ -78,6 +82,72 @@ def _estimate_text(key: str, estimate: Mapping[str, Any], truth: float | None) -
     if truth is not None:
         text += f"  (virtual rig: {truth:.6g})"
     return text
+
+
+def write_sweep_explanation(folder: Path, analysis: SweepAnalysis, *,
+                            overwrite: bool) -> dict[str, Any]:
+    """The sweep explained as one: its report (Markdown, HTML, JSON and figures) in the
+    folder's analysis/, and what the demo's summary and report say of it: the causes named,
+    each model's diagram against the measured one, the page and its figures (relative to
+    the folder)."""
+    from analysis.report.sweep import sweep_report_json, write_sweep_report
+    before = set((folder / ANALYSIS).rglob("*.png"))
+    page = write_sweep_report(analysis, folder / ANALYSIS, "sweep", overwrite=overwrite)
+    figures = sorted(set((folder / ANALYSIS).rglob("*.png")) - before)
+    sweep = sweep_report_json(analysis)["sweep"]
+    return {
+        "page": str(page.relative_to(folder)),
+        "figures": [str(f.relative_to(folder)) for f in figures],
+        "steps": len(sweep["steps"]),
+        "set_aside": len(sweep["set_aside"]),
+        "causes": list(sweep["causes"]["named"]),
+        "diagram": diagram_agreement(sweep["diagram"]),
+    }
+
+
+def diagram_agreement(diagram: Any) -> list[dict[str, Any]]:
+    """Each model's comparison of its diagram with the measured one, as the sweep's
+    analysis gives them (``sweep.diagram`` of its report, docs/MODEL.md): model name,
+    agreeing steps, steps judged, summary; [] when no comparison ran."""
+    found: list[dict[str, Any]] = []
+
+    def visit(node: Any) -> None:
+        if isinstance(node, dict):
+            if "agreeing_steps" in node and "steps" in node:
+                judged = [s for s in node["steps"] if s.get("measured") != "undetermined"]
+                found.append({"model": node.get("model", "?"),
+                              "agreeing": int(node["agreeing_steps"]), "judged": len(judged),
+                              "steps": len(node["steps"]),
+                              "summary": node.get("summary", "")})
+                return
+            for value in node.values():
+                visit(value)
+        elif isinstance(node, list):
+            for value in node:
+                visit(value)
+
+    visit(diagram)
+    return found
+
+def sweep_lines(sweep: Mapping[str, Any] | None) -> list[str]:
+    """What the sweep explained as one found, in a few lines: the causes that hold across
+    its steps, and whether the explained model's diagram agrees with the measured one."""
+    if sweep is None:
+        return []
+    causes = ", ".join(sweep["causes"]) or "none"
+    lines = [f"sweep explained as one rig over {sweep['steps']} steps: cause(s) {causes}"]
+    models = sweep["diagram"]
+    if not models:
+        return [*lines, "  its diagram was not compared with the measured one (the sweep's "
+                "analysis gave no diagram comparison)"]
+    for model in models:
+        lines.append(f"  {model['model']}: {model['agreeing']} of {model['judged']} judged "
+                     f"steps agree with the measured regime")
+    explained = models[-1]
+    verdict = ("agrees with" if explained["agreeing"] == explained["judged"]
+               else "does not agree with")
+    lines.append(f"  the explained model's diagram {verdict} the measured one")
+    return lines
 
 
 def write_figures(folder: Path, diagrams, settings) -> dict[str, str]:
@@ -210,6 +280,20 @@ def write_report(result, settings, recordings, analyses, pages, figures, config)
         "between the two)."
     )
     add("")
+    if result.sweep is not None:
+        add("### The sweep explained as one")
+        add("")
+        add("One rig identified for every step, the causes that hold across the steps, and "
+            "each model's bifurcation diagram simulated through the sweep as the rig ran it, "
+            f"over the measured one (full analysis: [{result.sweep['page']}]"
+            f"({result.sweep['page']})).")
+        add("")
+        for line in sweep_lines(result.sweep):
+            add(f"- {line.strip()}")
+        add("")
+        for figure in result.sweep["figures"]:
+            add(f"![{Path(figure).stem.replace('_', ' ')} over the measured one]({figure})")
+            add("")
     add("## What the virtual rig hid")
     add("")
     add(f"The virtual rig ran with: **{result.hidden.describe()}**.")
@@ -342,6 +426,7 @@ def demo_json(
             }
             for name, r in recordings.items()
         },
+        "sweep": result.sweep,
         "timings_s": result.timings_s,
         "notes": result.notes,
     }

@@ -1,5 +1,6 @@
 """The demo's stages in order: prepare, record on the virtual rig, identify, judge the sweep's
-regimes, explain the discrepancies, draw the bifurcation diagram and write the report."""
+regimes, explain the discrepancies (each record, then the sweep as one), draw the
+bifurcation diagram and write the report."""
 
 from __future__ import annotations
 
@@ -12,6 +13,7 @@ from rig.demo.analyse import (
     bifurcation_diagrams,
     classify_steps,
     combined_parameters,
+    explain_sweep,
     explained_parameters,
     identified_model,
     identify,
@@ -33,6 +35,7 @@ from rig.demo.report import (
     write_figures,
     write_identifications,
     write_report,
+    write_sweep_explanation,
 )
 from rig.demo.settings import (
     DEFAULT_CAUSE,
@@ -111,6 +114,11 @@ def run_demo(
         overwrite=overwrite,
     )
     lap("discrepancy")
+    say("  the sweep as one: one rig for every step, the causes across its steps")
+    sweep_analysis = explain_sweep(results["sweep"].path, say, notes)
+    sweep = (None if sweep_analysis is None else
+             write_sweep_explanation(folder, sweep_analysis, overwrite=overwrite))
+    lap("sweep")
 
     say("[6/6] bifurcation diagram: measured sweep against the model; figures and report")
     rig = records["impact_decay"].rig_parameters()
@@ -136,6 +144,7 @@ def run_demo(
         regimes=regimes,
         timings_s=timings,
         notes=notes,
+        sweep=sweep,
     )
     write_report(result, settings, results, analyses, pages, figures, config)
     write_demo_json(folder / "demo.json", demo_json(result, settings, results), overwrite=overwrite)

@@ -281,3 +281,32 @@ def test_a_rig_the_virtual_rig_cannot_emulate_is_a_clear_error_not_a_traceback(t
     assert main(["demo", "--quick", "--config", str(rig_file), "--out", str(folder)]) == 2
     error = capsys.readouterr().err
     assert "recording on the virtual rig failed" in error and 'unit = "V"' in error
+
+
+def test_the_demo_explains_its_sweep_as_one_and_says_whether_the_diagrams_agree(demo):
+    folder, done = demo
+    summary = _json(folder, "demo.json")
+    sweep = summary["sweep"]
+    if sweep is None:  # the recording itself is no usable sweep: the demo says why, and on
+        why = [n for n in summary["notes"] if n.startswith("the sweep cannot be explained")]
+        assert len(why) == 1 and why[0] in done.stdout
+        pytest.skip(f"the virtual rig's sweep recording was damaged on this run: {why[0]}")
+    analysed = _json(folder / "analysis", "sweep.json")["sweep"]
+    assert sweep["page"] == "analysis/sweep.md" and (folder / sweep["page"]).is_file()
+    # five steps, each analysed or set aside with its reason (lost samples on a busy machine)
+    assert sweep["steps"] == len(analysed["steps"]) and sweep["steps"] >= 2
+    assert sweep["steps"] + sweep["set_aside"] == 5
+    assert sweep["causes"] == analysed["causes"]["named"]
+    diagram = analysed["diagram"]
+    models = [diagram["baseline"]] + ([diagram["explained"]] if diagram["explained"] else [])
+    assert [m["model"] for m in sweep["diagram"]] == [m["model"] for m in models]
+    explained = models[-1]
+    judged = sum(step["measured"] != "undetermined" for step in explained["steps"])
+    verdict = "agrees with" if explained["agreeing_steps"] == judged else "does not agree with"
+    said = f"the explained model's diagram {verdict} the measured one"
+    report = (folder / "report.md").read_text(encoding="utf-8")
+    assert said in done.stdout and said in report
+    section = report.split("### The sweep explained as one")[1].split("\n## ")[0]
+    for figure in sweep["figures"]:  # the sweep report's diagrams, shown in the demo's
+        assert f"]({figure})" in section
+        assert (folder / figure).read_bytes()[:8] == PNG_MAGIC

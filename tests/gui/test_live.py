@@ -10,12 +10,13 @@ import pytest
 
 from drivers.amplifier_registers import Fault, Holding
 from gui.app import MainWindow
+from gui.live_sweep import StepDwell, judge_dwell
 from gui.settings import AppSettings
 from gui.worker import LiveSession
 from hardware_sim.daq_faults import CORRUPT_CRC
 from recording.reader import open_recording
 from rig.cli import main
-from rig.events import COMMANDED, MEASURED
+from rig.events import COMMANDED, MEASURED, StepMark
 from tests.gui.conftest import run_events, wait_until
 
 FS_HZ = 2000.0
@@ -261,6 +262,56 @@ def test_a_gui_sweep_writes_the_file_impact_rig_sweep_writes(qapp, window, tmp_p
     assert gui["steps"] == [(0, 1, 8.0, 0.5e-3, 1), (1, 1, 9.0, 0.5e-3, 1), (2, -1, 8.0, 0.5e-3, 1)]
     assert gui["step spans in order"] and gui["drive read back"]
     assert gui["status"] == (True, "completed")
+
+
+def test_a_live_sweeps_steps_are_judged_off_the_gui_thread_and_drawn_as_each_ends(
+    qapp, window, tmp_path, monkeypatch
+):
+    import threading
+
+    import gui.app
+
+    judged_on: list[str] = []
+
+    def judge(dwell):  # the real judge, noting the thread it ran on
+        judged_on.append(threading.current_thread().name)
+        return judge_dwell(dwell)
+
+    monkeypatch.setattr(gui.app, "judge_dwell", judge)
+
+    def step_mark(row) -> StepMark:
+        return StepMark(*(row[name].item() for name in ("step", "direction", "frequency_hz",
+                        "amplitude_m", "settle_start_index", "dwell_start_index",
+                        "dwell_end_index")), complete=bool(row["complete"]))
+    panel, view = window.recording_panel, window.sweep_view
+    enter_sweep(panel, tmp_path / "judged.h5", "frequency", 10.0, 11.0, 2, 0.5,
+                settle_s=0.5, dwell_s=1.5)
+    panel.sweep_run.click()
+    window.show_view("sweep")
+    wait_until(qapp, lambda: view.table.rowCount() >= 1, 30, "the first step on the diagram")
+    assert panel.sweeping  # drawn as its step ended, while the sweep runs on
+    wait_until(qapp, lambda: not panel.sweeping, 30, "the sweep to finish")
+    wait_until(qapp, lambda: view.table.rowCount() == 3, 20, "every step on the diagram")
+    assert judged_on and all(name.startswith("gui-step-judge") for name in judged_on)
+    rows = [[view.table.item(r, c).text() for c in range(3)] for r in range(3)]
+    assert rows == [["0", "up", "10 Hz"], ["1", "up", "11 Hz"], ["2", "down", "10 Hz"]]
+    # each step judged on its whole dwell: as the same judge finds it on the file's dwell
+    with open_recording(tmp_path / "judged.h5") as rec:
+        angle, edges = rec.channel("angle"), rec.pulses("tach").edge_indices
+        marks = rec.sweep_steps()
+    for step, mark in zip(view.steps, marks, strict=True):
+        start, end = int(mark["dwell_start_index"]), int(mark["dwell_end_index"])
+        select = (angle.indices >= start) & (angle.indices < end)
+        tach = edges[(edges >= start) & (edges < end)] - start
+        from_file = judge_dwell(StepDwell(step_mark(mark), step.setting, angle.values[select],
+                                          tach, FS_HZ, (end - start) / FS_HZ))
+        assert (step.regime, step.label) == (from_file.regime, from_file.label)
+        np.testing.assert_allclose(step.points_rad, from_file.points_rad, atol=1e-9)
+        assert step.held_s == (end - start) / FS_HZ  # the whole dwell
+    up_x, up_y = view._scatter[+1].getData()
+    down_x, _ = view._scatter[-1].getData()
+    assert set(np.round(up_x, 6)) == {10.0, 11.0} and np.all(np.isfinite(up_y))
+    assert np.all(down_x > 10.0) and np.all(down_x < 11.0)  # the way down beside the way up
 
 
 @pytest.mark.parametrize("button", ["sweep_run", "stop_button"])
