@@ -39,6 +39,8 @@ from analysis.sweep.diagram import (
     judge_measured,
 )
 from analysis.sweep.fit import (
+    StepsNotIdentifiedError,
+    SweepData,
     SweepIdentification,
     identify_sweep,
     shared_json,
@@ -186,11 +188,7 @@ def analyze_sweep(
     n = len(sweep.steps)
     say(f"sweep of {n} steps over the drive's {sweep.parameter}"
         + (f" ({len(sweep.set_aside)} set aside)" if sweep.set_aside else ""))
-    data = sweep_data(sweep)
-    for step, regime in zip(sweep.steps, data.regimes, strict=True):
-        say(f"  step {step.number}: {sweep.setting(step):.4g} "
-            f"{'m' if sweep.parameter == 'amplitude' else 'Hz'}, regime {regime}")
-    ident = identify_sweep(data, progress=say, threads=threads)
+    sweep, data, ident = _identified(sweep, say, threads)
     timings = {"identification": time.perf_counter() - clock}
     say("causes across the sweep, each of one size for every step")
     causes = select_causes(ident, policy, threads=threads, progress=say)
@@ -212,6 +210,25 @@ def analyze_sweep(
         analysis.diagram = diagrams.as_json()
         say("  " + diagrams.summary())
     return analysis
+
+
+def _identified(sweep: Sweep, say: Progress, threads: int | None
+                ) -> tuple[Sweep, SweepData, SweepIdentification]:
+    """The sweep's rig identified once for every step; a step that is no forced record fit
+    for a fit, or that cannot be identified alone, is set aside with the reason and the
+    rest identified again (a lone step's fit put a barrier at 0.57 rad, out of range, and
+    failed the whole sweep)."""
+    while True:
+        try:
+            data = sweep_data(sweep)
+            for step, regime in zip(sweep.steps, data.regimes, strict=True):
+                say(f"  step {step.number}: {sweep.setting(step):.4g} "
+                    f"{'m' if sweep.parameter == 'amplitude' else 'Hz'}, regime {regime}")
+            return sweep, data, identify_sweep(data, progress=say, threads=threads)
+        except StepsNotIdentifiedError as failed:
+            for number, why in failed.reasons.items():
+                say(f"  step {number} set aside: {why}")
+            sweep = sweep.setting_aside(failed.reasons)
 
 
 def sweep_json(analysis: SweepAnalysis) -> dict[str, Any]:

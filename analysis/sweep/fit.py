@@ -119,19 +119,41 @@ class SweepData:
         return slice(int(offsets[k]), int(offsets[k + 1]))
 
 
+class StepsNotIdentifiedError(IdentificationError):
+    """Steps that cannot be fitted as forced records, each with the reason: the sweep is
+    analysed without them (:meth:`~analysis.sweep.steps.Sweep.setting_aside`)."""
+
+    def __init__(self, reasons: Mapping[int, str]) -> None:
+        self.reasons = dict(reasons)
+        super().__init__("; ".join(f"sweep step {n}: {why}" for n, why in reasons.items()))
+
+
 def sweep_data(sweep: Sweep) -> SweepData:
-    """Each step's record prepared as a forced record is (a step that is no forced record
-    fit for a fit is refused, naming it), its regime judged from its own strobe points."""
-    steps, regimes = [], []
+    """Each step's record prepared as a forced record is, its regime judged from its own
+    strobe points; StepsNotIdentifiedError names the steps that are no forced record fit for a
+    fit."""
+    steps, regimes, failed = [], [], {}
     for step in sweep.steps:
         try:
             data = forced_data(step.record)
         except IdentificationError as error:
-            raise IdentificationError(f"sweep step {step.number}: {error}") from None
+            failed[step.number] = f"not a forced record fit for a fit: {error}"
+            continue
         regime = record_regime(step.record, data)
         steps.append(data.for_regime(regime.kind))
         regimes.append(regime.label)
+    if failed:
+        raise StepsNotIdentifiedError(failed)
     return SweepData(sweep, tuple(steps), tuple(regimes))
+
+
+def _alone(data: ForcedData, *, threads: int | None = None) -> ForcedIdentification | str:
+    """A step identified alone over its short segments, or why it could not be (a value out
+    of its physical range, a fit that found no rig)."""
+    try:
+        return identify_forced(data, whole=False, threads=threads)
+    except (IdentificationError, ValueError) as error:
+        return f"not identified alone: {error}"
 
 
 @dataclass(frozen=True)
@@ -263,12 +285,17 @@ class SweepIdentification:
 def identify_sweep(
     data: SweepData, *, progress: Progress | None = None, threads: int | None = None,
 ) -> SweepIdentification:
-    """Identify the rig once for every step (see the module's docstring)."""
+    """Identify the rig once for every step (see the module's docstring); the steps that
+    cannot be identified alone are named, with the reason, by StepsNotIdentifiedError."""
     say = progress or (lambda message: None)
     n = len(data.steps)
     alone: list[ForcedIdentification] = []
     with SideBySide(threads) as batch:
-        pending = [batch.add(identify_forced, d, whole=False) for d in data.steps]
+        pending = [batch.add(_alone, d) for d in data.steps]
+    failed = {number: found.result for number, found in zip(data.numbers, pending, strict=True)
+              if isinstance(found.result, str)}
+    if failed:
+        raise StepsNotIdentifiedError(failed)
     for k, found in enumerate(pending):
         alone.append(found.result)
         values = found.result.short_fit.values

@@ -9,7 +9,8 @@ ran it (continued from step to step, the same settle, the same dwell).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from collections.abc import Mapping
+from dataclasses import dataclass, replace
 from typing import Literal
 
 from analysis.records import Record
@@ -67,6 +68,15 @@ class Sweep:
             raise ValueError(
                 f"{self.source or 'sweep'}: steps {numbers} are not in running order"
             )
+
+    def setting_aside(self, reasons: Mapping[int, str]) -> Sweep:
+        """This sweep with the steps numbered in ``reasons`` set aside, each with its reason
+        (ValueError, naming the sweep, when none would be left)."""
+        kept = tuple(s for s in self.steps if s.number not in reasons)
+        aside = tuple(sorted((*self.set_aside,
+                              *(SetAside(n, why) for n, why in reasons.items())),
+                             key=lambda a: a.number))
+        return replace(self, steps=kept, set_aside=aside)
 
     def setting(self, step: SweepStep) -> float:
         """The swept parameter's value at ``step`` (m for amplitude, Hz for frequency)."""

@@ -110,3 +110,24 @@ def test_bad_sweep_file_is_refused_in_one_line(tmp_path: Path, change: str,
         load_sweep([path])
     text = str(error.value)
     assert message in text and "\n" not in text and text.count(str(path)) == 1
+
+
+def test_a_step_that_cannot_be_fitted_is_set_aside_with_the_reason(tmp_path: Path) -> None:
+    """A step that is no forced record fit for a fit is named with the reason, and the
+    sweep goes on without it (a lone step's fit once failed the whole sweep)."""
+    from analysis.sweep.fit import StepsNotIdentifiedError, sweep_data
+
+    sweep = load_sweep([_recording(tmp_path)])
+    steps = list(sweep.steps)
+    steps[1] = replace(steps[1], record=replace(steps[1].record, experiment="free_decay"))
+    broken = replace(sweep, steps=tuple(steps))
+    with pytest.raises(StepsNotIdentifiedError) as failed:
+        sweep_data(broken)
+    assert list(failed.value.reasons) == [1]
+    assert "not a forced one" in failed.value.reasons[1]
+    kept = broken.setting_aside(failed.value.reasons)
+    assert [s.number for s in kept.steps] == [0, 2, 3]
+    assert [(a.number, a.reason) for a in kept.set_aside] == [(1, failed.value.reasons[1])]
+    assert len(sweep_data(kept).steps) == 3
+    with pytest.raises(ValueError, match="no step to analyse"):
+        kept.setting_aside({0: "a", 2: "b", 3: "c"})
