@@ -68,11 +68,11 @@ def step_dwell(data: LiveData, mark: StepMark, parameter: str) -> StepDwell | No
 def judge_dwell(dwell: StepDwell) -> LiveStep:
     """The step's regime and settled stroboscopic points (blocking: call on a worker)."""
     from analysis.identify.preprocess import noise_and_quantum  # scipy: load when needed
-    from analysis.sweep.diagram import _judged
+    from analysis.sweep.diagram import judge_step
 
     noise, _ = noise_and_quantum(dwell.angle_rad)
     tach = dwell.tach_indices if dwell.tach_indices.size else None
-    judged = _judged(dwell.mark.step, dwell.angle_rad, dwell.sample_rate_hz, noise,
+    judged = judge_step(dwell.mark.step, dwell.angle_rad, dwell.sample_rate_hz, noise,
                      tach_indices=tach, frequency_hz=dwell.mark.frequency_hz, phase_rad=0.0)
     points = judged.cloud[:, 0] if judged.cloud.size else np.zeros(0)
     return LiveStep(dwell.mark.step, dwell.mark.direction, dwell.setting, judged.short,

@@ -224,7 +224,7 @@ def run_sweep_task(task: SweepTask) -> tuple[tuple[SimulatedStep, ...], tuple[Ju
         reading = MeasurementModel(noise_std_rad=plan.noise_rad,
                                    seed=NOISE_SEED * 1000 + step.number).apply(
             t, step.theta_rad, model)
-        judged.append(_judged(step.number, reading, step.fs_hz, plan.noise_rad,
+        judged.append(judge_step(step.number, reading, step.fs_hz, plan.noise_rad,
                               tach_indices=None, frequency_hz=step.drive.frequency_hz,
                               phase_rad=step.dwell_phase_rad))
     return simulated, tuple(judged)
@@ -252,14 +252,16 @@ def judge_measured(sweep: Sweep) -> tuple[JudgedStep, ...]:
         record = step.record
         noise, _ = noise_and_quantum(record.angle_rad)
         tach = record.tach_indices if record.tach_indices.size else None
-        out.append(_judged(step.number, record.angle_rad, record.sample_rate_hz, noise,
+        out.append(judge_step(step.number, record.angle_rad, record.sample_rate_hz, noise,
                            tach_indices=tach, frequency_hz=step.frequency_hz, phase_rad=0.0))
     return tuple(out)
 
 
-def _judged(number: int, angle: np.ndarray, fs_hz: float, noise_rad: float, *,
-            tach_indices: np.ndarray | None, frequency_hz: float,
-            phase_rad: float) -> JudgedStep:
+def judge_step(number: int, angle: np.ndarray, fs_hz: float, noise_rad: float, *,
+               tach_indices: np.ndarray | None, frequency_hz: float,
+               phase_rad: float) -> JudgedStep:
+    """Step ``number``'s regime and stroboscopic points from its dwell's angle, as the
+    report and the live sweep judge it; too few drive periods give an undetermined step."""
     try:
         regime, strobe = judge_record_regime(
             np.asarray(angle, dtype=float), fs_hz, noise_rad, tach_indices=tach_indices,

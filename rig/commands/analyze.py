@@ -141,8 +141,6 @@ def run(args: argparse.Namespace) -> int:
                            "Dask scheduler; analyse a single record without it")
     from analysis.discrepancy import AnalysisError, analyze_record
     from analysis.identify import IdentificationError
-    from analysis.json_output import to_json_text
-    from analysis.provenance import provenance
     from analysis.report.discrepancy import report_json
 
     record, priors = _load_record_and_priors(args)
@@ -151,19 +149,9 @@ def run(args: argparse.Namespace) -> int:
                                   priors=priors, policy=policy)
     except (AnalysisError, IdentificationError, ValueError) as error:
         raise cannot_analyse(args.file, error) from error
-    js = report_json(analysis)
-    js["provenance"] = provenance()
-    to_stdout = args.json_out == STDOUT
-    if args.json_out and not to_stdout:
-        _write_json(js, args.json_out, overwrite=args.overwrite)
-        progress(f"wrote {args.json_out}")
-    if args.report:
-        progress(f"wrote {_write_report(analysis, args)}")
-    if to_stdout:
-        print(to_json_text(js))
-    else:
-        _print_summary(js)
-    return 0
+    from analysis.report import write_report
+
+    return _emit(report_json(analysis), analysis, write_report, _print_summary, args)
 
 
 def _run_sweep(args: argparse.Namespace, policy) -> int:
@@ -179,9 +167,7 @@ def _run_sweep(args: argparse.Namespace, policy) -> int:
         raise CommandError(str(error)) from error
     from analysis.discrepancy import AnalysisError
     from analysis.identify import IdentificationError
-    from analysis.json_output import to_json_text
     from analysis.maps import MapRunner, SchedulerError
-    from analysis.provenance import provenance
     from analysis.report.sweep import sweep_report_json, write_sweep_report
     from analysis.sweep.analyze import analyze_sweep
 
@@ -197,24 +183,8 @@ def _run_sweep(args: argparse.Namespace, policy) -> int:
         raise CommandError(str(error)) from None
     except (AnalysisError, IdentificationError, ValueError) as error:
         raise cannot_analyse(args.file, error) from error
-    js = sweep_report_json(analysis)
-    js["provenance"] = provenance()
-    to_stdout = args.json_out == STDOUT
-    if args.json_out and not to_stdout:
-        _write_json(js, args.json_out, overwrite=args.overwrite)
-        progress(f"wrote {args.json_out}")
-    if args.report:
-        try:
-            page = write_sweep_report(analysis, args.report, name=args.file.stem,
-                                      overwrite=args.overwrite)
-        except OSError as error:
-            raise CommandError(f"--report {args.report}: cannot write ({error})") from None
-        progress(f"wrote {page}")
-    if to_stdout:
-        print(to_json_text(js))
-    else:
-        _print_sweep_summary(js)
-    return 0
+    return _emit(sweep_report_json(analysis), analysis, write_sweep_report,
+                 _print_sweep_summary, args)
 
 
 def _print_sweep_summary(js: dict) -> None:
@@ -347,11 +317,26 @@ def _write_json(report: dict, path: Path, *, overwrite: bool) -> None:
         raise CommandError(f"{path}: cannot write ({error.strerror or error})") from None
 
 
-def _write_report(analysis, args: argparse.Namespace) -> Path:
-    """The page (Markdown and HTML), its JSON and figures in --report; returns the .md path."""
-    from analysis.report import write_report
+def _emit(js: dict, analysis, write_page, summary, args: argparse.Namespace) -> int:
+    """The report's JSON (with what made it) to --json or stdout, its page (Markdown and
+    HTML, its JSON and figures, by ``write_page``) to --report, and the printed summary."""
+    from analysis.json_output import to_json_text
+    from analysis.provenance import provenance
 
-    try:
-        return write_report(analysis, args.report, name=args.file.stem, overwrite=args.overwrite)
-    except OSError as error:  # e.g. --json named the page's own JSON, written just before
-        raise CommandError(f"--report {args.report}: cannot write ({error})") from None
+    js["provenance"] = provenance()
+    to_stdout = args.json_out == STDOUT
+    if args.json_out and not to_stdout:
+        _write_json(js, args.json_out, overwrite=args.overwrite)
+        progress(f"wrote {args.json_out}")
+    if args.report:
+        try:
+            page = write_page(analysis, args.report, name=args.file.stem,
+                              overwrite=args.overwrite)
+        except OSError as error:  # e.g. --json named the page's own JSON, written just before
+            raise CommandError(f"--report {args.report}: cannot write ({error})") from None
+        progress(f"wrote {page}")
+    if to_stdout:
+        print(to_json_text(js))
+    else:
+        summary(js)
+    return 0
