@@ -48,6 +48,7 @@ from analysis.identify import IdentificationError, fit_free_decay, fit_impact_de
 from analysis.identify.impact_decay import impact_events
 from analysis.identify.preprocess import prepare
 from analysis.identify.result import Estimate
+from analysis.identify.threads import blas_on_one_thread
 from analysis.model import Drive
 from analysis.model_values import packed_from_values
 from analysis.records import Record
@@ -435,6 +436,7 @@ def analyze_decay(
     causes: list[str] | None = None, policy: SelectionPolicy = DEFAULT_POLICY,
 ) -> Analysis:
     """The discrepancy analysis of a free or impact decay, point by point."""
+    blas_on_one_thread()
     say = progress or (lambda message: None)
     clock = time.perf_counter()
     timings: dict[str, float] = {}

@@ -24,6 +24,7 @@ from analysis.identify.intervals import Z95, Covariance, sandwich_covariance
 from analysis.identify.preprocess import PreparedSignal, prepare
 from analysis.identify.result import Estimate, FitQuality, IdentificationError, IdentificationResult
 from analysis.identify.start_values import DecayGuess, guess_decay
+from analysis.identify.threads import blas_on_one_thread
 from analysis.records import Record
 
 AVERAGING_MAX_AMPLITUDE_RAD = 0.2
@@ -89,6 +90,7 @@ def fit_free_decay(
     record: Record, *, method: str = "auto", detect_release: bool = True
 ) -> IdentificationResult:
     """Identify L, omega, zeta, initial angle and sensor offset from one free-decay record."""
+    blas_on_one_thread()
     if method not in METHODS:
         raise ValueError(f"method {method!r}; expected one of {METHODS}")
     signal = prepare(record.time_s, record.angle_rad, detect_release=detect_release)

@@ -20,6 +20,7 @@ from analysis.experiments import FREE_DECAY
 from analysis.identify.free_decay import SIMULATION_DIFF_STEP, _robust_fit, fit_free_decay
 from analysis.identify.preprocess import PreparedSignal, prepare
 from analysis.identify.result import Estimate, IdentificationError, IdentificationResult
+from analysis.identify.threads import blas_on_one_thread
 from analysis.model import Drive, Model, RigParameters
 from analysis.records import Record
 
@@ -219,6 +220,7 @@ def fit_impact_decay(
     detect_release: bool = True,
 ) -> IdentificationResult:
     """Identify K (E for the record's R), mu0, theta_b, initial state; L, zeta held or fitted."""
+    blas_on_one_thread()
     hold = dict(hold or {})
     unknown = sorted(set(hold) - set(FITTED))
     if unknown:

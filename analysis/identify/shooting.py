@@ -45,11 +45,11 @@ from typing import NamedTuple
 import numpy as np
 import scipy.sparse as sparse
 from scipy.sparse.linalg import splu
-from threadpoolctl import threadpool_limits
 
 from analysis.identify.intervals import Z95, correlation_time
 from analysis.identify.preprocess import sample_detail
 from analysis.identify.result import Estimate, Residuals
+from analysis.identify.threads import blas_on_one_thread
 from analysis.simulate.segments import integrate_segments
 
 # The runs' tolerances: 1e-7 of a swing of ~0.1 rad is 1e-8 rad, far below any rig's
@@ -992,19 +992,11 @@ _POOLS: dict[tuple[int, str], ThreadPoolExecutor] = {}
 
 
 @functools.cache
-def _blas_on_one_thread() -> None:
-    """BLAS held to one thread for the process, once: the fits share the cores out over
-    their own threads, and BLAS threads of their own would spin beside them (a quarter of a
-    screening fit's time on 2 cores); with 2 of them a fitted value differed from 1's in
-    the eighth digit, so a machine's core count would show."""
-    threadpool_limits(1, user_api="blas")
-
-
 def _pool(threads: int, role: str) -> ThreadPoolExecutor | _InCaller:
     """A thread pool kept for the process: a fit asks for hundreds of Jacobians, and starting
     threads for each costs more than the columns they share out.  Each role has its own, so
     that work one pool's thread hands out never waits behind that very thread."""
-    _blas_on_one_thread()
+    blas_on_one_thread()
     if threads <= 1:
         return _InCaller()
     if (threads, role) not in _POOLS:
