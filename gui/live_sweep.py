@@ -1,7 +1,8 @@
-"""A live sweep's measured bifurcation diagram, step by step: each completed step's dwell
-taken from the live data (:func:`step_dwell`, on the GUI thread: copies only) and judged off
-it (:func:`judge_dwell`: its regime and stroboscopic points, by the judge the sweep's
-analysis uses, :func:`analysis.dynamics.measured_regime.judge_record_regime`)."""
+"""A live sweep's measured bifurcation diagram, step by step: each completed step's
+dwell taken from the live data (:func:`~gui.live_sweep.step_dwell`, on the GUI thread:
+copies only) and judged off it (:func:`~gui.live_sweep.judge_dwell`: its regime and
+stroboscopic points, by the judge the sweep's analysis uses,
+:func:`analysis.dynamics.measured_regime.judge_record_regime`)."""
 
 from __future__ import annotations
 

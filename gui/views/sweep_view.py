@@ -24,8 +24,9 @@ COLUMNS = ("step", "direction", "setting", "regime", "points", "judged on")
 
 
 class SweepDiagramView(QWidget):
-    """Steps are added as they are judged (:meth:`add_step`); :meth:`start` begins a new
-    sweep."""
+    """Steps are added as they are judged
+    (:meth:`~gui.views.sweep_view.SweepDiagramView.add_step`);
+    :meth:`~gui.views.sweep_view.SweepDiagramView.start` begins a new sweep."""
 
     def __init__(self, parent: QWidget | None = None) -> None:
         super().__init__(parent)
