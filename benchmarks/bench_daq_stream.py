@@ -45,7 +45,7 @@ from drivers.sensors import (  # noqa: E402
     Tachometer,
 )
 from drivers.serial_daq import SerialDaqBackend  # noqa: E402
-from tests.daq.firmware_host import (  # noqa: E402
+from harness.firmware_host import (  # noqa: E402
     HOST_IDENTITY,
     FirmwareBoard,
     build_host_firmware,

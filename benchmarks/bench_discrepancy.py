@@ -2,8 +2,8 @@
 
 Decays: each case draws (seeded) the experiment and cause from every pair where the cause
 can show, its size, the rig's own parameters, noise, rate and length; the virtual rig
-generates the record (``tests/discrepancy/hidden_cause.py``).  Forced records come from the
-independent reference simulator (``tests/reference``: scipy DOP853 with events, not the
+generates the record (``harness/hidden_cause.py``).  Forced records come from the
+independent reference simulator (``reference``: scipy DOP853 with events, not the
 project's integrator): the paper's 2 Hz and 10 Hz settings, period-1, period-k and chaotic
 motion, 10-20 s of transient discarded, noise 0.3-2 mrad, laser channel or not, every
 named cause and clean records, one record alone (no decays).  The analysis sees only the
@@ -24,12 +24,12 @@ judged right, the clean records' baseline residual over their true noise, and se
     python benchmarks/bench_discrepancy.py --kinds decays-pairs          # every decay pair once
     python benchmarks/bench_discrepancy.py --kinds decays-unknown --json decays.json
 
-Effects outside the registry (``tests/reference/unregistered.py``: two in the physics, three
+Effects outside the registry (``reference/unregistered.py``: two in the physics, three
 in the sensor, three in the drive, and a noise decoy) must never be explained confidently by
 a named cause; the analysis should flag them (``unexplained``, or the finding of the right
 kind: a line, a trend, the drive frequency, the timing).
 
-Decays from the reference simulator (``tests/reference/decays.py``, issue 32): kind
+Decays from the reference simulator (``reference/decays.py``, issue 32): kind
 ``decays-pairs`` draws free and impact decays with two named causes at once, every pair of
 its table in turn (each marked identifiable or not); kind ``decays-unknown`` draws one decay
 per effect outside the registry (physics and sensor) and the noise decoys.  The figures are
@@ -56,14 +56,14 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from analysis.discrepancy import analyze_record
 from analysis.experiments import FORCED
 from analysis.record_loaders import load_record
-from tests.discrepancy.hidden_cause import SHOWS_IN, draw_case, write_case
-from tests.reference.cause_sizes import CHOICES
-from tests.reference.decays import EFFECTS as DECAY_EFFECTS
-from tests.reference.decays import PAIRS as DECAY_PAIRS
-from tests.reference.decays import Decay, draw_effect_decay, draw_pair_decay
-from tests.reference.forced_records import draw_forced_case, draw_pair, write_forced_case
-from tests.reference.regime_truth import periods_a_record_shows
-from tests.reference.unregistered import EFFECTS, draw_unregistered_case
+from harness.hidden_cause import SHOWS_IN, draw_case, write_case
+from reference.cause_sizes import CHOICES
+from reference.decays import EFFECTS as DECAY_EFFECTS
+from reference.decays import PAIRS as DECAY_PAIRS
+from reference.decays import Decay, draw_effect_decay, draw_pair_decay
+from reference.forced_records import draw_forced_case, draw_pair, write_forced_case
+from reference.regime_truth import periods_a_record_shows
+from reference.unregistered import EFFECTS, draw_unregistered_case
 
 BUDGET_S = 60.0
 FORCED_GOALS = {"named": 0.9, "clean_residual_over_noise": 1.5, "seconds_per_60s": 30.0}

@@ -42,7 +42,7 @@ from analysis.dynamics.sweeps import default_workers  # noqa: E402
 from analysis.model import Model, paper_case  # noqa: E402
 from analysis.packed import P  # noqa: E402
 from analysis.simulate import SimulationSettings, simulate_ensemble, simulate_packed  # noqa: E402
-from benchmarks.results import figure, result, save  # noqa: E402
+from harness.results import figure, result, save  # noqa: E402
 
 
 def serial_seconds_per_run(packed: np.ndarray, initial: np.ndarray, periods: int) -> float:

@@ -30,8 +30,8 @@ from analysis.identify import fit_free_decay, fit_impact_decay  # noqa: E402
 from analysis.model import Model, RigParameters  # noqa: E402
 from analysis.records import Record  # noqa: E402
 from analysis.simulate import SimulationSettings, simulate  # noqa: E402
-from benchmarks.results import figure, result, save  # noqa: E402
-from tests.identify.oracle import free_decay  # noqa: E402
+from harness.results import figure, result, save  # noqa: E402
+from reference.oracle import free_decay  # noqa: E402
 
 RIG_KEYS = {"m_kg": 0.0326, "l_m": 0.05, "R_m": 0.0095, "g": 9.81}
 

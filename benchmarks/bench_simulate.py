@@ -38,7 +38,7 @@ if str(ROOT) not in sys.path:
 from analysis.model import Model, acceleration, paper_case  # noqa: E402
 from analysis.packed import P  # noqa: E402
 from analysis.simulate import SimulationSettings, Stepper, simulate_packed  # noqa: E402
-from benchmarks.results import figure, result, save  # noqa: E402
+from harness.results import figure, result, save  # noqa: E402
 
 GRID_HZ = 1000.0
 BASELINE_RTOL = 1e-9

@@ -1,7 +1,7 @@
 """Benchmark of sweeps explained where a lab looks: on their bifurcation diagrams (issue 33).
 
 Each case draws (seeded) a sweep from the independent reference simulator
-(``tests/reference/sweeps.py``: scipy DOP853 with events, never the project's integrator):
+(``reference/sweeps.py``: scipy DOP853 with events, never the project's integrator):
 over the amplitude at 6 Hz or the frequency over 4-7 Hz, up and back down, each step
 settled (8 s) and dwelt on (6 s), the state continued from step to step; noise to 2 mrad,
 the table's laser on some; one hidden cause per sweep, cycling through those that move the
@@ -51,7 +51,7 @@ from analysis.sweep.diagram import (
     judge_measured,
 )
 from analysis.sweep.steps import DOWN, UP, Sweep, SweepStep
-from tests.reference.sweeps import (
+from reference.sweeps import (
     AMPLITUDE_SWEEP_BETA,
     AMPLITUDE_SWEEP_HZ,
     DISTORTS_READING,

@@ -22,8 +22,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from analysis.model import Model, paper_case
 from analysis.simulate import Stepper
-from benchmarks.results import figure, result, save
 from hardware_sim.virtual_rig import VirtualRig, VirtualRigSettings
+from harness.results import figure, result, save
 
 RATE_HZ = 200_000.0
 DURATION_S = 2.0

@@ -1,7 +1,7 @@
 """Generated input at the program's boundaries for as long as asked: bad answers found.
 
-The same checks and strategies as the suite's ``tests/fuzz`` (``tests.fuzz.boundaries``,
-``tests.fuzz.modbus``, ``tests.fuzz.command_line``): the DAQ frame decoder, the exchange
+The same checks and strategies as the suite's ``tests/fuzz`` (``harness.fuzz.boundaries``,
+``harness.fuzz.modbus``, ``harness.fuzz.command_line``): the DAQ frame decoder, the exchange
 CSV and sidecar, the rig file, damaged recordings, the shaker driver against an amplifier
 whose replies are mangled, the amplifier emulator's Modbus server against hostile
 requests (both real pymodbus over loopback TCP; the driver reconnecting or not), and every
@@ -35,8 +35,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from hypothesis.errors import HypothesisException
 
-from tests.fuzz import boundaries as b
-from tests.fuzz import command_line, modbus
+from harness.fuzz import boundaries as b
+from harness.fuzz import command_line, modbus
 
 BOUNDARIES = (
     "frames", "exchange", "rig_file", "recording", "modbus_driver", "modbus_server", "cli"

@@ -3,7 +3,7 @@
 The DAQ board emulator on a pty (reached through a stable symlink, as a udev by-id
 link) and the amplifier's Modbus TCP server run in their own process; this process runs
 the serial driver, the acquisition engine, the HDF5 recorder and the Modbus shaker
-driver (``tests.daq.soak`` says how).  Every ``--fault-every`` seconds one fault in
+driver (``harness.soak`` says how).  Every ``--fault-every`` seconds one fault in
 turn: garbled frames (random bytes, CRCs flipped), the board unplugged for a second and
 plugged in again (reset), the amplifier's controller restarted.  Halfway between faults
 another process opens the file being written.
@@ -30,7 +30,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from tests.daq.soak import SoakFigures, run_soak
+from harness.soak import SoakFigures, run_soak
 
 GOAL_RSS_GROWTH_PCT = 5.0
 

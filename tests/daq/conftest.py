@@ -21,7 +21,7 @@ from drivers.serial_daq import SerialDaqBackend
 from hardware_sim.daq_emulator import DaqEmulator
 from hardware_sim.daq_faults import DaqFaults
 from hardware_sim.sample_source import SampleSource
-from tests.daq.firmware_host import FirmwareBoard, FirmwareFaults, build_host_firmware
+from harness.firmware_host import FirmwareBoard, FirmwareFaults, build_host_firmware
 from tests.daq.sim_daq_backend import SimDaqBackend
 
 BACKENDS = ("pty", "inprocess", "firmware")

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import pytest
 
-from tests.daq.soak import FAULT_KINDS, GARBLED_FRAMES, run_soak
+from harness.soak import FAULT_KINDS, GARBLED_FRAMES, run_soak
 
 
 @pytest.mark.timeout(180)

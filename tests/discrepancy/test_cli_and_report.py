@@ -1,7 +1,7 @@
 """``impact-rig analyze`` end to end on files: JSON of docs/MODEL.md section 6, Markdown and
 HTML page with PNG figures, clear errors on bad input.
 
-The records come from the independent reference simulator (``tests/reference``: scipy
+The records come from the independent reference simulator (``reference``: scipy
 DOP853 with events), never from ``impact-rig simulate``, whose integrator and cause code the
 analysis shares.
 """
@@ -14,10 +14,10 @@ import subprocess
 import sys
 
 from analysis.discrepancy import DEFAULT_POLICY
+from reference.decays import FREE, draw_decay
+from reference.free_decays import FS_HZ, draw_free_decay
 from tests.gui.recordings import write_recording
 from tests.html_page import read_page
-from tests.reference.decays import FREE, draw_decay
-from tests.reference.free_decays import FS_HZ, draw_free_decay
 from tests.strict_json import strict_loads
 
 SECTION_6_KEYS = {"experiment", "cause", "ranking", "baseline", "extended", "gain", "localization"}

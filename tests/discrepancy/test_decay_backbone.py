@@ -1,6 +1,6 @@
 """A free decay whose backbone no named cause gives is flagged, and says why.
 
-The decays are drawn by the reference simulator (``tests/reference/free_decays.py``: scipy
+The decays are drawn by the reference simulator (``reference/free_decays.py``: scipy
 DOP853, not the project's integrator): a pendulum with a cubic hairspring at its pivot, an
 effect outside the registry whose stiffening changes how the frequency follows the swing,
 and a clean pendulum.  The analysis sees one CSV and its JSON sidecar, as a lab writes them.
@@ -14,7 +14,7 @@ import pytest
 
 from analysis.discrepancy import analyze_record
 from analysis.record_loaders import load_record
-from tests.reference.free_decays import draw_free_decay
+from reference.free_decays import draw_free_decay
 
 
 @pytest.mark.parametrize(("seed", "spring"), [(8801, 1), (8802, -1)],

@@ -1,8 +1,8 @@
 """Two causes at once in a free or an impact decay: both named, each with its size, and
 nothing else; one cause alone gains no companion.
 
-The decays are drawn by the reference simulator (``tests/reference/free_decays.py`` and
-``tests/reference/decays.py``: scipy DOP853, not the project's integrator) with the causes
+The decays are drawn by the reference simulator (``reference/free_decays.py`` and
+``reference/decays.py``: scipy DOP853, not the project's integrator) with the causes
 at seeded sizes; the analysis sees one CSV and its JSON sidecar.
 """
 
@@ -12,9 +12,9 @@ import pytest
 
 from analysis.discrepancy import analyze_record
 from analysis.record_loaders import load_record
-from tests.reference.decays import PAIRS as DECAY_PAIRS
-from tests.reference.decays import draw_pair_decay
-from tests.reference.free_decays import draw_free_decay
+from reference.decays import PAIRS as DECAY_PAIRS
+from reference.decays import draw_pair_decay
+from reference.free_decays import draw_free_decay
 
 Z_999 = 3.29  # the truth lies inside the 99.9 % interval (1.96 sigma is the 95 % one)
 
@@ -48,7 +48,7 @@ def test_each_cause_of_a_decay_is_named_with_its_size(name, tmp_path):
     _named_with_their_sizes(draw_free_decay(seed, causes), causes, tmp_path)
 
 
-# Free and impact decays with two causes from tests/reference/decays.py (the decay benchmark's
+# Free and impact decays with two causes from reference/decays.py (the decay benchmark's
 # generator): each seed is the benchmark's draw of that pair (7000 + 47 i).
 REFERENCE_PAIRS = {
     # a sensor cubic beside drag gained 1040 in the information criterion but was not added:

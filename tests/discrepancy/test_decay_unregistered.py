@@ -2,7 +2,7 @@
 kind of term is missing and the term itself; a decay with unusual but structureless noise
 names nothing.
 
-The decays are drawn by the reference simulator (``tests/reference/decays.py``: scipy
+The decays are drawn by the reference simulator (``reference/decays.py``: scipy
 DOP853, not the project's integrator); each seed is the decay benchmark's draw of that
 effect (7000 + 53 i).  The analysis sees one CSV and its JSON sidecar.
 """
@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from analysis.discrepancy import analyze_record
 from analysis.record_loaders import load_record
-from tests.reference.decays import EFFECTS, draw_effect_decay
+from reference.decays import EFFECTS, draw_effect_decay
 
 Z_999 = 3.29  # the truth lies inside the 99.9 % interval (1.96 sigma is the 95 % one)
 

@@ -1,7 +1,7 @@
 """Forced records explained on their own: the regime judged from the data, the baseline fitted
 down to the noise on a clean record, and a hidden cause named with its size.
 
-Each record is drawn by the independent reference simulator (``tests/reference``: scipy
+Each record is drawn by the independent reference simulator (``reference``: scipy
 DOP853 with events, not the project's integrator or virtual rig) from a seed that picks
 the rig, the drive, the transient, the noise and the laser; the analysis sees one CSV and
 its JSON sidecar, which say only what a lab knows (no decay records).  Together the cases
@@ -19,8 +19,8 @@ import pytest
 
 from analysis.discrepancy import analyze_record
 from analysis.record_loaders import load_record
-from tests.reference.forced_records import draw_forced_case, draw_pair, write_forced_case
-from tests.reference.unregistered import EFFECTS, draw_unregistered_case
+from reference.forced_records import draw_forced_case, draw_pair, write_forced_case
+from reference.unregistered import EFFECTS, draw_unregistered_case
 
 DURATION_S = 30.0
 Z_999 = 3.29  # the 99.9 % interval's half-width in standard errors (1.96: the 95 % one)
@@ -176,7 +176,7 @@ def test_two_causes_at_once_are_both_named_with_their_sizes(seed, frequency, tmp
     assert report["extended"]["rms_residual"] < 1.5 * case.measurement.angle_noise_rad
 
 
-# effects outside the registry (tests/reference/unregistered.py): the effect is drawn at a
+# effects outside the registry (reference/unregistered.py): the effect is drawn at a
 # size that shows; the analysis must never explain it confidently with a named cause, must
 # flag it, and must give the finding of its kind where it leaves one
 UNREGISTERED = {

@@ -2,7 +2,7 @@
 as well as from the first cause's optimum, where the first cause may have bent the
 baseline to stand in for the second.
 
-The record comes from the independent reference simulator (``tests/reference``): a 10 Hz
+The record comes from the independent reference simulator (``reference``): a 10 Hz
 record without a laser, a barrier offset and a sensor cubic drawn from the seed.  A sensor
 cubic alone reaches the swing's stops, which the barrier offset moved, by bending other
 parameters; from there the barrier barely moves.
@@ -27,7 +27,7 @@ from analysis.experiments import FORCED
 from analysis.extensions import ModelSpec
 from analysis.identify.forced import forced_data, identify_forced
 from analysis.record_loaders import load_record
-from tests.reference.forced_records import draw_forced_case, write_forced_case
+from reference.forced_records import draw_forced_case, write_forced_case
 
 PAIR = ("barrier_offset", "sensor_nonlinearity")
 

@@ -1,7 +1,7 @@
 """The analysis must name a decay's one hidden cause (or none) from the files alone, with
 its size.
 
-Each decay is drawn by the independent reference simulator (``tests/reference/decays.py``:
+Each decay is drawn by the independent reference simulator (``reference/decays.py``:
 scipy DOP853 with events, never the project's integrator or its cause code) from a seed
 that picks the rig's own parameters, the release, the noise, the rate, the length and the
 cause's size; the analysis sees one CSV and its JSON sidecar, which state only what a lab
@@ -21,7 +21,7 @@ import pytest
 
 from analysis.discrepancy import analyze_record
 from analysis.record_loaders import load_record
-from tests.reference.decays import IMPACT, draw_decay
+from reference.decays import IMPACT, draw_decay
 
 Z_999 = 3.29  # the 99.9 % interval's half-width in standard errors (1.96: the 95 % one)
 

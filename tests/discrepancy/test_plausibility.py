@@ -16,9 +16,9 @@ from analysis.extensions import CAUSES, ModelSpec, cause
 from analysis.identify.forced import forced_data
 from analysis.identify.result import Estimate
 from analysis.record_loaders import load_record
-from tests.discrepancy.hidden_cause import SHOWS_IN, draw_case
-from tests.reference.cause_sizes import ResponseScale, draw_cause_values
-from tests.reference.forced_records import draw_forced_case, write_forced_case
+from harness.hidden_cause import SHOWS_IN, draw_case
+from reference.cause_sizes import ResponseScale, draw_cause_values
+from reference.forced_records import draw_forced_case, write_forced_case
 
 
 def test_every_plausible_range_lies_inside_the_fits_bounds_around_the_neutral_value():

@@ -1,7 +1,7 @@
 """The rules that decide what is named are one object: the analysis reads them from it, the
 report states them, and a command line can change them with a one-line error for a bad one.
 
-The decay is drawn by the reference simulator (``tests/reference/free_decays.py``: scipy
+The decay is drawn by the reference simulator (``reference/free_decays.py``: scipy
 DOP853, not the project's integrator); the analysis sees one CSV and its JSON sidecar.
 """
 
@@ -15,7 +15,7 @@ import pytest
 
 from analysis.discrepancy import DEFAULT_POLICY, SelectionPolicy, analyze_record
 from analysis.record_loaders import load_record
-from tests.reference.free_decays import draw_free_decay
+from reference.free_decays import draw_free_decay
 
 
 def test_every_rule_has_a_reason_and_bad_values_are_named():

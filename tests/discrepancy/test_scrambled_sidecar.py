@@ -3,7 +3,7 @@ record written again with a misleading file name, notes naming a wrong cause, ex
 keys carrying a false "truth", undocumented rig keys and an extra CSV column gets the same
 report as the plain file.
 
-The record comes from the independent reference simulator (``tests/reference``: scipy
+The record comes from the independent reference simulator (``reference``: scipy
 DOP853, not the project's integrator): a short free decay read through a sensor with a
 linearity error, so two analyses cost seconds.
 """
@@ -15,7 +15,7 @@ import json
 
 from analysis.discrepancy import analyze_record
 from analysis.record_loaders import load_record
-from tests.reference.free_decays import FS_HZ, draw_free_decay
+from reference.free_decays import FS_HZ, draw_free_decay
 
 SEED = 8905
 TRUE_CAUSE = "sensor_nonlinearity"

@@ -1,7 +1,7 @@
 """The screening of the causes on a forced record: a cause whose cold start ended in a worse
 basin than the baseline's is screened again from the baseline's solution.
 
-The record comes from the independent reference simulator (``tests/reference``); dry
+The record comes from the independent reference simulator (``reference``); dry
 friction hides in it, and its screening is started from a friction torque 36 times the
 true one, as a cold start far off can be.
 """
@@ -15,7 +15,7 @@ from analysis.discrepancy.forced_models import cause_hints, screen_cause
 from analysis.extensions import BASELINE, NONE, ModelSpec
 from analysis.identify.forced import forced_data, identify_forced
 from analysis.record_loaders import load_record
-from tests.reference.forced_records import draw_forced_case, write_forced_case
+from reference.forced_records import draw_forced_case, write_forced_case
 
 
 def test_a_screening_stuck_worse_than_the_baseline_starts_again_from_it(tmp_path):

@@ -2,7 +2,7 @@
 
 The library and the selection are tested on equation-error problems that numpy makes, with
 a known sparse term hidden in correlated noise; the whole proposal on forced records of
-the independent reference simulator (``tests/reference``), one with a cubic hairspring
+the independent reference simulator (``reference``), one with a cubic hairspring
 at the pivot (an effect outside the named causes) and clean ones.
 """
 
@@ -36,8 +36,8 @@ from analysis.identify.forced import (
 )
 from analysis.packed import P
 from analysis.record_loaders import load_record
-from tests.reference.forced_records import draw_forced_case, write_forced_case
-from tests.reference.unregistered import draw_unregistered_case
+from reference.forced_records import draw_forced_case, write_forced_case
+from reference.unregistered import draw_unregistered_case
 
 SAMPLE_RATE_HZ = 200.0  # a low-passed flight residual, decimated: what the selection sees
 DURATION_S = 30.0
@@ -111,7 +111,7 @@ def test_noise_alone_asks_for_no_term(seed):
 
 
 def test_a_decay_whose_flights_no_window_fits_asks_for_no_term():
-    """An 8 s impact decay (contact exponent, seed 3901 of tests/reference/decays.py) had no
+    """An 8 s impact decay (contact exponent, seed 3901 of reference/decays.py) had no
     flight a weak-form window fits wholly: the proposal raised IndexError from its empty
     blocks and the analysis failed.  No window, no flight term."""
     rng = np.random.default_rng([15, 9])

@@ -8,8 +8,7 @@ import json
 
 import pytest
 
-from benchmarks.page import END, PAGE, generated, table
-from benchmarks.results import RESULTS, figure, load_results, result, save
+from harness.results import END, PAGE, RESULTS, figure, generated, load_results, result, save, table
 
 
 def test_the_page_is_what_the_results_make():

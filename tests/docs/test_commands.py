@@ -62,7 +62,7 @@ from pathlib import Path
 import pytest
 from markdown_it import MarkdownIt
 
-from benchmarks.results import load_results
+from harness.results import load_results
 from rig.cli import build_parser, main
 
 ROOT = Path(__file__).resolve().parents[2]

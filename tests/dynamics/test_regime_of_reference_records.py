@@ -1,5 +1,5 @@
 """The regime judged on forced records from the independent reference simulator
-(``tests/reference``: scipy DOP853 with events, not the project's integrator).
+(``reference``: scipy DOP853 with events, not the project's integrator).
 
 The judgement gets what a lab records (the angle, the tach, the stated drive) and the
 noise estimated from the record itself; the truth comes from the noiseless motion
@@ -17,8 +17,8 @@ import pytest
 
 from analysis.dynamics import judge_record_regime
 from analysis.identify.preprocess import noise_and_quantum
-from tests.reference.forced_records import draw_forced_case, generate
-from tests.reference.unregistered import draw_unregistered_case
+from reference.forced_records import draw_forced_case, generate
+from reference.unregistered import draw_unregistered_case
 
 RECORD_S = 30.0
 DRIVE_HZ = 10.0

@@ -1,7 +1,7 @@
 """Generated input at every boundary that reads bytes from outside: the DAQ frame decoder,
 the exchange CSV and its sidecar, the rig file, a recording with damaged bytes.
 
-Each answer is a correct result or one line naming what was wrong (tests.fuzz.boundaries
+Each answer is a correct result or one line naming what was wrong (harness.fuzz.boundaries
 says how each is judged).  Bounded and deterministic: derandomized Hypothesis, a fixed
 number of examples, no example database; ``benchmarks/fuzz.py`` runs the same checks for
 as long as asked.
@@ -15,8 +15,7 @@ from pathlib import Path
 import pytest
 from hypothesis import HealthCheck, given, settings
 
-from recording.errors import RecordingFormatError
-from tests.fuzz.boundaries import (
+from harness.fuzz.boundaries import (
     DAMAGES,
     check_damaged_recording,
     check_exchange,
@@ -28,6 +27,7 @@ from tests.fuzz.boundaries import (
     rig_files,
     write_small_recording,
 )
+from recording.errors import RecordingFormatError
 
 
 def bounded(examples: int) -> settings:

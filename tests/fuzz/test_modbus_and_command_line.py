@@ -3,7 +3,7 @@ the command line (every ``impact-rig`` sub-command).
 
 Bounded and deterministic: derandomized Hypothesis, a fixed number of examples, no example
 database; ``benchmarks/fuzz.py`` runs the same checks for as long as asked.  How each
-answer is judged: ``tests.fuzz.modbus`` and ``tests.fuzz.command_line``.
+answer is judged: ``harness.fuzz.modbus`` and ``harness.fuzz.command_line``.
 """
 
 from __future__ import annotations
@@ -14,8 +14,8 @@ from hypothesis import given
 from drivers.interfaces import DeviceError
 from drivers.modbus_shaker import ModbusTcpBackend
 from drivers.shaker import ShakerAmplifier
-from tests.fuzz.command_line import check_command_line, command_lines, commands, inputs
-from tests.fuzz.modbus import (
+from harness.fuzz.command_line import check_command_line, command_lines, commands, inputs
+from harness.fuzz.modbus import (
     LIMITS,
     TIMEOUT_S,
     WATCHDOG_S,

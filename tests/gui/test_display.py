@@ -16,10 +16,10 @@ from analysis.estimate_text import NOT_DETERMINED
 from analysis.model import RigParameters
 from gui.model_overlay import explanation_lines
 from gui.units import DISPLAY, axis_range, parameter_unit
+from reference.simulator import Pendulum, TableMotion, simulate_reference
 from rig.events import DriveSetting, StepMark
 from tests.gui.conftest import run_events, wait_until
 from tests.gui.recordings import RIG, write_recording
-from tests.reference.simulator import Pendulum, TableMotion, simulate_reference
 
 FS = 1000.0
 DRIVE_HZ = 2.0

@@ -7,10 +7,10 @@ import numpy as np
 import pytest
 
 from gui.worker import ReplaySession
+from reference.oracle import free_decay
 from rig.events import DriveSetting
 from tests.gui.conftest import run_events, wait_until
 from tests.gui.recordings import write_recording
-from tests.identify.oracle import free_decay
 
 FS = 1000.0
 DRIVE_HZ = 2.0

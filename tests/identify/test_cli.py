@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 from analysis.exchange import ExchangeMeta, ExchangeRecord, write_exchange
+from reference.oracle import free_decay
 from rig.cli import main
-from tests.identify.oracle import free_decay
 
 MODEL_KEYS = {"L_m", "omega_rad_s", "zeta", "theta0_rad"}
 
@@ -101,7 +101,7 @@ def test_several_free_decays_are_pooled(tmp_path):
 def test_impact_decay_with_length_and_damping_held_from_a_free_decay(decay_csv, tmp_path,
                                                                     capsys):
     # the independent reference simulator (scipy DOP853 with events), not the project's
-    from tests.reference.simulator import Pendulum, TableMotion, simulate_reference
+    from reference.simulator import Pendulum, TableMotion, simulate_reference
 
     truth = Pendulum(m_kg=0.0326, l_m=0.05, L_m=0.25, zeta=0.015, K_n=3e5, mu0_s_per_m=0.5)
     t = np.arange(round(4.0 * 3000.0)) / 3000.0

@@ -1,7 +1,7 @@
 """A forced record identified on its own: the rig's parameters, the barrier, the sensor zero,
 the drive, from one record as a lab records it.
 
-The records come from the independent reference simulator (``tests/reference``: scipy with
+The records come from the independent reference simulator (``reference``: scipy with
 events, not the project's integrator), with the rig, the drive, the noise, the transient
 and the laser drawn from a seed; the identification sees only the CSV + JSON.
 """
@@ -17,7 +17,7 @@ from analysis.identify import fit_forced, identify_forced, measure_drive
 from analysis.identify.equation_error import TableMotion, excursion_maxima, flight_regression
 from analysis.identify.forced import forced_data
 from analysis.record_loaders import load_record
-from tests.reference.forced_records import draw_forced_case, write_forced_case
+from reference.forced_records import draw_forced_case, write_forced_case
 
 # (seed, cause, frequency, laser): both frequencies, with and without the laser, clean, and a
 # barrier and a sensor zero away from 0 (both are identified, not causes, here)

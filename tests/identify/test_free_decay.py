@@ -15,7 +15,7 @@ from analysis.identify import (
     pool_free_decays,
 )
 from analysis.records import Record
-from tests.identify.oracle import free_decay
+from reference.oracle import free_decay
 
 
 def _random_case(rng: np.random.Generator, amplitude: tuple[float, float]) -> dict[str, float]:

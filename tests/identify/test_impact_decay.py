@@ -1,6 +1,6 @@
 """Impact-decay identification: K, mu0 and theta_b recovered from noisy records.
 
-The records come from the independent reference simulator (``tests/reference``: scipy
+The records come from the independent reference simulator (``reference``: scipy
 DOP853 with events, never the project's integrator, whose errors the fit would share).
 """
 
@@ -13,7 +13,7 @@ import pytest
 
 from analysis.identify import IdentificationError, fit_impact_decay
 from analysis.records import Record
-from tests.reference.simulator import Pendulum, TableMotion, simulate_reference
+from reference.simulator import Pendulum, TableMotion, simulate_reference
 
 RIG_KEYS = {"m_kg": 0.0326, "l_m": 0.05, "R_m": 0.0095, "g": 9.81}
 Z_999 = 3.29  # the 99.9 % interval's half-width in standard errors (1.96: the 95 % one)
@@ -108,7 +108,7 @@ def test_mains_hum_leaves_the_impacts_found_and_the_frequency_within_its_interva
     # read through a quartic over a tenth of a swing took the hum for curvature, put the
     # sensor zero 0.035 rad off and ended with "no impacts found".
     from analysis.record_loaders import load_record
-    from tests.reference.decays import draw_effect_decay
+    from reference.decays import draw_effect_decay
 
     decay = draw_effect_decay(7477, "mains_hum")
     assert decay.effect_values["frequency_hz"] == 60.0  # the draw this test is about

@@ -2,10 +2,10 @@
 then fitted with a robust (soft L1) loss whose intervals stay honest and are tighter
 than least squares' on the same record.
 
-The records come from the independent reference simulator (``tests/reference``: scipy
+The records come from the independent reference simulator (``reference``: scipy
 DOP853 with events, not the project's integrator); the heavy tails are Student's t of
 1.5-3 degrees of freedom with the Gaussian's median size (``heavy_tailed_noise`` of
-:mod:`tests.reference.unregistered`).  The analysis sees only the CSV and its sidecar.
+:mod:`reference.unregistered`).  The analysis sees only the CSV and its sidecar.
 """
 
 from __future__ import annotations
@@ -20,9 +20,9 @@ from analysis.identify import identify_forced
 from analysis.identify.forced import forced_data, identification_result
 from analysis.identify.shooting import ROBUST_SCALE, robust_residuals, robust_slope
 from analysis.record_loaders import load_record
-from tests.reference import forced_records
-from tests.reference.forced_records import draw_forced_case, write_forced_case
-from tests.reference.unregistered import draw_unregistered_case
+from reference import forced_records
+from reference.forced_records import draw_forced_case, write_forced_case
+from reference.unregistered import draw_unregistered_case
 
 DECISION_S = 10.0  # the tails show in any stretch of thousands of samples
 # clean records of both frequencies: periodic, period-k and chaotic motion, high and low

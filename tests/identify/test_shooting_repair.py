@@ -1,7 +1,7 @@
 """Multiple shooting on a chaotic record: a segment whose state sits on a motion the record
 does not show takes its predecessor's continued motion instead.
 
-The record comes from the independent reference simulator (``tests/reference``); the fit
+The record comes from the independent reference simulator (``reference``); the fit
 starts from the true parameters and the true states, one segment's state thrown far off.
 """
 
@@ -19,7 +19,7 @@ from analysis.identify.forced import (
     record_segments,
 )
 from analysis.record_loaders import load_record
-from tests.reference.forced_records import draw_forced_case, write_forced_case
+from reference.forced_records import draw_forced_case, write_forced_case
 
 THROWN = 17  # the segment thrown off
 

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from tests.reference.decays import (
+from reference.decays import (
     ADC_STEP_RAD,
     EFFECTS,
     FREE,

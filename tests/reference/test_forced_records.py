@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 from analysis.exchange import read_exchange
-from tests.reference.cause_sizes import CAUSES
-from tests.reference.forced_records import (
+from reference.cause_sizes import CAUSES
+from reference.forced_records import (
     ForcedCase,
     draw_forced_case,
     generate,

@@ -1,17 +1,18 @@
 """No test of the analysis takes its data from the project's own model (issue 39).
 
 A test that hides an effect and requires the analysis to find it, or that recovers
-parameters, must draw its record from an independent generator (``tests/reference``: scipy
-DOP853 with events; ``tests/identify/oracle.py``): an error shared by the project's
-integrator or cause code and the fit built on the same code cancels, and the test passes
-with the bug.  This scan reads every module under ``tests/`` and fails when one both runs an
-analysis (imports ``analysis.discrepancy`` or ``analysis.identify``, names the ``analyze``,
-``identify`` or ``demo`` command, or drives the window's analysis tab) and takes data from
-the project's model (imports ``analysis.simulate``, ``hardware_sim``, the decay generator
-``tests.discrepancy.hidden_cause``, ``gui.screenshots`` or the fit's own
-``simulated_free_decay``, or names the ``simulate`` command or ``--sim``), unless the module
-is in :data:`ALLOWED` with the reason it asserts nothing about a named cause or a recovered
-value on that data.
+parameters, must draw its record from an independent generator (the :mod:`reference`
+package: scipy DOP853 with events): an error shared by the project's integrator or cause
+code and the fit built on the same code cancels, and the test passes with the bug.  This
+scan reads every module under ``tests/`` and ``harness/`` (the tools the tests share with
+the benchmarks) and fails when one both runs an analysis (imports ``analysis.discrepancy``
+or ``analysis.identify``, names the ``analyze``, ``identify`` or ``demo`` command, or
+drives the window's analysis tab) and takes data from the project's model (imports
+``analysis.simulate``, ``hardware_sim``, the decay generator ``harness.hidden_cause``,
+``gui.screenshots`` or the fit's own ``simulated_free_decay``, or names the ``simulate``
+command or ``--sim``), unless the module is in :data:`ALLOWED` with the reason it asserts
+nothing about a named cause or a recovered value on that data.  No module of
+``reference/`` takes data from the project's model at all.
 """
 
 from __future__ import annotations
@@ -19,36 +20,38 @@ from __future__ import annotations
 import ast
 from pathlib import Path
 
-TESTS = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
+SCANNED = ("tests", "harness")  # every module here is scanned for a mix
+INDEPENDENT = "reference"  # no module here takes data from the project's model
 ENTRY_MODULES = ("analysis.discrepancy", "analysis.identify")
 ENTRY_COMMANDS = ("analyze", "identify", "demo")
 ENTRY_ATTRIBUTES = ("analysis_panel",)  # the window's analysis tab runs both
-SOURCE_MODULES = ("analysis.simulate", "hardware_sim", "tests.discrepancy.hidden_cause",
+SOURCE_MODULES = ("analysis.simulate", "hardware_sim", "harness.hidden_cause",
                   "gui.screenshots")
 SOURCE_NAMES = {("analysis.identify.free_decay", "simulated_free_decay")}
 SOURCE_COMMANDS = ("simulate", "demo", "--sim")
 
-# module (relative to tests/) -> why it may hold both: it tests the pipeline or a format on
-# the project's data and asserts nothing about the cause named or the values recovered
+# module (relative to the repository) -> why it may hold both: it tests the pipeline or a
+# format on the project's data and asserts nothing about the cause named or the values found
 ALLOWED = {
-    "cli/test_cli.py": "the parser declares the commands; no record is analysed",
-    "demo/test_demo.py": "the demo's pipeline: its reports follow section 6 and are "
-                         "consistent, not which cause the virtual rig hid",
-    "docs/test_commands.py": "the pages' commands run as shown (on the virtual rig, the demo "
-                             "among them): each ends well and writes what it names, whatever "
-                             "it finds",
-    "discrepancy/test_plausibility.py": "hidden_cause's drawn sizes must be plausible; no "
-                                        "record is made",
-    "gui/test_live.py": "a recording made live is handed to the analysis tab, which is not "
-                        "run",
-    "gui/test_screenshots.py": "the screenshots show each view drawn: the analysis tab has "
-                               "an explanation, whichever cause it names",
-    "identify/test_cli.py": "`simulate --out FILE.h5` is identified like its CSV: the two "
-                            "files agree, the truth is not asked",
-    "reference/test_no_common_mode.py": "this scan names the modules it looks for",
-    "trust/test_boundary.py": "bad input is refused with a one-line error",
-    "trust/test_overwrite.py": "no file is written over",
-    "trust/test_provenance.py": "the outputs say what made them",
+    "tests/cli/test_cli.py": "the parser declares the commands; no record is analysed",
+    "tests/demo/test_demo.py": "the demo's pipeline: its reports follow section 6 and are "
+                               "consistent, not which cause the virtual rig hid",
+    "tests/docs/test_commands.py": "the pages' commands run as shown (on the virtual rig, the "
+                                   "demo among them): each ends well and writes what it "
+                                   "names, whatever it finds",
+    "tests/discrepancy/test_plausibility.py": "hidden_cause's drawn sizes must be plausible; "
+                                              "no record is made",
+    "tests/gui/test_live.py": "a recording made live is handed to the analysis tab, which is "
+                              "not run",
+    "tests/gui/test_screenshots.py": "the screenshots show each view drawn: the analysis tab "
+                                     "has an explanation, whichever cause it names",
+    "tests/identify/test_cli.py": "`simulate --out FILE.h5` is identified like its CSV: the "
+                                  "two files agree, the truth is not asked",
+    "tests/reference/test_no_common_mode.py": "this scan names the modules it looks for",
+    "tests/trust/test_boundary.py": "bad input is refused with a one-line error",
+    "tests/trust/test_overwrite.py": "no file is written over",
+    "tests/trust/test_provenance.py": "the outputs say what made them",
 }
 
 
@@ -92,23 +95,35 @@ def _may_use_a_source(text: str) -> bool:
     return any(word in text for word in words)
 
 
+def _modules(folder: str) -> list[tuple[str, str]]:
+    """Each module under ``folder`` as its path relative to the repository and its text."""
+    return [(path.relative_to(ROOT).as_posix(), path.read_text(encoding="utf-8"))
+            for path in sorted((ROOT / folder).rglob("*.py"))]
+
+
 def test_no_test_of_the_analysis_takes_the_projects_own_data():
     mixed = {}
-    for path in sorted(TESTS.rglob("*.py")):
-        name = path.relative_to(TESTS).as_posix()
-        text = path.read_text(encoding="utf-8")
+    for name, text in (module for folder in SCANNED for module in _modules(folder)):
         if not _may_use_a_source(text):
             continue
         entries, sources = uses(text)
         if entries and sources and name not in ALLOWED:
             mixed[name] = (sorted(entries), sorted(sources))
-    assert not mixed, ("analysed on the project's own data (use tests/reference, or add the "
-                       f"module to ALLOWED with the reason): {mixed}")
+    assert not mixed, ("analysed on the project's own data (use the reference package, or add "
+                       f"the module to ALLOWED with the reason): {mixed}")
+
+
+def test_the_reference_takes_no_data_from_the_projects_model():
+    modules = _modules(INDEPENDENT)
+    assert any(name == f"{INDEPENDENT}/simulator.py" for name, _text in modules)
+    taken = {name: sorted(sources) for name, text in modules
+             if (sources := uses(text)[1])}
+    assert not taken, f"the reference generators must stay independent of the model: {taken}"
 
 
 def test_every_allowed_module_exists_and_still_needs_its_place():
     for name in ALLOWED:
-        path = TESTS / name
+        path = ROOT / name
         assert path.is_file(), name
         entries, sources = uses(path.read_text(encoding="utf-8"))
         assert entries and sources, f"{name}: no longer mixes them; take it off ALLOWED"
@@ -126,5 +141,5 @@ def test_the_scan_sees_each_way_in():
     assert entries == {"`analyze` command"} and sources == {"`simulate` command"}
     assert uses("from analysis.identify.free_decay import simulated_free_decay\n") == (
         set(), {"analysis.identify.free_decay.simulated_free_decay"})
-    assert uses("from tests.reference.decays import draw_decay\n"
+    assert uses("from reference.decays import draw_decay\n"
                 "from analysis.discrepancy import analyze_record\n")[1] == set()

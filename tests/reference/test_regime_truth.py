@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from tests.reference.regime_truth import RegimeTruth, periods_a_record_shows
+from reference.regime_truth import RegimeTruth, periods_a_record_shows
 
 NOISE = 1e-3
 

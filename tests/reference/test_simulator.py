@@ -11,7 +11,7 @@ import pytest
 from scipy.integrate import quad, simpson
 from scipy.optimize import brentq
 
-from tests.reference.simulator import OverTheTopError, Pendulum, TableMotion, simulate_reference
+from reference.simulator import OverTheTopError, Pendulum, TableMotion, simulate_reference
 
 R_M = 0.0095
 K_PAPER = 4.0 / 3.0 * 2.0e6 * math.sqrt(R_M)

@@ -10,7 +10,7 @@ import pytest
 
 from analysis.hdf5_records import load_hdf5_steps
 from analysis.sweep.steps import DOWN, UP
-from tests.reference.sweeps import GeneratedSweep, draw_sweep, write_sweep_recording
+from reference.sweeps import GeneratedSweep, draw_sweep, write_sweep_recording
 
 TINY = {"up_steps": 2, "settle_s": 0.5, "dwell_s": 1.5, "sample_rate_hz": 500.0}
 

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from tests.reference.forced_records import draw_forced_case, generate
-from tests.reference.unregistered import EFFECTS, with_effect
+from reference.forced_records import draw_forced_case, generate
+from reference.unregistered import EFFECTS, with_effect
 
 
 @pytest.fixture(scope="module")

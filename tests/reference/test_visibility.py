@@ -7,15 +7,15 @@ from dataclasses import replace
 
 import pytest
 
-from tests.reference import forced_records, visibility
-from tests.reference.cause_sizes import CAUSES
-from tests.reference.forced_records import (
+from reference import forced_records, visibility
+from reference.cause_sizes import CAUSES
+from reference.forced_records import (
     ForcedCase,
     draw_forced_case,
     simulate_true_motion,
     visibility_of,
 )
-from tests.reference.visibility import SHOWS_OVER_NOISE, cause_visibility
+from reference.visibility import SHOWS_OVER_NOISE, cause_visibility
 
 SHORT = {"duration_s": 3.0, "sample_rate_hz": 500.0}
 

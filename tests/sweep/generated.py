@@ -11,9 +11,9 @@ from pathlib import Path
 
 import numpy as np
 
+from reference.forced_records import RigTruth, quantise, tach_pulses
+from reference.simulator import Pendulum, TableMotion, simulate_reference
 from rig.events import StepMark
-from tests.reference.forced_records import RigTruth, quantise, tach_pulses
-from tests.reference.simulator import Pendulum, TableMotion, simulate_reference
 from tests.sweep.recordings import write_sweep_recording
 
 RIG = RigTruth(m_kg=0.0326, l_m=0.05, L_m=0.048, R_m=0.0095, g_m_s2=9.81, zeta=0.008,

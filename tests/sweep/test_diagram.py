@@ -23,7 +23,7 @@ from analysis.sweep.diagram import (
 )
 from analysis.sweep.figure import draw_diagrams
 from analysis.sweep.steps import DOWN, UP, Sweep
-from tests.reference.sweeps import GeneratedSweep, draw_sweep, truth_model
+from reference.sweeps import GeneratedSweep, draw_sweep, truth_model
 
 # 4.0, 4.5, 5.0, 4.5, 4.0 Hz at beta 0.1: period 1 throughout, settled within 6 s
 # (the reference simulator costs about 0.4 s a simulated second: 50 s here)

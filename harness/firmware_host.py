@@ -24,7 +24,7 @@ from hardware_sim.daq_faults import OVERFLOW, FaultRecord, samples_lost
 from hardware_sim.daq_firmware import DEFAULT_IDENTITY
 from hardware_sim.sample_source import CounterSource
 
-FIRMWARE_DIR = Path(__file__).resolve().parents[2] / "firmware"
+FIRMWARE_DIR = Path(__file__).resolve().parents[1] / "firmware"
 C_FLAGS = ("-std=c11", "-O2", "-Wall", "-Wextra", "-Werror")
 # The host build's own identity: the board's, with the serial number of the host build.
 HOST_IDENTITY = replace(DEFAULT_IDENTITY, serial="HOST0001")

@@ -20,21 +20,21 @@ from pathlib import Path
 import numpy as np
 
 from analysis.exchange import ExchangeMeta, ExchangeRecord, write_exchange
-from tests.reference.cause_sizes import CAUSES, CHOICES, ResponseScale, draw_cause_values
-from tests.reference.regime_truth import (
+from reference.cause_sizes import CAUSES, CHOICES, ResponseScale, draw_cause_values
+from reference.regime_truth import (
     RegimeTruth,
     attractor_extent,
     find_period,
     judge_regime,
     strobe_times,
 )
-from tests.reference.simulator import (
+from reference.simulator import (
     OverTheTopError,
     Pendulum,
     TableMotion,
     simulate_reference,
 )
-from tests.reference.visibility import SHOWS_OVER_NOISE, Visibility, cause_visibility
+from reference.visibility import SHOWS_OVER_NOISE, Visibility, cause_visibility
 
 FREQUENCIES_HZ = (2.0, 10.0)
 # Ranges of beta = A / L giving, over many draws, period-1 and period-2 records at 2 Hz
@@ -138,7 +138,7 @@ class ForcedCase:
     """Everything drawn for one forced record: the truth the analysis must find.
 
     ``causes`` maps each named cause at work (docs/MODEL.md section 6) to its parameters,
-    ``effects`` each effect outside the named ones (:mod:`tests.reference.unregistered`);
+    ``effects`` each effect outside the named ones (:mod:`reference.unregistered`);
     ``attempt`` is the sub-seed that met a requested regime (0: the seed itself).
     ``regime_truth.settling`` tells how settled a periodic record's start still is;
     ``visibility`` how much of the cause shows after the baseline refits its own

@@ -1,6 +1,6 @@
 """A long recording from the virtual rig with faults injected: what it lost, grew and wrote.
 
-The virtual rig runs in its own process (``python -m tests.daq.soak --serve LINK RATE``):
+The virtual rig runs in its own process (``python -m harness.soak --serve LINK RATE``):
 the DAQ board emulator on a pty reached through a stable path (``LINK``, a symlink as
 udev's ``/dev/serial/by-id`` links are) and the amplifier's controller on Modbus TCP.
 Lines on its stdin inject faults: ``garble N`` (random bytes before a frame and the CRC
@@ -34,7 +34,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[1]
 FAULT_KINDS = ("garbled", "unplug", "amplifier")
 GARBLED_FRAMES = 3  # frames whose CRC is flipped by one "garbled" fault
 AWAY_S = 1.0  # how long an unplugged board or a restarting amplifier stays away
@@ -94,7 +94,7 @@ class RigProcess:
 
     def __init__(self, link: Path, rate_hz: float) -> None:
         self.process = subprocess.Popen(
-            [sys.executable, "-m", "tests.daq.soak", "--serve", str(link), repr(rate_hz)],
+            [sys.executable, "-m", "harness.soak", "--serve", str(link), repr(rate_hz)],
             cwd=ROOT,
             stdin=subprocess.PIPE,
             stdout=subprocess.PIPE,
@@ -502,4 +502,4 @@ def _check_file(path: Path, logs: list, figures: SoakFigures, folder: Path) -> N
 if __name__ == "__main__":
     if len(sys.argv) == 4 and sys.argv[1] == "--serve":
         sys.exit(serve(Path(sys.argv[2]), float(sys.argv[3])))
-    sys.exit("usage: python -m tests.daq.soak --serve LINK RATE_HZ (benchmarks/soak.py runs it)")
+    sys.exit("usage: python -m harness.soak --serve LINK RATE_HZ (benchmarks/soak.py runs it)")

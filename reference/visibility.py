@@ -20,7 +20,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from tests.reference.simulator import Pendulum, TableMotion, simulate_reference
+from reference.simulator import Pendulum, TableMotion, simulate_reference
 
 WINDOW_S = 0.4  # the analysis's segment length: a few drive periods at 10 Hz, a swing at 2 Hz
 WINDOWS = 6  # spread evenly over the record

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from tests.reference.simulator import Pendulum, TableMotion, simulate_reference
+from reference.simulator import Pendulum, TableMotion, simulate_reference
 
 MAX_PERIOD = 32
 # Points k drive periods apart agree to this fraction of the attractor's extent on a

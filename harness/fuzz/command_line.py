@@ -26,7 +26,7 @@ from pathlib import Path
 
 from hypothesis import strategies as st
 
-from tests.fuzz.boundaries import SLOW_S, BadAnswerError, write_small_recording
+from harness.fuzz.boundaries import SLOW_S, BadAnswerError, write_small_recording
 
 ROOT = Path(__file__).resolve().parents[2]
 EXCHANGE_CSV = ROOT / "tests" / "data" / "real_exchange"

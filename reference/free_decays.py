@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from analysis.exchange import ExchangeMeta, ExchangeRecord, write_exchange
-from tests.reference.simulator import Pendulum, TableMotion, simulate_reference
+from reference.simulator import Pendulum, TableMotion, simulate_reference
 
 FS_HZ = 500.0
 DURATION_S = 40.0

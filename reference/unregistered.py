@@ -6,9 +6,9 @@ right kind (a line, a trend, the drive frequency, the timing).
 
 Each effect is drawn (seeded) at a size a real rig can have and that shows: what the
 baseline cannot absorb by refitting its own parameters reaches the visibility threshold
-of :mod:`tests.reference.visibility` (the drive's frequency and the tach's timing show in
+of :mod:`reference.visibility` (the drive's frequency and the tach's timing show in
 the drive channels instead).  Records come from the reference simulator, as the named
-causes' do (:mod:`tests.reference.forced_records`).
+causes' do (:mod:`reference.forced_records`).
 """
 
 from __future__ import annotations
@@ -19,15 +19,15 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from tests.reference.forced_records import (
+from reference.forced_records import (
     CauseHiddenError,
     ForcedCase,
     draw_forced_case,
     simulate_true_motion,
     visibility_of,
 )
-from tests.reference.regime_truth import attractor_extent, judge_regime
-from tests.reference.simulator import OverTheTopError
+from reference.regime_truth import attractor_extent, judge_regime
+from reference.simulator import OverTheTopError
 
 SIZES = (1.0, 2.0)  # a drawn size, then twice it, before the record is drawn again
 ATTEMPTS = 8  # records drawn (seed, seed + 100 000, ...) before giving up

@@ -33,7 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from analysis.exchange import ExchangeMeta, ExchangeRecord, write_exchange
-from tests.reference.simulator import Pendulum, TableMotion, simulate_reference
+from reference.simulator import Pendulum, TableMotion, simulate_reference
 
 FREE, IMPACT = "free_decay", "impact_decay"
 SAMPLE_RATES_HZ = (500.0, 1000.0)

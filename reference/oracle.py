@@ -1,4 +1,4 @@
-"""Independent reference data for the identification tests: scipy's DOP853 on the pendulum ODE.
+"""Independent reference free decays: scipy's DOP853 on the pendulum ODE, no barrier.
 
 Only free motion without barrier is integrated here, an independent method for
 the free-decay fits (the impact tests use the project's simulator).

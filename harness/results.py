@@ -1,7 +1,8 @@
 """The benchmarks' figures as data: each run of a benchmark with ``--save`` writes its figures to
 ``benchmarks/results/KEY.json`` (replacing that benchmark's previous file: the earlier ones
 are in git's history, and what changed and why in CHANGELOG.md), and the tables of
-docs/benchmarks.md are generated from those files by ``benchmarks/page.py``.
+docs/benchmarks.md are generated from those files (:func:`generated`, run by
+``python benchmarks/page.py``).
 
 A file holds what made it (the command, the UTC date, the git commit, the machine and its
 load) and the figures, one per row: what is measured, the figure now, the goal (``-`` when
@@ -15,13 +16,14 @@ import datetime
 import json
 import os
 import platform
+import re
 import subprocess
 import sys
 from pathlib import Path
 from typing import Any
 
 ROOT = Path(__file__).resolve().parents[1]
-RESULTS = Path(__file__).resolve().parent / "results"
+RESULTS = ROOT / "benchmarks" / "results"
 FORMAT = 1
 
 
@@ -60,7 +62,7 @@ def result(key: str, figures: list[dict[str, str]], *, about: str = "",
                    f"{platform.release()}, Python {platform.python_version()}",
         "load": "-".join(f"{value:.1f}" for value in sorted(set(loads))),
         "figures": figures,
-        "written_by": "benchmarks/results.py",
+        "written_by": "harness/results.py",
     }
 
 
@@ -89,3 +91,61 @@ def load_results(folder: Path = RESULTS) -> dict[str, dict[str, Any]]:
             raise ValueError(f"{path}: not a benchmark result of format {FORMAT} named {path.stem}")
         found[path.stem] = outcome
     return found
+
+
+PAGE = ROOT / "docs" / "benchmarks.md"
+START = re.compile(r"^<!-- benchmarks: (?P<keys>[\w .-]+?) -->$")
+END = "<!-- end of generated table -->"
+HEADER = ["| what to run | figure | now | goal | measured |", "|---|---|---|---|---|"]
+
+
+def _cell(text: str) -> str:
+    return " ".join(text.split()).replace("|", "\\|")
+
+
+def _measured(outcome: dict[str, Any]) -> str:
+    """When, under which load and at which commit a saved run measured its figures."""
+    commit = outcome["commit"] or "no git"
+    return f"{outcome['date']}, load {outcome['load']}, {commit[:10]}{commit[40:]}"
+
+
+def table(results: dict[str, dict[str, Any]], keys: list[str]) -> list[str]:
+    """The Markdown table of these benchmarks: one row per figure, the command on the first."""
+    rows = list(HEADER)
+    for key in keys:
+        outcome = results[key]
+        run = f"`{outcome['command']}`" + (f" ({outcome['about']})" if outcome["about"] else "")
+        for at, shown in enumerate(outcome["figures"]):
+            measured = shown.get("measured") or _measured(outcome)
+            cells = [run if at == 0 else "", shown["figure"], shown["now"], shown["goal"], measured]
+            rows.append("|" + "|".join(f" {_cell(cell)} " if cell else " " for cell in cells) + "|")
+    return rows
+
+
+def generated(page: str, results: dict[str, dict[str, Any]]) -> str:
+    """The page with every marked table generated again from ``results``."""
+    lines, out, placed = page.splitlines(), [], []
+    at = 0
+    while at < len(lines):
+        out.append(lines[at])
+        marker = START.match(lines[at])
+        at += 1
+        if marker is None:
+            continue
+        keys = marker["keys"].split()
+        missing = [key for key in keys if key not in results]
+        if missing:
+            raise ValueError(f"{PAGE.name}: no result for {missing} (benchmarks/results/KEY.json)")
+        out += table(results, keys)
+        placed += keys
+        while at < len(lines) and lines[at] != END:
+            at += 1
+        if at == len(lines):
+            raise ValueError(f"{PAGE.name}: no '{END}' after the table of {keys}")
+        out.append(END)
+        at += 1
+    left_out = sorted(set(results) - set(placed))
+    if left_out:
+        raise ValueError(f"{PAGE.name}: the results {left_out} are in no table (add their keys "
+                         "to a '<!-- benchmarks: ... -->' marker)")
+    return "\n".join(out) + "\n"

@@ -46,7 +46,7 @@ from drivers.shaker import ShakerAmplifier
 from hardware_sim.amplifier_emulator import AmplifierEmulator
 from hardware_sim.amplifier_firmware import AmplifierFirmware
 from hardware_sim.shaker_response import ShakerDynamics, ShakerResponse
-from tests.fuzz.boundaries import SLOW_S, BadAnswerError, one_line_naming
+from harness.fuzz.boundaries import SLOW_S, BadAnswerError, one_line_naming
 
 LIMITS = ShakerLimits(
     max_amplitude_m=0.005,
