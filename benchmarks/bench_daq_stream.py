@@ -14,9 +14,12 @@ ratio shows what parsing and calibration cost on top of moving the bytes.
 
 The board is the Python emulator and the C firmware core's host build (firmware/,
 compiled with gcc into a temporary directory), each on its own pty, the driver unchanged
-in front of both (``--boards`` picks); ``--json PATH`` also writes the figures.
+in front of both (``--boards`` picks); ``--json PATH`` also writes the figures, and
+``--save`` writes them for the benchmarks page to ``benchmarks/results/daq-stream.json``
+(harness/results.py).
 
     python benchmarks/bench_daq_stream.py --seconds 5 --json daq_stream.json
+    python benchmarks/bench_daq_stream.py --save
 """
 
 from __future__ import annotations
@@ -50,6 +53,7 @@ from harness.firmware_host import (  # noqa: E402
     FirmwareBoard,
     build_host_firmware,
 )
+from harness.results import figure, result, save  # noqa: E402
 
 BOARDS = ("emulator", "firmware")
 
@@ -180,16 +184,49 @@ def main(argv: list[str] | None = None) -> int:
     )
     parser.add_argument("--boards", nargs="+", choices=BOARDS, default=list(BOARDS))
     parser.add_argument("--json", type=Path, default=None, help="also write the figures here")
+    parser.add_argument("--save", action="store_true",
+                        help="also write the figures to benchmarks/results/daq-stream.json")
     args = parser.parse_args(argv)
     if args.headroom:
         args.rates = [*args.rates, *HEADROOM_HZ]
+    load = os.getloadavg()[0]
     figures = {"command": sys.argv, "seconds": args.seconds, "boards": {}}
     for board_kind in args.boards:
         figures["boards"][board_kind] = run_board(board_kind, args)
     if args.json is not None:
         args.json.write_text(json.dumps(figures, indent=2) + "\n")
         print(f"\nfigures written to {args.json}")
+    if args.save:
+        rows = [row for board_kind, board in figures["boards"].items()
+                for row in page_rows(board_kind, board, args.seconds)]
+        save(result("daq-stream", rows, load_at_start=load))
     return 0
+
+
+def page_rows(board_kind: str, board: dict, seconds: float) -> list[dict[str, str]]:
+    """One board's figures as rows of the benchmarks page."""
+    rows = []
+    goal = next((r for r in board["rates"] if r["rate_hz"] == GOAL_RATE_HZ), None)
+    if goal is not None:
+        rows.append(figure(
+            f"{board_kind}: pty + serial driver + calibration, 4 channels at "
+            f"{GOAL_RATE_HZ / 1000:g} kHz for {seconds:g} s",
+            f"{goal['lost']} samples lost, {100 * goal['cpu_s_per_data_s']:.0f} % of one core",
+            f"0 lost, < {100 * GOAL_CPU_FRACTION:.0f} % of one core"))
+    ratio = board["cpu_s_per_data_s_at_figure_rate"] / max(board["bare_read_cpu_s_per_s"], 1e-9)
+    rows.append(figure(
+        f"{board_kind}: 4 channels at {CPU_FIGURE_RATE_HZ / 1000:g} kHz",
+        f"{board['cpu_s_per_data_s_at_figure_rate']:.3f} CPU s per s of data "
+        f"({ratio:.1f}x a bare read)"))
+    best = board["highest_zero_loss_rate_hz"]
+    tried = ", ".join(f"{r['rate_hz'] / 1000:g}" for r in board["rates"])
+    shown = f"4 x {best / 1000:g} kHz" if best else "none"
+    if best == BOARD_MAX_RATE_HZ:
+        shown += " (the board's maximum)"
+    elif best > BOARD_MAX_RATE_HZ:
+        shown += " (an emulated faster board)"
+    rows.append(figure(f"{board_kind}: highest rate with zero loss (of {tried} kHz)", shown))
+    return rows
 
 
 def run_board(board_kind: str, args: argparse.Namespace) -> dict:

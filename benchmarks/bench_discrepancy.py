@@ -37,12 +37,21 @@ the pairs named exactly, and for the effects the confident false explanations, t
 flagged (unexplained or a residual finding), the right proposed term on the physics effects
 (a term outside today's library counts as missed) and the decoys' causes.  ``--json PATH``
 also writes the rows and figures of the decay kinds.
+
+``--save`` writes each group's figures to ``benchmarks/results/discrepancy-GROUP.json``
+(GROUP: ``decays`` for the virtual rig's decays, ``forced``, ``pairs``, ``unknown``,
+``decays-pairs``, ``decays-unknown``) for the benchmarks page (harness/results.py); a
+further draw beside the first (another ``--seed``) names itself with ``--save-suffix``::
+
+    python benchmarks/bench_discrepancy.py --kinds forced --per-cause 2 --seed 9100 \
+        --save --save-suffix seed-9100      # benchmarks/results/discrepancy-forced-seed-9100.json
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 import tempfile
 import time
@@ -57,6 +66,7 @@ from analysis.discrepancy import analyze_record
 from analysis.experiments import FORCED
 from analysis.record_loaders import load_record
 from harness.hidden_cause import SHOWS_IN, draw_case, write_case
+from harness.results import figure, result, save
 from reference.cause_sizes import CHOICES
 from reference.decays import EFFECTS as DECAY_EFFECTS
 from reference.decays import PAIRS as DECAY_PAIRS
@@ -102,26 +112,49 @@ def main() -> int:
                         help="kind 'decays-unknown': the effects (comma separated)")
     parser.add_argument("--json", type=Path, default=None,
                         help="also write the decay kinds' rows and figures to this JSON file")
+    parser.add_argument("--save", action="store_true",
+                        help="also write each group's figures to "
+                        "benchmarks/results/discrepancy-GROUP.json (the benchmarks page)")
+    parser.add_argument("--save-suffix", default="", metavar="SUFFIX",
+                        help="with --save: write discrepancy-GROUP-SUFFIX.json instead, a "
+                        "further draw beside the first (such as seed-9100)")
     args = parser.parse_args()
+    if args.save_suffix and not args.save:
+        parser.error("--save-suffix: only with --save")
+    if args.save_suffix and not all(c.isalnum() or c in "-." for c in args.save_suffix):
+        parser.error(f"--save-suffix: {args.save_suffix!r} is not letters, digits, '-' and '.'")
+    load = os.getloadavg()[0]
     kinds = args.kinds.split(",")
     figures: dict[str, dict] = {}
+    saved: dict[str, tuple[list[dict[str, str]], str]] = {}  # group -> figures, about
     if any(kind in SHOWS_IN for kind in kinds):
-        run_decays(args, kinds)
+        saved["decays"] = run_decays(args, kinds)
     if FORCED.name in kinds:
-        run_forced(args)
+        saved["forced"] = run_forced(args)
     if "pairs" in kinds:
-        run_pairs(args)
+        saved["pairs"] = run_pairs(args)
     if "unknown" in kinds:
-        run_unknown(args)
+        saved["unknown"] = run_unknown(args)
     if "decays-pairs" in kinds:
-        figures["decays-pairs"] = run_decay_pairs(args)
+        figures["decays-pairs"], saved["decays-pairs"] = run_decay_pairs(args)
     if "decays-unknown" in kinds:
-        figures["decays-unknown"] = run_decay_unknown(args)
+        figures["decays-unknown"], saved["decays-unknown"] = run_decay_unknown(args)
     if args.json is not None and figures:
         args.json.write_text(json.dumps({"command": sys.argv, "seed": args.seed, **figures},
                                         indent=2, default=float) + "\n", encoding="utf-8")
         print(f"\nfigures written to {args.json}")
+    if args.save:
+        suffix = f"-{args.save_suffix}" if args.save_suffix else ""
+        for group, (rows, about) in saved.items():
+            if rows:  # a group with no record analysed (no pair drawn) has no figures
+                save(result(f"discrepancy-{group}{suffix}", rows, about=about,
+                            load_at_start=load))
     return 0
+
+
+def _mean_max(seconds: np.ndarray, scale: float = 1.0) -> str:
+    """Seconds per record as ``mean / max``."""
+    return f"{scale * seconds.mean():.1f} s / {scale * seconds.max():.1f} s"
 
 
 def analyse_decay(decay: Decay, workers: int) -> tuple[dict | None, str | None, float]:
@@ -138,9 +171,10 @@ def analyse_decay(decay: Decay, workers: int) -> tuple[dict | None, str | None, 
         return report, error, time.perf_counter() - start
 
 
-def run_decay_pairs(args: argparse.Namespace) -> dict:
+def run_decay_pairs(args: argparse.Namespace) -> tuple[dict, tuple[list[dict[str, str]], str]]:
     """Decays from the reference simulator with two named causes at once (issue 32): both
-    named and nothing else, on the identifiable pairs (the goal) and on all."""
+    named and nothing else, on the identifiable pairs (the goal) and on all. The rows and
+    summary, and the figures for the page with what was run."""
     plan = [DECAY_PAIRS[i % len(DECAY_PAIRS)] for i in range(args.decay_pairs)]
     print(f"{len(plan)} decays with two causes (reference simulator), {args.workers} "
           f"worker(s)", flush=True)
@@ -178,16 +212,26 @@ def run_decay_pairs(args: argparse.Namespace) -> dict:
           f"{_percent(both_all, len(rows))}; one of the two only: {one}; a cause outside "
           f"the pair: {extra}; analysis failed: {failed}")
     print(f"seconds per record: mean {times.mean():.1f}, max {times.max():.1f}")
+    free = sum(pair.experiment == "free_decay" for pair in plan)
+    about = (f"{len(plan)} decays from the independent reference simulator, "
+             f"`reference/decays.py`, each with two causes: {free} free, {len(plan) - free} "
+             f"impact; {len(ident)} pairs marked identifiable")
+    page = [figure("both causes named, nothing else, on identifiable pairs",
+                   f"{both_ident}/{len(ident)} = {_percent(both_ident, len(ident))}", ">= 80 %"),
+            figure("on all pairs; one of the two only; a cause outside the pair; failed",
+                   f"{both_all}/{len(rows)}; {one}; {extra}; {failed}"),
+            figure("time per decay (mean / max)", _mean_max(times))]
     return {"rows": rows, "summary": {
         "both_identifiable": both_ident, "identifiable": len(ident), "both_all": both_all,
         "all": len(rows), "one_only": one, "outside_pair": extra, "failed": failed,
-        "seconds_mean": float(times.mean()), "seconds_max": float(times.max())}}
+        "seconds_mean": float(times.mean()), "seconds_max": float(times.max())}}, (page, about)
 
 
-def run_decay_unknown(args: argparse.Namespace) -> dict:
+def run_decay_unknown(args: argparse.Namespace) -> tuple[dict, tuple[list[dict[str, str]], str]]:
     """Decays from the reference simulator with one effect outside the registry, and the
     noise decoys (issue 32): never a cause named with nothing flagged; flagged as
-    unexplained or by a residual finding; on physics effects, the true term proposed."""
+    unexplained or by a residual finding; on physics effects, the true term proposed. The
+    rows and summary, and the figures for the page with what was run."""
     effects = args.decay_effects.split(",")
     unknown = set(effects) - set(DECAY_EFFECTS)
     if unknown:
@@ -255,12 +299,30 @@ def run_decay_unknown(args: argparse.Namespace) -> dict:
     print(f"decoy: causes named on {len(decoy_named)}/{len(decoys)} (goal none)"
           + "".join(f"; {r['effect']}: {'+'.join(r['named'])}" for r in decoy_named))
     print(f"seconds per record: mean {times.mean():.1f}, max {times.max():.1f}")
+    sensor = len(outside) - len(physics)
+    about = (f"{len(rows)} decays from `reference/decays.py`: {len(physics)} effects outside "
+             f"the registry in the physics, {sensor} in the sensor, {len(decoys)} noise decoys")
+    page = []
+    if outside:
+        page += [figure("confident false explanations (a cause named and nothing flagged)",
+                        f"{confident}/{len(outside)}", "0"),
+                 figure("flagged (a failed analysis counts unflagged)",
+                        f"{flagged}/{len(outside)} = {_percent(flagged, len(outside))}",
+                        ">= 80 %")]
+    if physics:
+        page.append(figure("the right proposed term on physics effects (of them proposed "
+                           "first; needing a term outside the library)",
+                           f"{right}/{len(physics)} ({first}; {beyond})", ">= 60 %"))
+    if decoys:
+        page.append(figure("causes named on the decoys", f"{len(decoy_named)}/{len(decoys)}",
+                           "none"))
+    page.append(figure("time per decay (mean / max)", _mean_max(times)))
     return {"rows": rows, "summary": {
         "records": len(outside), "physics": len(physics), "confident_false": confident,
         "flagged": flagged, "right_term": right, "right_term_first": first,
         "terms_outside_library": beyond,
         "decoys": len(decoys), "decoys_with_a_cause": len(decoy_named), "failed": failed,
-        "seconds_mean": float(times.mean()), "seconds_max": float(times.max())}}
+        "seconds_mean": float(times.mean()), "seconds_max": float(times.max())}}, (page, about)
 
 
 def _percent(count: int, total: int) -> str:
@@ -280,9 +342,10 @@ def analyse_case(case, workers: int) -> tuple[dict | None, str | None, float]:
         return report, error, time.perf_counter() - start
 
 
-def run_unknown(args: argparse.Namespace) -> None:
+def run_unknown(args: argparse.Namespace) -> tuple[list[dict[str, str]], str]:
     """Forced records with an effect no named cause describes (issue 15): never a confident
-    named cause; flagged as unexplained or by the finding of the effect's kind."""
+    named cause; flagged as unexplained or by the finding of the effect's kind. The figures
+    for the page, and what was run."""
     effects = args.effects.split(",")
     plan = [(e, k) for k in range(args.per_effect) for e in effects]
     print(f"{len(plan)} forced records with an effect outside the registry, "
@@ -333,11 +396,31 @@ def run_unknown(args: argparse.Namespace) -> None:
               f"{sum(r['right_kind'] for r in decoys)}/{len(decoys)}")
     times = np.array([r["seconds"] for r in rows])
     print(f"seconds per record: mean {times.mean():.1f}, max {times.max():.1f}")
+    page = []
+    if effects_rows:
+        page += [figure("confident false explanations (a cause named and nothing flagged)",
+                        f"{confident}/{len(effects_rows)}", "0"),
+                 figure("flagged (of them as `unexplained`)",
+                        f"{flagged}/{len(effects_rows)} = {_percent(flagged, len(effects_rows))}"
+                        f" ({flagged_unexplained})", ">= 80 %"),
+                 figure("a cause named at all", f"{any_named}/{len(effects_rows)}")]
+    if applies:
+        page.append(figure("the right finding kind",
+                           f"{sum(r['right_kind'] for r in applies)}/{len(applies)}"))
+    if decoys:
+        page.append(figure("the noise decoys: a cause named; outliers found",
+                           f"{sum(bool(r['named']) for r in decoys)}/{len(decoys)}; "
+                           f"{sum(r['right_kind'] for r in decoys)}/{len(decoys)}", "0; all"))
+    page.append(figure("time per record (mean / max)", _mean_max(times)))
+    about = (f"{len(rows)} forced records of {args.duration:g} s with an effect no named "
+             f"cause describes, `reference/unregistered.py`: {', '.join(effects)}")
+    return page, about
 
 
-def run_pairs(args: argparse.Namespace) -> None:
+def run_pairs(args: argparse.Namespace) -> tuple[list[dict[str, str]], str]:
     """Forced records from the reference simulator with two causes at once, each drawn at a
-    size that shows on its own; the pair is drawn from the seed (issue 15)."""
+    size that shows on its own; the pair is drawn from the seed (issue 15). The figures for
+    the page (none when no pair could be drawn), and what was run."""
     print(f"{args.pairs} forced records with two causes, {args.duration:g} s at 1 kHz",
           flush=True)
     rows = []
@@ -363,8 +446,11 @@ def run_pairs(args: argparse.Namespace) -> None:
               f"{' + '.join(pair):45s} -> {' + '.join(sorted(found)) or 'none':45s} "
               f"{elapsed:6.1f} s  {verdict}" + (f"  (cannot tell apart: {apart})" if apart
                                                 else ""), flush=True)
+    about = (f"{len(rows)} forced records with two causes at once ({args.pairs} tried), the "
+             f"pair drawn from the seed among all {len(CHOICES) - 1} causes, each at a size that "
+             f"shows on its own; {args.duration:g} s at 1 kHz")
     if not rows:
-        return
+        return [], about
     both = sum(r["found"] == r["pair"] for r in rows)
     extra = sum(bool(r["found"] - r["pair"]) for r in rows)
     one = sum(len(r["found"] & r["pair"]) == 1 and not r["found"] - r["pair"] for r in rows)
@@ -373,10 +459,15 @@ def run_pairs(args: argparse.Namespace) -> None:
           f"{100 * both / len(rows):.1f} % (goal >= 80 %); one of the two only: {one}; "
           f"a cause outside the pair: {extra}")
     print(f"seconds per record: mean {times.mean():.1f}, max {times.max():.1f}")
+    return [figure("both causes named, nothing else",
+                   f"{both}/{len(rows)} = {_percent(both, len(rows))}", ">= 80 %"),
+            figure("one of the two only; a cause outside the pair", f"{one}; {extra}"),
+            figure("time per record (mean / max)", _mean_max(times))], about
 
 
-def run_decays(args: argparse.Namespace, kinds: list[str]) -> None:
-    """Decays through the virtual rig, with their figures."""
+def run_decays(args: argparse.Namespace, kinds: list[str]) -> tuple[list[dict[str, str]], str]:
+    """Decays through the virtual rig, with their figures (printed, and for the page with
+    what was run)."""
     pairs = [(kind, c) for kind, causes in SHOWS_IN.items() if kind in kinds for c in causes]
     n = len(pairs) if args.quick else args.cases
     order = np.random.default_rng(args.seed).permutation(n) % len(pairs)
@@ -412,7 +503,7 @@ def run_decays(args: argparse.Namespace, kinds: list[str]) -> None:
               f"param err {rows[-1][4]:.3g}  rms gain {gain:.3g}"
               + (f"  + {' + '.join(extra)}" if extra else "")
               + ("  unexplained" if flagged else ""), flush=True)
-    _summary(rows)
+    return _summary(rows), f"{n} decays with a hidden cause, or none, through the virtual rig"
 
 
 def regime_right(case, report: dict) -> bool | None:
@@ -430,8 +521,9 @@ def regime_right(case, report: dict) -> bool | None:
     return case.regime == "chaotic" and judged.get("kind") == "chaotic"
 
 
-def run_forced(args: argparse.Namespace) -> None:
-    """Forced records from the reference simulator, with their figures."""
+def run_forced(args: argparse.Namespace) -> tuple[list[dict[str, str]], str]:
+    """Forced records from the reference simulator, with their figures (printed, and for the
+    page with what was run)."""
     causes = args.causes.split(",")
     plan = [(c, k) for k in range(1 if args.quick else args.per_cause) for c in causes]
     print(f"{len(plan)} forced records of {args.duration:g} s at 1 kHz, "
@@ -456,11 +548,20 @@ def run_forced(args: argparse.Namespace) -> None:
         print(f"[{i + 1}/{len(plan)}] {frequency:4.0f} Hz {laser:8s} {truth:22s} -> "
               f"{found:22s} {elapsed:6.1f} s  baseline {residual:7.3g} x noise  regime "
               f"{case.regime} judged {judged[:40]!r} {verdict}", flush=True)
-    summary(rows, args.duration)
+    per = 1 if args.quick else args.per_cause
+    drawn = f"{per} per cause" + (" and clean" if "none" in causes else "")
+    if len(causes) < len(CHOICES):
+        drawn = f"{per} each: {', '.join(causes)}"
+    about = (f"{len(plan)} forced records of {args.duration:g} s at 1 kHz from the independent "
+             f"reference simulator `reference`: {drawn}, 2 Hz and 10 Hz, laser or not, one "
+             "record alone")
+    return summary(rows, args.duration), about
 
 
-def summary(rows: list[dict], duration_s: float) -> None:
-    """The confusion matrix and the figures against the goals."""
+def summary(rows: list[dict], duration_s: float) -> list[dict[str, str]]:
+    """The confusion matrix and the figures against the goals, printed; the figures for the
+    page."""
+    page = []
     truths = sorted({r["truth"] for r in rows})
     found = sorted({r["found"] for r in rows if not r["found"].startswith("error")} | set(truths))
     print("\nconfusion matrix (rows: truth, columns: found)")
@@ -476,6 +577,8 @@ def summary(rows: list[dict], duration_s: float) -> None:
         goal = 100 * FORCED_GOALS["named"]
         print(f"\ncauses named: {named}/{len(with_cause)} = "
               f"{100 * named / len(with_cause):.1f} % (goal >= {goal:.0f} %)")
+        page.append(figure("causes named", f"{named}/{len(with_cause)} = "
+                           f"{_percent(named, len(with_cause))}", f">= {goal:.0f} %"))
     if clean:
         alarms = sum(r["found"] != "none" for r in clean)
         print(f"false alarms on clean records: {alarms}/{len(clean)} (goal 0)")
@@ -483,23 +586,36 @@ def summary(rows: list[dict], duration_s: float) -> None:
         print(f"clean records' baseline residual over the true noise: median "
               f"{np.nanmedian(residuals):.3g}, max {np.nanmax(residuals):.3g} "
               f"(goal <= {FORCED_GOALS['clean_residual_over_noise']:g})")
+        page += [figure("false alarms", f"{alarms}/{len(clean)}", "0"),
+                 figure("clean records' baseline residual / true noise (median / max)",
+                        f"{np.nanmedian(residuals):.3g} / {np.nanmax(residuals):.3g}",
+                        f"<= {FORCED_GOALS['clean_residual_over_noise']:g}")]
     scored = [r for r in rows if r["right"] is not None]
     right = sum(bool(r["right"]) for r in scored)
     print(f"regime judged right: {right}/{len(scored)} (goal: all); "
           f"{len(rows) - len(scored)} record(s) whose noiseless motion had not settled "
           "are not scored")
+    regimes = []
     for regime in sorted({r["regime"] for r in rows}):
         sub = [r for r in rows if r["regime"] == regime]
         hit = sum(r["truth"] == r["found"] for r in sub)
         print(f"  {regime:14s} {len(sub):3d} records, cause right on {hit}")
+        regimes.append(f"{len(sub)} {regime}")
+    page.append(figure("regime right on scored records",
+                       f"{right}/{len(scored)} ({len(rows) - len(scored)} not settled in the "
+                       f"noiseless truth; {', '.join(regimes)})", "all"))
     times = np.array([r["seconds"] for r in rows])
     scale = 60.0 / duration_s
     print(f"seconds per record: mean {times.mean():.1f}, max {times.max():.1f} "
           f"({scale * times.mean():.1f} and {scale * times.max():.1f} per 60 s record; goal "
           f"<= {FORCED_GOALS['seconds_per_60s']:g})")
+    page.append(figure(f"time per 60 s record on {os.cpu_count()} cores (mean / max)",
+                       _mean_max(times, scale), f"<= {FORCED_GOALS['seconds_per_60s']:g} s"))
+    return page
 
 
-def _summary(rows) -> None:
+def _summary(rows) -> list[dict[str, str]]:
+    """The decays' confusion matrix and figures, printed; the figures for the page."""
     truths = sorted({r[1] for r in rows})
     found = sorted({r[2] for r in rows} | set(truths))
     print("\nconfusion matrix (rows: truth, columns: found)")
@@ -512,28 +628,39 @@ def _summary(rows) -> None:
     nones = [r for r in rows if r[1] == "none"]
     alarms = sum(r[2] != "none" for r in nones)
     print(f"\naccuracy {correct}/{len(rows)} = {100 * correct / len(rows):.1f} % (goal >= 90 %)")
+    page = [figure("right cause", f"{correct}/{len(rows)} = {100 * correct / len(rows):.1f} %",
+                   ">= 90 %")]
     if nones:
         print(f"false alarms on none: {alarms}/{len(nones)} = {100 * alarms / len(nones):.1f} % "
               "(goal <= 5 %)")
-    print(f"records given a second cause beside their one: {sum(bool(r[6]) for r in rows)}/"
-          f"{len(rows)}")
+        page.append(figure("false alarms on `none`", f"{alarms}/{len(nones)}", "<= 5 %"))
+    second = sum(bool(r[6]) for r in rows)
+    print(f"records given a second cause beside their one: {second}/{len(rows)}")
     right = [r for r in rows if r[1] == r[2]]
     print(f"records named right but flagged unexplained (a false flag): "
           f"{sum(r[7] for r in right)}/{len(right)}")
+    page += [figure("a second cause given beside the one", f"{second}/{len(rows)}"),
+             figure("named right but flagged `unexplained`",
+                    f"{sum(r[7] for r in right)}/{len(right)}")]
     hits = [r for r in rows if r[1] == r[2] and r[1] != "none"]
     if hits:
         errs = np.array([r[4] for r in hits if np.isfinite(r[4])])
         gains = np.array([r[5] for r in hits])
         print(f"mean rms reduction when the cause is found: {100 * gains.mean():.1f} %")
+        page.append(figure("mean rms reduction", f"{100 * gains.mean():.1f} %"))
         if errs.size:
             print(f"parameter error of the true cause: median {100 * np.median(errs):.2g} %, "
                   f"max {100 * errs.max():.2g} %, within 20 %: {np.mean(errs < 0.2) * 100:.0f} %")
+            page.append(figure("true cause's parameters, error (median / max)",
+                               f"{100 * np.median(errs):.2g} % / {100 * errs.max():.2g} %"))
     times = np.array([r[3] for r in rows])
     for kind in sorted({r[0] for r in rows}):
         kt = np.array([r[3] for r in rows if r[0] == kind])
         print(f"time per {kind} case: mean {kt.mean():.1f} s, max {kt.max():.1f} s")
+        page.append(figure(f"time per {kind.replace('_', ' ')} (mean / max)", _mean_max(kt)))
     print(f"time per case: mean {times.mean():.1f} s = {times.mean() / BUDGET_S:.2f} x the "
           f"{BUDGET_S:.0f} s budget, max {times.max():.1f} s = {times.max() / BUDGET_S:.2f} x")
+    return page
 
 
 if __name__ == "__main__":

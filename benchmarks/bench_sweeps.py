@@ -24,12 +24,14 @@ as a ratio measured in one process.
     python benchmarks/bench_sweeps.py                       # 12 sweeps of 11 steps
     python benchmarks/bench_sweeps.py --sweeps 2 --up-steps 3 --json sweeps.json --overwrite
     python benchmarks/bench_sweeps.py --timing-only
+    python benchmarks/bench_sweeps.py --save    # also benchmarks/results/sweeps.json (the page)
 """
 
 from __future__ import annotations
 
 import argparse
 import math
+import os
 import sys
 import time
 from concurrent.futures import ProcessPoolExecutor
@@ -51,6 +53,7 @@ from analysis.sweep.diagram import (
     judge_measured,
 )
 from analysis.sweep.steps import DOWN, UP, Sweep, SweepStep
+from harness.results import figure, result, save
 from reference.sweeps import (
     AMPLITUDE_SWEEP_BETA,
     AMPLITUDE_SWEEP_HZ,
@@ -207,7 +210,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--timing-only", action="store_true", help="only the worker timing")
     parser.add_argument("--json", type=Path, help="write the rows and figures here")
     parser.add_argument("--overwrite", action="store_true", help="replace the --json file")
+    parser.add_argument("--save", action="store_true",
+                        help="also write the figures to benchmarks/results/sweeps.json")
     args = parser.parse_args(argv)
+    load = os.getloadavg()[0]
     if args.json and args.json.exists() and not args.overwrite:
         parser.error(f"{args.json}: exists; pass --overwrite to replace it")
     requests = [(FIRST_SEED + k, CAUSE_CYCLE[k % len(CAUSE_CYCLE)],
@@ -219,6 +225,7 @@ def main(argv: list[str] | None = None) -> int:
         figures["timing_16_steps_of_20_s"] = time_workers(truth)
         print(to_json_text(figures))
         _write(args, figures, [])
+        _save(args, figures, load)
         return 0
     clock = time.perf_counter()
     rows: list[dict[str, Any]] = []
@@ -235,6 +242,7 @@ def main(argv: list[str] | None = None) -> int:
         figures["timing_16_steps_of_20_s"] = time_workers(truth)
     print(to_json_text(figures))
     _write(args, figures, rows)
+    _save(args, figures, load)
     return 0
 
 
@@ -318,6 +326,48 @@ def _figures(rows: list[dict[str, Any]]) -> dict[str, Any]:
 
 def _share(flags: list[bool]) -> float | None:
     return sum(flags) / len(flags) if flags else None
+
+
+def _save(args: argparse.Namespace, figures: dict[str, Any], load: float) -> None:
+    """With ``--save``: the figures as rows of the benchmarks page (harness/results.py)."""
+    if not args.save:
+        return
+    rows = []
+    if "sweeps" in figures:
+        explanation = figures["explanation"]
+        rows = [
+            figure("steps whose regime the true model / the baseline gets right",
+                   f"{_percent(figures['true_model_steps_agreeing'])} / "
+                   f"{_percent(figures['baseline_steps_agreeing'])} of {figures['steps']} "
+                   f"steps ({_percent(figures['steps_undetermined_measured'])} undetermined "
+                   "as measured)"),
+            figure("hidden cause named; its parameters within their 95 % intervals",
+                   f"{_percent(explanation['hidden_cause_named'])}; "
+                   f"{_percent(explanation['hidden_cause_named_within_ci95'])}"),
+            figure("clean sweeps with no cause named",
+                   _percent(explanation["clean_sweeps_no_cause"])),
+            figure("explained model right where the fitted baseline is wrong",
+                   f"{_percent(explanation['explained_agreeing_where_baseline_missed'])} of "
+                   f"{explanation['baseline_missed_steps']} steps"),
+            figure("explanations failed", f"{explanation['failed']}/{figures['sweeps']}"),
+        ]
+    timing = figures.get("timing_16_steps_of_20_s")
+    if timing is not None:
+        rows.append(figure(
+            "16 steps of 20 s, baseline and true model: 2 workers vs 1 (same results)",
+            f"{timing['speed_up']:.2f}x faster"
+            + ("" if timing["same_results"] else " (results DIFFER)")))
+    if not rows:
+        print("no figures to save (no sweep and no timing)")
+        return
+    about = ("only the worker timing" if args.timing_only else
+             f"{args.sweeps} sweeps from the independent reference simulator, "
+             "`reference/sweeps.py`, one hidden cause each or none")
+    save(result("sweeps", rows, about=about, load_at_start=load))
+
+
+def _percent(share: float | None) -> str:
+    return "-" if share is None else f"{100 * share:.0f} %"
 
 
 if __name__ == "__main__":
