@@ -5,9 +5,13 @@ from __future__ import annotations
 import argparse
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from rig.cli import CommandError, add_command
 from rig.logs import progress
+
+if TYPE_CHECKING:  # the demo is imported when it runs: a fast --help
+    from rig.demo.settings import HiddenCause
 
 DEFAULT_OUT = "impact-rig-demo"
 
@@ -118,19 +122,11 @@ def _cause_from_rig_file(config_path: str | None, params: dict[str, float]):
     return name, dict(values)
 
 
-def run(args: argparse.Namespace) -> int:
-    """Validate the options, run the demo, print where the report is."""
-    from rig.config import ConfigError
-    from rig.demo.record import prepare_folder
-    from rig.demo.run import run_demo
-    from rig.demo.settings import (
-        DEFAULT_CAUSE,
-        DEFAULT_CAUSE_VALUES,
-        FULL,
-        QUICK,
-        DemoError,
-        hidden_cause,
-    )
+def hidden_from_options(args: argparse.Namespace) -> HiddenCause:
+    """The effect the demo's virtual rig hides: ``--cause`` with its ``--param`` values, else
+    the one the rig file's ``[virtual.causes]`` switches on, else the default cause (a bad
+    name or parameter is a :class:`~rig.demo.settings.DemoError` saying which)."""
+    from rig.demo.settings import DEFAULT_CAUSE, DEFAULT_CAUSE_VALUES, hidden_cause
 
     params = _parse_params(args.param)
     name = args.cause
@@ -138,13 +134,23 @@ def run(args: argparse.Namespace) -> int:
         name, params = _cause_from_rig_file(args.config, params)
     if name == DEFAULT_CAUSE and not params:
         params = dict(DEFAULT_CAUSE_VALUES)
+    return hidden_cause(name, params)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Validate the options, run the demo, print where the report is."""
+    from rig.config import ConfigError
+    from rig.demo.record import prepare_folder
+    from rig.demo.run import run_demo
+    from rig.demo.settings import FULL, QUICK, DemoError
+
     started = time.monotonic()
 
     def timed_progress(text: str) -> None:
         progress(f"[{time.monotonic() - started:5.1f} s] {text}")
 
     try:
-        hidden = hidden_cause(name, params)
+        hidden = hidden_from_options(args)
         prepare_folder(Path(args.out), overwrite=args.overwrite)  # refuse before any work
         result = run_demo(
             Path(args.out),

@@ -5,7 +5,10 @@ from __future__ import annotations
 
 import pytest
 
+from rig.cli import build_parser
+from rig.commands.demo import hidden_from_options
 from rig.config import ConfigError, load_config, parse_config
+from rig.demo.record import demo_config
 from rig.devices import open_rig
 
 BASE = load_config().text
@@ -50,3 +53,27 @@ def test_the_virtual_rig_runs_the_model_with_the_files_causes():
         assert {k: dict(v) for k, v in model.extensions.items()} == {
             "coulomb_friction": {"Tc_N_m": 3e-5}
         }
+
+
+@pytest.mark.parametrize(
+    ("options", "file_causes", "expected"),
+    [
+        (["--cause", "sensor_offset", "--param", "offset_rad=0.004"], "",
+         {"sensor_offset": {"offset_rad": 0.004}}),
+        ([], "", {"coulomb_friction": {"Tc_N_m": 2e-5}}),  # the demo's default
+        ([], "barrier_offset = { theta_b_rad = 0.01 }",
+         {"barrier_offset": {"theta_b_rad": 0.01}}),
+        (["--cause", "none"], "coulomb_friction = { Tc_N_m = 3e-5 }", {}),
+    ],
+    ids=["--cause", "default", "the rig file's", "--cause none over the rig file's"],
+)
+def test_the_demos_cause_is_the_one_its_virtual_rig_runs(tmp_path, options, file_causes,
+                                                         expected):
+    rig_file = tmp_path / "lab.toml"
+    rig_file.write_text(BASE + (f"\n[virtual.causes]\n{file_causes}\n" if file_causes else ""),
+                        encoding="utf-8")
+    args = build_parser().parse_args(["demo", "--config", str(rig_file), *options])
+    hidden = hidden_from_options(args)
+    with open_rig(demo_config(load_config(rig_file), hidden)) as devices:
+        model = devices.sim.rig.model
+        assert {k: dict(v) for k, v in model.extensions.items()} == expected
