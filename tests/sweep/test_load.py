@@ -12,7 +12,8 @@ import pytest
 from analysis.exchange import read_meta, sidecar_path
 from analysis.sweep.load import SweepFormatError, is_sweep, load_sweep
 from rig.cli import main
-from tests.sweep.recordings import sine_sweep, write_sweep_recording
+from tests.reference.sweeps import write_marked_recording
+from tests.sweep.recordings import sine_sweep
 
 FS = 500.0
 AMPLITUDES = (1e-3, 2e-3, 3e-3, 2e-3)
@@ -23,7 +24,7 @@ def _recording(tmp_path: Path, name: str = "sweep.h5", **options) -> Path:
     angle, edges, marks = sine_sweep(AMPLITUDES, fs=FS, complete=complete)
     marks = options.pop("marks", marks)
     edges = options.pop("edges", edges)
-    return write_sweep_recording(tmp_path / name, angle, FS, edges, marks,
+    return write_marked_recording(tmp_path / name, angle, FS, edges, marks,
                                  table=1e-3 * angle, **options)
 
 
@@ -73,7 +74,7 @@ def test_short_step_and_lost_samples_are_set_aside(tmp_path: Path) -> None:
     angle, edges, marks = sine_sweep(AMPLITUDES, fs=FS)
     # step 1's dwell cut to 1 s; samples of step 2's dwell lost
     marks[1] = replace(marks[1], dwell_end_index=marks[1].dwell_start_index + 500)
-    path = write_sweep_recording(tmp_path / "s.h5", angle, FS, edges, marks,
+    path = write_marked_recording(tmp_path / "s.h5", angle, FS, edges, marks,
                                  lost=(5000, 5200))
     sweep = load_sweep([path])
     assert [s.number for s in sweep.steps] == [0, 3]
@@ -93,7 +94,7 @@ def test_bad_sweep_file_is_refused_in_one_line(tmp_path: Path, change: str,
     angle, edges, marks = sine_sweep(AMPLITUDES, fs=FS)
     if change == "none":
         # a recording without marks is no sweep; asked to load one as a sweep it is refused
-        path = write_sweep_recording(tmp_path / "s.h5", angle, FS, edges, marks[:1])
+        path = write_marked_recording(tmp_path / "s.h5", angle, FS, edges, marks[:1])
         import h5py
         with h5py.File(path, "a") as f:
             f["sweep_steps"].resize((0,))
@@ -105,7 +106,7 @@ def test_bad_sweep_file_is_refused_in_one_line(tmp_path: Path, change: str,
                           | (edges >= marks[1].dwell_end_index)]
         else:
             marks = [replace(m, complete=False) for m in marks]
-        path = write_sweep_recording(tmp_path / "s.h5", angle, FS, edges, marks)
+        path = write_marked_recording(tmp_path / "s.h5", angle, FS, edges, marks)
     with pytest.raises(SweepFormatError) as error:
         load_sweep([path])
     text = str(error.value)
