@@ -41,6 +41,9 @@ from rig.recorder import Recorder, RecorderThread, RecordingError, RecordingMeta
 Progress = Callable[[str], None]
 FIRST_DATA_TIMEOUT_S = 15.0  # generous: a loaded lab PC can be slow to start streaming
 TRIGGER_SLACK_S = 2.0  # how late the release may be noticed without shortening the pre-trigger
+# A wait counted on the samples gives up (the stream stopped) after this many times its
+# length on the wall clock, plus FIRST_DATA_TIMEOUT_S.
+SAMPLE_WAIT_SLACK = 4.0
 
 
 class ProcedureError(RuntimeError):
@@ -314,6 +317,17 @@ class ProcedureSession:
                 return False
             self._failed.wait(min(0.05, remaining))
 
+    def wait_samples(self, since_index: int, seconds: float) -> int:
+        """Wait until the ``seconds`` of samples after index ``since_index`` have arrived,
+        watching for failures: the rig's own clock, so that a host that falls behind (a
+        loaded PC; a virtual rig slower than its speed) still records what was planned.
+        Returns the index ``seconds`` on, or the newest one received when the stream gave
+        out first (SAMPLE_WAIT_SLACK)."""
+        target = since_index + round(seconds * self.fs)
+        self.wait(SAMPLE_WAIT_SLACK * seconds + FIRST_DATA_TIMEOUT_S,
+                  until=lambda: (self.engine.latest_index or 0) >= target)
+        return min(target, self.engine.latest_index or since_index)
+
     def set_drive(self, frequency_hz: float, amplitude_m: float) -> None:
         """Command the drive (validated by the shaker's limits) and log it in the file; nothing
         is commanded once the procedure must stop."""
@@ -554,6 +568,7 @@ class SweepPlan:
     parameter: str  # "frequency" or "amplitude"
     values: tuple[float, ...]  # the upward steps; the way down repeats them in reverse
     fixed: float  # the other setting: amplitude_m for a frequency sweep, frequency_hz otherwise
+    # each step's settle and dwell, counted on the samples (the rig's own clock)
     settle_s: float = 3.0
     dwell_s: float = 5.0
     down: bool = True
@@ -636,16 +651,14 @@ def run_sweep(
                 complete=False,
             )
             try:
-                session.wait(plan.settle_s)
-                dwell_start = session.engine.latest_index or settle_start
+                dwell_start = session.wait_samples(settle_start, plan.settle_s)
                 mark = replace(mark, dwell_start_index=dwell_start, dwell_end_index=dwell_start)
                 progress(f"step {number + 1}/{len(steps)} {arrow}: dwell {plan.dwell_s:g} s")
-                session.wait(plan.dwell_s)
+                end = session.wait_samples(dwell_start, plan.dwell_s)
             except BaseException:
                 end = session.engine.latest_index or mark.dwell_start_index
                 session.engine.mark_step(replace(mark, dwell_end_index=end))
                 raise
-            end = session.engine.latest_index or dwell_start
             session.engine.mark_step(replace(mark, dwell_end_index=end, complete=True))
             done += 1
     return session.result(FORCED.name, steps=done)
