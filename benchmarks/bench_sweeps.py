@@ -32,7 +32,7 @@ diagrams on N workers), with whether the two explanations' reports are the same.
     python benchmarks/bench_sweeps.py                       # 12 sweeps of 11 steps
     python benchmarks/bench_sweeps.py --sweeps 2 --up-steps 3 --json sweeps.json --overwrite
     python benchmarks/bench_sweeps.py --timing-only
-    python benchmarks/bench_sweeps.py --sweeps 1 --up-steps 2 --settle 2 --dwell 3 \
+    python benchmarks/bench_sweeps.py --sweeps 1 --up-steps 2 --settle 2 --dwell 3 \\
         --timing-steps 2 --timing-settle 2 --timing-dwell 3       # the smallest, a smoke run
 """
 
