@@ -12,6 +12,7 @@ before the pendulum moved); sweeps mark every step with its setting in the file.
 from __future__ import annotations
 
 import contextlib
+import math
 import threading
 import time
 from collections import deque
@@ -41,9 +42,9 @@ from rig.recorder import Recorder, RecorderThread, RecordingError, RecordingMeta
 Progress = Callable[[str], None]
 FIRST_DATA_TIMEOUT_S = 15.0  # generous: a loaded lab PC can be slow to start streaming
 TRIGGER_SLACK_S = 2.0  # how late the release may be noticed without shortening the pre-trigger
-# A wait counted on the samples gives up (the stream stopped) after this many times its
-# length on the wall clock, plus FIRST_DATA_TIMEOUT_S.
-SAMPLE_WAIT_SLACK = 4.0
+# A wait counted on the samples that sees no new sample this long (wall clock) ends the
+# procedure: the stream stopped (a slow one, as a loaded PC's virtual rig, is waited for)
+SAMPLES_STALL_S = 15.0
 
 
 class ProcedureError(RuntimeError):
@@ -321,12 +322,25 @@ class ProcedureSession:
         """Wait until the ``seconds`` of samples after index ``since_index`` have arrived,
         watching for failures: the rig's own clock, so that a host that falls behind (a
         loaded PC; a virtual rig slower than its speed) still records what was planned.
-        Returns the index ``seconds`` on, or the newest one received when the stream gave
-        out first (SAMPLE_WAIT_SLACK)."""
+        Returns the index ``seconds`` on; a ProcedureError when no sample arrives for
+        SAMPLES_STALL_S."""
         target = since_index + round(seconds * self.fs)
-        self.wait(SAMPLE_WAIT_SLACK * seconds + FIRST_DATA_TIMEOUT_S,
-                  until=lambda: (self.engine.latest_index or 0) >= target)
-        return min(target, self.engine.latest_index or since_index)
+        newest = [self.engine.latest_index or since_index, time.monotonic()]
+
+        def arrived() -> bool:
+            latest = self.engine.latest_index or since_index
+            now = time.monotonic()
+            if latest != newest[0]:
+                newest[:] = [latest, now]
+            elif now - newest[1] > SAMPLES_STALL_S:
+                raise ProcedureError(
+                    f"no samples from the DAQ board for {SAMPLES_STALL_S:g} s (the newest is "
+                    f"sample {latest}; {self.devices.board.status().message or 'no message'})"
+                )
+            return latest >= target
+
+        self.wait(math.inf, until=arrived)
+        return target
 
     def set_drive(self, frequency_hz: float, amplitude_m: float) -> None:
         """Command the drive (validated by the shaker's limits) and log it in the file; nothing

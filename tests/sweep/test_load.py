@@ -70,6 +70,16 @@ def test_interrupted_step_is_set_aside_and_the_sweep_kept_to_it(tmp_path: Path) 
     assert [(s.number, s.reason.split(":")[0]) for s in sweep.set_aside] == [(3, "interrupted")]
 
 
+def test_a_step_interrupted_before_its_dwell_began_is_set_aside(tmp_path: Path) -> None:
+    *_, marks = sine_sweep(AMPLITUDES, fs=FS, complete=[True, True, True, False])
+    settle = marks[3].settle_start_index  # stopped while settling: an empty dwell
+    marks[3] = replace(marks[3], dwell_start_index=settle, dwell_end_index=settle)
+    path = _recording(tmp_path, marks=marks)
+    sweep = load_sweep([path])
+    assert [s.number for s in sweep.steps] == [0, 1, 2]
+    assert [(s.number, s.reason.split(":")[0]) for s in sweep.set_aside] == [(3, "interrupted")]
+
+
 def test_short_step_and_lost_samples_are_set_aside(tmp_path: Path) -> None:
     angle, edges, marks = sine_sweep(AMPLITUDES, fs=FS)
     # step 1's dwell cut to 1 s; samples of step 2's dwell lost
