@@ -41,6 +41,12 @@ from hardware_sim.daq_faults import (
 from hardware_sim.daq_firmware import DEFAULT_IDENTITY, DaqFirmware
 from hardware_sim.sample_source import CounterSource, SampleSource
 
+# Frames produced per pass of the service loop before what is queued is written: a board
+# whose simulation falls behind its clock (a loaded PC) streams on a few frames at a time
+# instead of computing everything due first (seconds to minutes of silence, then lost
+# frames from a full FIFO)
+FRAMES_PER_PASS = 8
+
 
 class DaqEmulator:
     """A simulated DAQ board behind a pty; start() it, point a driver at ``port``."""
@@ -170,7 +176,7 @@ class DaqEmulator:
         per_frame = config.samples_per_frame
         paced = self.firmware.paced
         if paced:
-            due_frames = self.firmware.frames_due()
+            due_frames = min(self.firmware.frames_due(), FRAMES_PER_PASS)
         else:
             due_frames = 1 if len(self._out) < self.fifo_bytes else 0
         for _ in range(due_frames):

@@ -19,13 +19,19 @@ angle sensor's).  The step lengths are the caller's (by default an 8 s settle, w
 lightly damped pendulum needs, and a 6 s dwell): the reference simulator costs about 0.4 s
 of computing per second simulated (a 20 s step about 8 s), so a test keeps to a few short
 steps and the benchmark takes the default ones.
+
+A small sweep of a fixed rig (:func:`generate_sweep`: a few amplitude steps, optionally
+interrupted) is written straight to a recording with its step marks, for the shared fit's
+tests; :func:`write_marked_recording` writes any sweep's channels so.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -44,11 +50,20 @@ from reference.forced_records import (
     RigTruth,
     draw_rig,
     quantise,
+    tach_pulses,
     true_pendulum,
     true_table,
 )
 from reference.regime_truth import MAX_PERIOD, strobe_times
-from reference.simulator import OverTheTopError, TableMotion, simulate_reference
+from reference.simulator import (
+    OverTheTopError,
+    Pendulum,
+    TableMotion,
+    simulate_reference,
+)
+
+if TYPE_CHECKING:
+    from rig.events import StepMark
 
 # Causes that move the diagram, and causes that only distort its reading.
 MOVES_DIAGRAM = ("barrier_offset", "excitation_distortion", "excitation_amplitude",
@@ -496,3 +511,115 @@ def truth_model(truth: SweepTruth, *, with_cause: bool = True) -> Model:
         for name, values in truth.causes.items():
             model = model.with_extension(name, **values)
     return model
+
+
+# -- A small sweep for the shared fit's tests, written as a recording with its step marks ---
+
+SMALL_SWEEP_RIG = RigTruth(m_kg=0.0326, l_m=0.05, L_m=0.048, R_m=0.0095, g_m_s2=9.81,
+                           zeta=0.008, E_Pa=2.0e6, mu0_s_per_m=0.8)
+SMALL_SWEEP_ANGLE_STEP_RAD = math.pi / 2**16
+MARKED_BLOCK = 100  # samples per block a marked recording is written in
+
+
+@dataclass(frozen=True)
+class SmallSweepTruth:
+    """What a small generated sweep hides: the rig, the barrier, the settings."""
+
+    rig: RigTruth
+    theta_b_rad: float
+    frequency_hz: float
+    amplitudes_m: tuple[float, ...]
+    noise_rad: float
+
+
+def generate_sweep(
+    path: Path, *, seed: int, theta_b_rad: float = 0.0, frequency_hz: float = 10.0,
+    betas: tuple[float, ...] = (0.02, 0.03, 0.04), settle_s: float = 2.0,
+    dwell_s: float = 5.0, fs: float = 500.0, noise_rad: float = 1e-3,
+    interrupted_at: int | None = None,
+) -> SmallSweepTruth:
+    """A small seeded amplitude sweep of :data:`SMALL_SWEEP_RIG` (each step settled and
+    dwelt on, the motion continued from step to step as a rig runs it), written to
+    ``path`` as a recording (angle, table, tach and its step marks);
+    ``interrupted_at``: the sweep stops half way through that step."""
+    from rig.events import StepMark  # only the recording needs the rig package
+
+    rng = np.random.default_rng(seed)
+    rig = SMALL_SWEEP_RIG
+    pendulum = Pendulum(m_kg=rig.m_kg, l_m=rig.l_m, L_m=rig.L_m, zeta=rig.zeta,
+                        K_n=rig.K_N_per_m1_5, mu0_s_per_m=rig.mu0_s_per_m,
+                        g_m_s2=rig.g_m_s2, theta_b_rad=theta_b_rad)
+    phase0 = float(rng.uniform(0.0, 2.0 * math.pi))
+    amplitudes = tuple(round(b * rig.L_m, 6) for b in betas)
+    per_step = round((settle_s + dwell_s) * fs)
+    state = np.array([-0.05, 0.0])
+    angles, tables, tachs, marks = [], [], [], []
+    for k, amplitude in enumerate(amplitudes):
+        first = k * per_step
+        n = per_step if interrupted_at != k else per_step // 2
+        t = (first + np.arange(n)) / fs
+        table = TableMotion(amplitude, frequency_hz, phase0)
+        run = simulate_reference(pendulum, table, state[0], state[1], t, t_start_s=t[0],
+                                 t_end_s=(first + per_step) / fs)
+        state = run.final_state[:2]
+        angles.append(quantise(run.theta_rad + rng.normal(0.0, noise_rad, n),
+                               SMALL_SWEEP_ANGLE_STEP_RAD))
+        tables.append(quantise(table.displacement(t) + rng.normal(0.0, 1e-5, n), 1e-6))
+        tachs.append(first + np.flatnonzero(tach_pulses(t, table)))
+        marks.append(StepMark(k, 1, frequency_hz, amplitude, first,
+                              first + round(settle_s * fs), first + per_step,
+                              interrupted_at != k))
+        if interrupted_at == k:
+            break
+    write_marked_recording(path, np.concatenate(angles), fs, np.concatenate(tachs), marks,
+                           table=np.concatenate(tables))
+    return SmallSweepTruth(rig, theta_b_rad, frequency_hz, amplitudes[:len(marks)],
+                           noise_rad)
+
+
+def write_marked_recording(
+    path: Path, angle: np.ndarray, fs: float, tach_edges: np.ndarray,
+    steps: Sequence[StepMark], *, table: np.ndarray | None = None,
+    lost: tuple[int, int] | None = None,
+) -> Path:
+    """Write ``angle`` (and ``table``) sampled at ``fs`` with tach rising edges at sample
+    indices ``tach_edges`` and the sweep's step marks ``steps``, through the project's
+    recorder, in blocks of :data:`MARKED_BLOCK` samples; ``lost`` = (start, stop) sample
+    indices that never arrive (whole blocks)."""
+    from drivers.interfaces import PulseBlock, SampleBlock
+    from rig.recorder import ChannelSpec, Recorder, RecordingMetadata
+
+    specs = [ChannelSpec("angle", "samples", "rad", fs, raw_dtype="int32")]
+    if table is not None:
+        specs.append(ChannelSpec("table", "samples", "m", fs, raw_dtype="int32"))
+    specs.append(ChannelSpec("tach", "pulses", "", fs))
+    rig = SMALL_SWEEP_RIG
+    meta = RecordingMetadata(
+        experiment="forced",
+        rig={"m_kg": rig.m_kg, "l_m": rig.l_m, "R_m": rig.R_m, "g": rig.g_m_s2},
+        roles={"angle": "angle", "table": "table", "tach": "tach"},
+        drive={"frequency_hz": steps[0].frequency_hz, "amplitude_m": steps[0].amplitude_m},
+    )
+    edges_all = np.asarray(tach_edges, dtype=np.int64)
+    with Recorder(path, specs, meta) as recorder:
+        for mark in steps:
+            recorder.add(mark, 0.0)
+        lost_before = 0
+        for start in range(0, angle.size, MARKED_BLOCK):
+            stop = min(start + MARKED_BLOCK, angle.size)
+            if lost is not None and lost[0] <= start < lost[1]:
+                lost_before += stop - start
+                continue
+            t0 = start / fs
+            for name, data in (("angle", angle), ("table", table)):
+                if data is None:
+                    continue
+                part = data[start:stop]
+                recorder.add(SampleBlock(name, start, t0, fs,
+                                         np.round(part * 1e6).astype(np.int32), part,
+                                         lost_before=lost_before), t0)
+            edges = edges_all[(edges_all >= start) & (edges_all < stop)]
+            recorder.add(PulseBlock("tach", start, stop, edges, edges / fs,
+                                    lost_before=lost_before), t0)
+            lost_before = 0
+    return Path(path)

@@ -12,6 +12,7 @@ before the pendulum moved); sweeps mark every step with its setting in the file.
 from __future__ import annotations
 
 import contextlib
+import math
 import threading
 import time
 from collections import deque
@@ -41,6 +42,9 @@ from rig.recorder import Recorder, RecorderThread, RecordingError, RecordingMeta
 Progress = Callable[[str], None]
 FIRST_DATA_TIMEOUT_S = 15.0  # generous: a loaded lab PC can be slow to start streaming
 TRIGGER_SLACK_S = 2.0  # how late the release may be noticed without shortening the pre-trigger
+# A wait counted on the samples that sees no new sample this long (wall clock) ends the
+# procedure: the stream stopped (a slow one, as a loaded PC's virtual rig, is waited for)
+SAMPLES_STALL_S = 15.0
 
 
 class ProcedureError(RuntimeError):
@@ -314,6 +318,30 @@ class ProcedureSession:
                 return False
             self._failed.wait(min(0.05, remaining))
 
+    def wait_samples(self, since_index: int, seconds: float) -> int:
+        """Wait until the ``seconds`` of samples after index ``since_index`` have arrived,
+        watching for failures: the rig's own clock, so that a host that falls behind (a
+        loaded PC; a virtual rig slower than its speed) still records what was planned.
+        Returns the index ``seconds`` on; a ProcedureError when no sample arrives for
+        SAMPLES_STALL_S."""
+        target = since_index + round(seconds * self.fs)
+        newest = [self.engine.latest_index or since_index, time.monotonic()]
+
+        def arrived() -> bool:
+            latest = self.engine.latest_index or since_index
+            now = time.monotonic()
+            if latest != newest[0]:
+                newest[:] = [latest, now]
+            elif now - newest[1] > SAMPLES_STALL_S:
+                raise ProcedureError(
+                    f"no samples from the DAQ board for {SAMPLES_STALL_S:g} s (the newest is "
+                    f"sample {latest}; {self.devices.board.status().message or 'no message'})"
+                )
+            return latest >= target
+
+        self.wait(math.inf, until=arrived)
+        return target
+
     def set_drive(self, frequency_hz: float, amplitude_m: float) -> None:
         """Command the drive (validated by the shaker's limits) and log it in the file; nothing
         is commanded once the procedure must stop."""
@@ -554,6 +582,7 @@ class SweepPlan:
     parameter: str  # "frequency" or "amplitude"
     values: tuple[float, ...]  # the upward steps; the way down repeats them in reverse
     fixed: float  # the other setting: amplitude_m for a frequency sweep, frequency_hz otherwise
+    # each step's settle and dwell, counted on the samples (the rig's own clock)
     settle_s: float = 3.0
     dwell_s: float = 5.0
     down: bool = True
@@ -636,16 +665,14 @@ def run_sweep(
                 complete=False,
             )
             try:
-                session.wait(plan.settle_s)
-                dwell_start = session.engine.latest_index or settle_start
+                dwell_start = session.wait_samples(settle_start, plan.settle_s)
                 mark = replace(mark, dwell_start_index=dwell_start, dwell_end_index=dwell_start)
                 progress(f"step {number + 1}/{len(steps)} {arrow}: dwell {plan.dwell_s:g} s")
-                session.wait(plan.dwell_s)
+                end = session.wait_samples(dwell_start, plan.dwell_s)
             except BaseException:
                 end = session.engine.latest_index or mark.dwell_start_index
                 session.engine.mark_step(replace(mark, dwell_end_index=end))
                 raise
-            end = session.engine.latest_index or dwell_start
             session.engine.mark_step(replace(mark, dwell_end_index=end, complete=True))
             done += 1
     return session.result(FORCED.name, steps=done)

@@ -5,6 +5,7 @@ on a chaotic record, the invariant statistics of the model's own long run."""
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 
 import numpy as np
 
@@ -36,9 +37,19 @@ def table_contradiction(data: ForcedData, model: ModelSpec, fit: ShootingFit, *,
                         absent_only: bool = False,
                         policy: SelectionPolicy = DEFAULT_POLICY) -> str | None:
     """Why the drive causes' sizes fitted from the angle contradict what the table channel
-    measured of them (the laser watches the table itself), or None: the two differ by the
-    policy's ``table_z`` standard errors of their difference and by its
-    ``table_tolerance`` of the larger.  A table amplitude or
+    measured of them (the laser watches the table itself), or None
+    (:func:`table_gaps` on the record's measured drive)."""
+    return table_gaps(data.drive.measured_sizes(), model, fit.estimates,
+                      absent_only=absent_only, policy=policy)
+
+
+def table_gaps(measured: Mapping[str, Estimate], model: ModelSpec,
+               fitted_sizes: Mapping[str, Estimate], *, absent_only: bool = False,
+               policy: SelectionPolicy = DEFAULT_POLICY) -> str | None:
+    """Why the drive causes' sizes ``fitted_sizes`` (fitted from the angle) contradict
+    ``measured`` (the table channel's measurement of them, keyed as the causes'
+    parameters), or None: the two differ by the policy's ``table_z`` standard errors of
+    their difference and by its ``table_tolerance`` of the larger.  A table amplitude or
     harmonic that only the angle's fit wants is another effect's stand-in: a second
     harmonic of 4e-4 was fitted beside a sensor lag where the laser measured 2e-6 +- 6e-6.
 
@@ -48,11 +59,10 @@ def table_contradiction(data: ForcedData, model: ModelSpec, fit: ShootingFit, *,
     def standard_error(e: Estimate) -> float:  # none known counts as none
         return e.half_width / Z95 if math.isfinite(e.half_width) else 0.0
 
-    measured = data.drive.measured_sizes()
     reasons = []
     for name in model.causes:
         for spec in cause(name).parameters:
-            laser, fitted = measured.get(spec.name), fit.estimates.get(spec.name)
+            laser, fitted = measured.get(spec.name), fitted_sizes.get(spec.name)
             if laser is None or fitted is None:
                 continue
             if absent_only and \

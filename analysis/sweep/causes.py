@@ -18,10 +18,19 @@ their standard errors, the FALSE_ALARM quantile divided among the causes' parame
 the cause explains the sweep only with a different size on each step, which is no
 explanation; it is not named, and how its size would have to vary with the drive (a
 trend in the setting, or none) is a ``constancy`` residual finding.
+
+The table channel checks a drive cause across the sweep as it does on a single record
+(:func:`analysis.discrepancy.forced_judges.table_gaps`): one shared size of the table's
+amplitude error (``eps``) or second harmonic (``h2``) is measured by the laser on every
+step that has a table channel, and those steps' measurements, combined by their inverse
+variances (:func:`table_sizes`), are what a size fitted from the angle must not
+contradict.  A screened cause whose size the laser found absent is not fitted further;
+a fitted one the laser contradicts is disqualified.
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, replace
 from typing import Any
@@ -30,6 +39,7 @@ import numpy as np
 from scipy import stats
 
 from analysis.discrepancy.candidates import candidates_for
+from analysis.discrepancy.forced_judges import table_gaps
 from analysis.discrepancy.forced_models import (
     REFINE_ITERATIONS,
     SideBySide,
@@ -130,6 +140,28 @@ def _per_step(data: SweepData, free: list[FreeParameter], names: Sequence[str]
     return out
 
 
+def table_sizes(data: SweepData) -> dict[str, Estimate]:
+    """What the table channel measured of the drive causes' sizes over the sweep: each
+    size's measurements on the steps with a table channel, combined by their inverse
+    variances, with the 95 % interval of the combination (the plain mean, with no interval,
+    when no step's measurement has one); empty when no step has a table channel."""
+    by_name: dict[str, list[Estimate]] = {}
+    for step in data.steps:
+        for name, estimate in step.drive.measured_sizes().items():
+            by_name.setdefault(name, []).append(estimate)
+    out = {}
+    for name, estimates in by_name.items():
+        known = [e for e in estimates if math.isfinite(e.half_width) and e.half_width > 0.0]
+        if not known:
+            out[name] = Estimate(float(np.mean([e.value for e in estimates])))
+            continue
+        weights = np.array([(Z95 / e.half_width) ** 2 for e in known])
+        mean = float(np.dot(weights, [e.value for e in known]) / weights.sum())
+        half = Z95 / math.sqrt(float(weights.sum()))
+        out[name] = Estimate(mean, (mean - half, mean + half))
+    return out
+
+
 def gain_over(data: SweepData, parent: ShootingFit, fit: ShootingFit) -> float:
     """The information-criterion gain of ``fit`` over ``parent`` (the criterion reads only
     the fits' residuals and parameter counts)."""
@@ -145,6 +177,7 @@ class SweepSteps:
                  policy: SelectionPolicy) -> None:
         self.ident, self.data, self.lay, self.hints = ident, ident.data, lay, hints
         self.names, self.threads, self.policy = list(names), threads, policy
+        self.table = table_sizes(self.data)
         self.beside: dict[str, ShootingFit] = {}
         self.singles: dict[str, SweepModelFits] = {}
 
@@ -196,7 +229,8 @@ class SweepSteps:
                 for name, fit in self.beside.items()}
 
     def refused(self, current: SweepModelFits, name: str) -> str | None:
-        return None
+        return table_gaps(self.table, current.model.plus(name), self.beside[name].estimates,
+                          absent_only=True, policy=self.policy)
 
     def fit(self, current: SweepModelFits, names: Sequence[str]
             ) -> tuple[ShootingFit, dict[str, ShootingFit]]:
@@ -210,7 +244,8 @@ class SweepSteps:
         return gain_over(self.data, parent, fit)
 
     def disqualification(self, model: ModelSpec, fit: ShootingFit) -> str | None:
-        return implausibility(model, fit.values)
+        return implausibility(model, fit.values) or \
+            table_gaps(self.table, model, fit.estimates, policy=self.policy)
 
     def estimates(self, fit: ShootingFit) -> Mapping[str, Estimate]:
         return fit.estimates

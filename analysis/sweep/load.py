@@ -83,7 +83,8 @@ def sweep_from_recording(path: str | Path) -> Sweep:
                                "forced record is analysed without them")
     _check_order(path, [(int(r["step"]), int(r["settle_start_index"]),
                          int(r["dwell_start_index"]), int(r["dwell_end_index"]))
-                        for r in rows])
+                        for r in rows],
+                 interrupted={int(r["step"]) for r in rows if not r["complete"]})
     rate = _rate(arrays.indices, arrays.time_s)
     steps, aside = [], []
     for row in rows:
@@ -125,7 +126,9 @@ def sweep_from_exchange(path: str | Path, meta_path: str | Path | None = None) -
         raise SweepFormatError(f"{meta_path or sidecar_path(path)}: sweep_steps: each step "
                                "needs step, start_s, dwell_start_s, dwell_end_s "
                                f"({error!r})") from None
-    _check_order(path, spans)
+    _check_order(path, spans, interrupted={number for (number, *_), entry
+                                           in zip(spans, listed, strict=True)
+                                           if not entry.get("complete", True)})
     t = whole.time_s
     dt = float(np.median(np.diff(t))) if t.size > 1 else 0.0
     steps, aside = [], []
@@ -171,11 +174,13 @@ def sweep_from_step_files(paths: Sequence[str | Path]) -> Sweep:
 
 
 def _check_order(path: str | Path, spans: list[tuple[int, int | float, int | float,
-                                                     int | float]]) -> None:
-    """Steps in running order, each settle before its dwell, none overlapping the next."""
+                                                     int | float]],
+                 interrupted: set[int] | frozenset[int] = frozenset()) -> None:
+    """Steps in running order, each settle before its dwell, none overlapping the next;
+    a step in ``interrupted`` may end before its dwell began (stopped while settling)."""
     previous = None
     for number, start, first, end in spans:
-        if not start <= first < end:
+        if not (start <= first < end or (number in interrupted and start <= first <= end)):
             raise SweepFormatError(f"{path}: sweep step {number}: its settle starts at "
                                    f"{start}, its dwell at {first} and ends at {end}; "
                                    "expected settle <= dwell start < dwell end")

@@ -104,7 +104,7 @@ def _record_on_open_rig(
     from rig.devices import open_rig
 
     speed = settings.virtual_speed
-    wall = 1.0 / speed  # procedure durations are wall-clock seconds
+    wall = 1.0 / speed  # a decay's longest duration is wall-clock seconds
     L = config.constants.L_m
     out = folder / RECORDINGS
     devices = open_rig(config, sample_rate_hz=settings.sample_rate_hz, virtual_speed=speed)
@@ -146,8 +146,8 @@ def _record_on_open_rig(
                 parameter="amplitude",
                 values=tuple(beta * L for beta in settings.sweep_betas),
                 fixed=f,
-                settle_s=settings.settle_s * wall,
-                dwell_s=settings.dwell_s * wall,
+                settle_s=settings.settle_s,  # rig time: counted on the samples
+                dwell_s=settings.dwell_s,
                 down=True,
             ),
             notes=f"impact-rig demo: amplitude sweep at {f:g} Hz",

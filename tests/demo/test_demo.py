@@ -287,10 +287,9 @@ def test_the_demo_explains_its_sweep_as_one_and_says_whether_the_diagrams_agree(
     folder, done = demo
     summary = _json(folder, "demo.json")
     sweep = summary["sweep"]
-    if sweep is None:  # the recording itself is no usable sweep: the demo says why, and on
-        why = [n for n in summary["notes"] if n.startswith("the sweep cannot be explained")]
-        assert len(why) == 1 and why[0] in done.stdout
-        pytest.skip(f"the virtual rig's sweep recording was damaged on this run: {why[0]}")
+    # the steps are timed on the samples (tests/demo/test_sweep_timing.py): a loaded machine
+    # leaves the sweep usable
+    assert sweep is not None, summary["notes"]
     analysed = _json(folder / "analysis", "sweep.json")["sweep"]
     assert sweep["page"] == "analysis/sweep.md" and (folder / sweep["page"]).is_file()
     # five steps, each analysed or set aside with its reason (lost samples on a busy machine)

@@ -11,10 +11,9 @@ import pytest
 
 from analysis.sweep.load import load_sweep
 from gui.units import DISPLAY
-from reference.sweeps import draw_sweep, write_sweep_recording
+from reference.sweeps import draw_sweep, write_marked_recording, write_sweep_recording
 from tests.gui.conftest import wait_until
 from tests.sweep.recordings import sine_sweep
-from tests.sweep.recordings import write_sweep_recording as write_marked_recording
 
 
 @pytest.fixture

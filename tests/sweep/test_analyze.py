@@ -19,8 +19,8 @@ from analysis.identify.intervals import Z95
 from analysis.json_output import json_ready
 from analysis.sweep import analyze
 from analysis.sweep.analyze import compare_with_measured
+from reference.sweeps import generate_sweep
 from rig.cli import main
-from tests.sweep.generated import generate_sweep
 
 THETA_B_RAD = 0.015
 Z999 = 3.2905  # two-sided 99.9 %

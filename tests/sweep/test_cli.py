@@ -9,14 +9,15 @@ from pathlib import Path
 
 import numpy as np
 
+from reference.sweeps import write_marked_recording
 from rig.cli import main
-from tests.sweep.recordings import sine_sweep, write_sweep_recording
+from tests.sweep.recordings import sine_sweep
 
 
 def test_overlapping_steps_are_one_line_naming_file_and_step(tmp_path: Path, capsys) -> None:
     angle, edges, marks = sine_sweep((1e-3, 2e-3, 3e-3))
     marks[2] = replace(marks[2], settle_start_index=marks[1].dwell_end_index - 50)
-    path = write_sweep_recording(tmp_path / "overlap.h5", angle, 500.0, edges, marks)
+    path = write_marked_recording(tmp_path / "overlap.h5", angle, 500.0, edges, marks)
     assert main(["analyze", str(path)]) == 2
     lines = capsys.readouterr().err.strip().splitlines()
     assert len(lines) == 1

@@ -11,8 +11,9 @@ import pytest
 
 from analysis.exchange import read_meta, sidecar_path
 from analysis.sweep.load import SweepFormatError, is_sweep, load_sweep
+from reference.sweeps import write_marked_recording
 from rig.cli import main
-from tests.sweep.recordings import sine_sweep, write_sweep_recording
+from tests.sweep.recordings import sine_sweep
 
 FS = 500.0
 AMPLITUDES = (1e-3, 2e-3, 3e-3, 2e-3)
@@ -23,7 +24,7 @@ def _recording(tmp_path: Path, name: str = "sweep.h5", **options) -> Path:
     angle, edges, marks = sine_sweep(AMPLITUDES, fs=FS, complete=complete)
     marks = options.pop("marks", marks)
     edges = options.pop("edges", edges)
-    return write_sweep_recording(tmp_path / name, angle, FS, edges, marks,
+    return write_marked_recording(tmp_path / name, angle, FS, edges, marks,
                                  table=1e-3 * angle, **options)
 
 
@@ -69,11 +70,21 @@ def test_interrupted_step_is_set_aside_and_the_sweep_kept_to_it(tmp_path: Path) 
     assert [(s.number, s.reason.split(":")[0]) for s in sweep.set_aside] == [(3, "interrupted")]
 
 
+def test_a_step_interrupted_before_its_dwell_began_is_set_aside(tmp_path: Path) -> None:
+    *_, marks = sine_sweep(AMPLITUDES, fs=FS, complete=[True, True, True, False])
+    settle = marks[3].settle_start_index  # stopped while settling: an empty dwell
+    marks[3] = replace(marks[3], dwell_start_index=settle, dwell_end_index=settle)
+    path = _recording(tmp_path, marks=marks)
+    sweep = load_sweep([path])
+    assert [s.number for s in sweep.steps] == [0, 1, 2]
+    assert [(s.number, s.reason.split(":")[0]) for s in sweep.set_aside] == [(3, "interrupted")]
+
+
 def test_short_step_and_lost_samples_are_set_aside(tmp_path: Path) -> None:
     angle, edges, marks = sine_sweep(AMPLITUDES, fs=FS)
     # step 1's dwell cut to 1 s; samples of step 2's dwell lost
     marks[1] = replace(marks[1], dwell_end_index=marks[1].dwell_start_index + 500)
-    path = write_sweep_recording(tmp_path / "s.h5", angle, FS, edges, marks,
+    path = write_marked_recording(tmp_path / "s.h5", angle, FS, edges, marks,
                                  lost=(5000, 5200))
     sweep = load_sweep([path])
     assert [s.number for s in sweep.steps] == [0, 3]
@@ -93,7 +104,7 @@ def test_bad_sweep_file_is_refused_in_one_line(tmp_path: Path, change: str,
     angle, edges, marks = sine_sweep(AMPLITUDES, fs=FS)
     if change == "none":
         # a recording without marks is no sweep; asked to load one as a sweep it is refused
-        path = write_sweep_recording(tmp_path / "s.h5", angle, FS, edges, marks[:1])
+        path = write_marked_recording(tmp_path / "s.h5", angle, FS, edges, marks[:1])
         import h5py
         with h5py.File(path, "a") as f:
             f["sweep_steps"].resize((0,))
@@ -105,7 +116,7 @@ def test_bad_sweep_file_is_refused_in_one_line(tmp_path: Path, change: str,
                           | (edges >= marks[1].dwell_end_index)]
         else:
             marks = [replace(m, complete=False) for m in marks]
-        path = write_sweep_recording(tmp_path / "s.h5", angle, FS, edges, marks)
+        path = write_marked_recording(tmp_path / "s.h5", angle, FS, edges, marks)
     with pytest.raises(SweepFormatError) as error:
         load_sweep([path])
     text = str(error.value)

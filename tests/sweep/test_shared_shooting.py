@@ -16,7 +16,7 @@ from analysis.identify.forced import record_segments, smoothed_states
 from analysis.identify.shooting import FreeParameter, ShootingProblem
 from analysis.sweep.fit import SweepModel, joined, sweep_data, sweep_parameters
 from analysis.sweep.load import load_sweep
-from tests.sweep.generated import generate_sweep
+from reference.sweeps import generate_sweep
 
 
 @pytest.fixture(scope="module")
