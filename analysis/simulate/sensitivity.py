@@ -6,7 +6,7 @@ along those same steps (:mod:`analysis.simulate.variational`), through every con
 the saltation matrix of the event, at a cost of a few plain runs whatever the number of
 parameters.  The derivatives are those of the integrator's own discrete solution (its
 steps, its dense output), so they agree with differences of its runs far better than
-differences of runs agree with each other.
+differences of runs agree with each other::
 
     settings = SensitivitySettings(parameters=("K", "MU0", "THETA_B"))
     run = simulate_sensitivities(model.pack(), 0.3, 0.0, times, settings=settings)

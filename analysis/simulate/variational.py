@@ -11,7 +11,7 @@ integration with steps of its own).  Outputs inside a segment come from the step
 output, differentiated the same way.
 
 At a contact event the derivatives pass the saltation (jump) matrix of the surface
-g = theta - theta_b = 0:
+g = theta - theta_b = 0::
 
     Y+ = Y- + (f+ - f-) (g_y Y- + g_p) / (g_y f-)
 
