@@ -444,9 +444,10 @@ def sliding_direction(t: float, theta: float, theta_dot: float, k: tuple[float, 
 
 @numba.njit(cache=True, inline="always")
 def barrier_force_partials(sin_theta: float, cos_theta: float, theta_dot: float,
-                           k: tuple[float, ...]) -> tuple[float, ...]:
+                           k: tuple[float, ...], clamp: bool) -> tuple[float, ...]:
     """Partial derivatives of :func:`barrier_force`: (theta, theta', l, K, n, mu0, c,
-    sin theta_b); all zero where the force is (out of contact, clamped)."""
+    sin theta_b); all zero where the force is (out of contact; clamped, with ``clamp``,
+    else those of :func:`contact_law`)."""
     zero = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
     if not (k[K_CONTACT_ON] != 0.0 and cos_theta > 0.0):
         return zero
@@ -466,7 +467,7 @@ def barrier_force_partials(sin_theta: float, cos_theta: float, theta_dot: float,
     stiffness = k[K_STIFFNESS]
     grip = 1.0 + k[K_MU0] * delta_dot
     force = stiffness * power * grip + k[K_C_VISCOUS] * delta_dot
-    if not force > 0.0:
+    if clamp and not force > 0.0:
         return zero
     d_delta = stiffness * slope_power * grip  # dF / d delta
     d_rate = stiffness * power * k[K_MU0] + k[K_C_VISCOUS]  # dF / d deltadot
@@ -495,13 +496,14 @@ def surface_force(cos_theta: float, theta_dot: float, k: tuple[float, ...]) -> f
 
 @numba.njit(cache=True, inline="always")
 def acceleration_partials(t: float, theta: float, theta_dot: float, k: tuple[float, ...],
-                          direction: float, friction: float, d_p: np.ndarray
-                          ) -> tuple[float, float, float]:
+                          direction: float, friction: float, d_p: np.ndarray,
+                          clamp: bool = True) -> tuple[float, float, float]:
     """Partial derivatives of :func:`sliding_acceleration`: returns those with respect to
     theta, theta' and t, and writes those with respect to each entry of the packed vector
     into ``d_p`` (indexed by ``P``; THETA_B, which the equation reads only through
     SIN_THETA_B, and BARRIER get 0).  The drive's entries get their derivative whenever
-    Omega is not 0, also at a zero amplitude."""
+    Omega is not 0, also at a zero amplitude.  Without ``clamp``, those of the equation
+    with the unclamped :func:`contact_law` (its smooth continuation past the clamp)."""
     s = math.sin(theta)
     c = math.cos(theta)
     d_p[:] = 0.0
@@ -527,9 +529,10 @@ def acceleration_partials(t: float, theta: float, theta_dot: float, k: tuple[flo
         d_p[P.A1] = gain * math.sin(phase) * c
         d_p[P.A2] = 4.0 * gain * math.sin(second) * c
         d_p[P.PHI2] = 4.0 * gain * k[K_A2] * math.cos(second) * c
-    force = barrier_force(s, c, theta_dot, k)
-    if force > 0.0:
-        f_th, f_om, f_l, f_k, f_n, f_mu0, f_c, f_sb = barrier_force_partials(s, c, theta_dot, k)
+    force = contact_law(s, c, theta_dot, k)
+    if force > 0.0 or (not clamp and force != 0.0):
+        f_th, f_om, f_l, f_k, f_n, f_mu0, f_c, f_sb = barrier_force_partials(s, c, theta_dot, k,
+                                                                             clamp)
         gain = k[K_GAIN]
         d_theta -= gain * f_th
         d_theta_dot -= gain * f_om

@@ -30,6 +30,7 @@ import numpy as np
 from analysis.model import (
     K_GAIN,
     acceleration_partials,
+    barrier_force,
     coefficients,
     contact_law,
     surface_force,
@@ -67,11 +68,11 @@ GRADED_LEVELS = 12
 
 
 @kernel(inline="always")
-def _stage_rates(t, th, om, k, slide, tc, columns, d_p, cos_b, yt, yo, out):
+def _stage_rates(t, th, om, k, slide, tc, columns, d_p, cos_b, yt, yo, out, unclamped):
     """theta'' at one stage, and into ``out`` the rate of each column's theta' there: the
     state derivatives (yt, yo) through the stage's Jacobian, plus each parameter's own
-    term."""
-    d_th, d_om, _ = acceleration_partials(t, th, om, k, slide, tc, d_p)
+    term.  ``unclamped``: the contact law continued past its clamp (``_clamp_fraction``)."""
+    d_th, d_om, _ = acceleration_partials(t, th, om, k, slide, tc, d_p, not unclamped)
     m = yt.shape[0]
     for j in range(m):
         out[j] = d_th * yt[j] + d_om * yo[j]
@@ -81,12 +82,17 @@ def _stage_rates(t, th, om, k, slide, tc, columns, d_p, cos_b, yt, yo, out):
             out[j] += d_p[P.SIN_THETA_B] * cos_b
         else:
             out[j] += d_p[index]
-    return rhs(t, th, om, k, slide, tc)
+    acc = rhs(t, th, om, k, slide, tc)
+    if unclamped:  # the law's own value where the force would be clamped at 0
+        s = math.sin(th)
+        c = math.cos(th)
+        acc += k[K_GAIN] * (barrier_force(s, c, om, k) - contact_law(s, c, om, k))
+    return acc
 
 
 @kernel
 def _variational_step(t, th, om, h, k, slide, tc, columns, d_p, cos_b, y_th, y_om, kt, ko,
-                      st, so, yt_end, yo_end):
+                      st, so, yt_end, yo_end, unclamped):
     """One DOP853 step of length h from (t, theta, theta') carrying the sensitivities
     (y_th, y_om): the stages of the step and of its dense output into kt/ko (theta',
     theta'') and st/so (their derivatives, one column each), the sensitivities at the
@@ -117,7 +123,7 @@ def _variational_step(t, th, om, h, k, slide, tc, columns, d_p, cos_b, y_th, y_o
         for j in range(m):
             st[s, j] = yo_end[j]
         ko[s] = _stage_rates(t_s, th_s, om_s, k, slide, tc, columns, d_p, cos_b, yt_end,
-                             yo_end, so[s])
+                             yo_end, so[s], unclamped)
     # the stages after 12 overwrote the end's sensitivities: take them again
     for j in range(m):
         acc_t = y_th[j]
@@ -178,9 +184,10 @@ def _law_at(t, th, om, s, h, k, slide, tc):
 def _clamp_fraction(t, th, om, h, k, slide, tc):
     """Where in the contact step of length h from (t, th, om) the contact law turns
     adhesive and the force is clamped at 0 (a kink of the field, where the Jacobian jumps):
-    the fraction of the step, found by bisection; -1 when it does not."""
+    the fraction of the step, found by bisection; -1 when it does not (or only where the
+    contact ends: the law is 0 out of contact, so a step ending at the exit ends at 0)."""
     if not (_law_at(t, th, om, 0.0, h, k, slide, tc) > 0.0
-            and _law_at(t, th, om, 1.0, h, k, slide, tc) < 0.0):
+            and _law_at(t, th, om, 1.0, h, k, slide, tc) <= 0.0):
         return -1.0
     lo = 0.0
     hi = 1.0
@@ -192,7 +199,7 @@ def _clamp_fraction(t, th, om, h, k, slide, tc):
             hi = mid
         if hi - lo < 1e-15:
             break
-    return 0.5 * (lo + hi)
+    return 0.5 * (lo + hi) if hi < 1.0 - 1e-9 else -1.0
 
 
 @kernel
@@ -287,18 +294,23 @@ def propagate(p, columns, t0, theta0, theta_dot0, contact0, slide0, record, n_re
             # at the contact's two ends the Jacobian goes as sqrt(delta): grade the pieces
             pieces = _pieces(contact and not was_contact,
                              contact and record[r, REC_CONTACT] == 0.0, cuts)
-            if contact:  # the clamp's kink is a piece's end too
-                clamp = _clamp_fraction(ta, th, om, h, k, slide, tc)
-                if clamp > 0.0:
-                    pieces = _insert_cut(cuts, pieces, clamp)
+            # the clamp is a kink of the field, where its Jacobian jumps: a piece ends there,
+            # the pieces before it see the law continued smoothly (their last stages sit on
+            # the kink), those after it no force at all (free flight's field)
+            clamp = _clamp_fraction(ta, th, om, h, k, slide, tc) if contact else -1.0
+            if clamp > 0.0:
+                pieces = _insert_cut(cuts, pieces, clamp)
             thp = th
             omp = om
             for q in range(pieces):
                 tp = ta + cuts[q] * h
                 tq = tb if q == pieces - 1 else ta + cuts[q + 1] * h
                 hp = tq - tp
-                thp, omp = _variational_step(tp, thp, omp, hp, k, slide, tc, columns, d_p,
-                                             cos_b, y_th, y_om, kt, ko, st, so, yt_end, yo_end)
+                before = clamp > 0.0 and cuts[q] < clamp
+                kp = k_free if clamp > 0.0 and not before else k
+                thp, omp = _variational_step(tp, thp, omp, hp, kp, slide, tc, columns, d_p,
+                                             cos_b, y_th, y_om, kt, ko, st, so, yt_end, yo_end,
+                                             before)
                 if gi < n_out and out_t[gi] <= tq:
                     _dense_sensitivity(hp, y_th, yt_end, st, ct)
                     _dense_sensitivity(hp, y_om, yo_end, so, co)
