@@ -32,6 +32,7 @@ import numpy as np
 from analysis.packed import P
 from analysis.simulate import integrator as ig
 from analysis.simulate import variational as va
+from analysis.simulate.segments import checked_segments
 from analysis.simulate.simulation import DEFAULT_MAX_STEPS, check_step_settings
 
 STATE_COLUMNS = ("theta0", "theta_dot0")
@@ -91,6 +92,12 @@ class Sensitivities:
     n_contacts: int
 
 
+def _refuse_friction(p: np.ndarray) -> None:
+    if p[P.COULOMB_ACC] > 0.0:
+        raise ValueError("sensitivities through Coulomb friction (COULOMB_ACC > 0) are not "
+                         "supported: its stick and slip events have no saltation here yet")
+
+
 def simulate_sensitivities(
     p: np.ndarray,
     theta0: float,
@@ -106,9 +113,7 @@ def simulate_sensitivities(
     p = np.ascontiguousarray(p, dtype=float)
     if p.shape != (P.SIZE,):
         raise ValueError(f"packed vector has shape {p.shape}; expected ({int(P.SIZE)},)")
-    if p[P.COULOMB_ACC] > 0.0:
-        raise ValueError("sensitivities through Coulomb friction (COULOMB_ACC > 0) are not "
-                         "supported: its stick and slip events have no saltation here yet")
+    _refuse_friction(p)
     if not all(math.isfinite(x) for x in (t0, theta0, theta_dot0)):
         raise ValueError(f"start ({t0!r}, {theta0!r}, {theta_dot0!r}) must be finite")
     out_t = np.ascontiguousarray(t, dtype=float)
@@ -142,3 +147,43 @@ def simulate_sensitivities(
         n_steps=int(state[ig.S_STEPS]),
         n_contacts=int(np.count_nonzero(contacts[:, ig.EV_KIND] == ig.KIND_CONTACT)),
     )
+
+
+def segment_sensitivities(
+    p: np.ndarray,
+    t0: np.ndarray,
+    state0: np.ndarray,
+    out_t: np.ndarray,
+    bounds: np.ndarray,
+    *,
+    settings: SensitivitySettings = DEFAULT_SENSITIVITY_SETTINGS,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The segments of a multiple-shooting fit (as :func:`analysis.simulate.segments.
+    integrate_segments` runs them) with their sensitivities: segment k from (t0[k],
+    state0[k]) sampled at out_t[bounds[k]:bounds[k+1]] (its last time is its end).  Returns
+    theta, theta' (NaN where a run stopped early), the Jacobian (times, 2, columns; a
+    segment's columns 0 and 1 are its own start state's) and each segment's status code."""
+    p, t0, state0, out_t, bounds = checked_segments(p, t0, state0, out_t, bounds)
+    _refuse_friction(p)
+    columns = np.array([int(P[name]) for name in settings.parameters], dtype=np.int64)
+    theta = np.empty(out_t.size)
+    theta_dot = np.empty(out_t.size)
+    jacobian = np.full((out_t.size, 2, 2 + columns.size), math.nan)
+    status = np.zeros(t0.size, dtype=np.int64)
+    events = np.empty((16, ig.EV_SIZE))
+    record = np.empty((1024, va.REC_SIZE))
+    for k in range(t0.size):
+        a, b = int(bounds[k]), int(bounds[k + 1])
+        start, th0, om0 = float(t0[k]), float(state0[k, 0]), float(state0[k, 1])
+        state = ig.new_state(start, th0, om0, p)
+        contact0 = bool(state[ig.S_CONTACT] != 0.0)
+        slide0 = float(state[ig.S_SLIDE])
+        events, _, record, n_record, written, _ = ig.integrate(
+            p, state, out_t[a:b], theta[a:b], theta_dot[a:b], 0.0, 1.0, np.empty(0),
+            np.empty(0), float(out_t[b - 1]), settings.rtol, settings.atol, math.inf,
+            int(settings.max_steps), events, np.int64(0), np.bool_(True), record, np.int64(0),
+        )
+        va.propagate(p, columns, start, th0, om0, contact0, slide0, record, n_record,
+                     out_t[a:b], written, jacobian[a:b])
+        status[k] = int(state[ig.S_STATUS])
+    return theta, theta_dot, jacobian, status

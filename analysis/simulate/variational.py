@@ -28,11 +28,15 @@ import math
 import numpy as np
 
 from analysis.model import (
+    K_C_VISCOUS,
     K_GAIN,
+    K_MU0,
+    K_SHAFT,
     acceleration_partials,
     barrier_force,
     coefficients,
     contact_law,
+    indentation,
     surface_force,
 )
 from analysis.packed import P
@@ -64,7 +68,7 @@ PACKED_SIZE = int(P.SIZE)
 # run's own (its force, delta^(3/2), is smooth enough).  Such a step is replayed as pieces
 # halving toward the surface, GRADED_LEVELS of them, which takes that error below the
 # run's tolerance.
-GRADED_LEVELS = 12
+GRADED_LEVELS = 8
 
 
 @kernel(inline="always")
@@ -92,15 +96,15 @@ def _stage_rates(t, th, om, k, slide, tc, columns, d_p, cos_b, yt, yo, out, uncl
 
 @kernel
 def _variational_step(t, th, om, h, k, slide, tc, columns, d_p, cos_b, y_th, y_om, kt, ko,
-                      st, so, yt_end, yo_end, unclamped):
+                      st, so, yt_end, yo_end, unclamped, dense):
     """One DOP853 step of length h from (t, theta, theta') carrying the sensitivities
-    (y_th, y_om): the stages of the step and of its dense output into kt/ko (theta',
-    theta'') and st/so (their derivatives, one column each), the sensitivities at the
-    step's end into yt_end/yo_end; returns theta, theta' there."""
+    (y_th, y_om): the stages of the step (and with ``dense`` those of its dense output) into
+    kt/ko (theta', theta'') and st/so (their derivatives, one column each), the
+    sensitivities at the step's end into yt_end/yo_end; returns theta, theta' there."""
     m = y_th.shape[0]
     th1 = th
     om1 = om
-    for s in range(N_EXTENDED):
+    for s in range(N_EXTENDED if dense else N_STAGES + 1):
         end = s == N_STAGES  # stage 12 is f at the step's end, on the 8th-order solution
         t_s = t + h if end else t + C853[s] * h
         th_s = th
@@ -124,6 +128,8 @@ def _variational_step(t, th, om, h, k, slide, tc, columns, d_p, cos_b, y_th, y_o
             st[s, j] = yo_end[j]
         ko[s] = _stage_rates(t_s, th_s, om_s, k, slide, tc, columns, d_p, cos_b, yt_end,
                              yo_end, so[s], unclamped)
+    if not dense:  # stage 12 left the end's sensitivities in yt_end / yo_end
+        return th1, om1
     # the stages after 12 overwrote the end's sensitivities: take them again
     for j in range(m):
         acc_t = y_th[j]
@@ -181,23 +187,51 @@ def _law_at(t, th, om, s, h, k, slide, tc):
 
 
 @kernel
+def _clamps(th, om, th_end, om_end, k):
+    """Whether the contact law turns adhesive (the force clamped at 0) inside a contact step
+    from (th, om) to (th_end, om_end): positive at its start, not at its end, or, for a
+    step ending on the surface, not just inside it (where K delta^n vanishes: the sign of
+    c deltadot, else of 1 + mu0 deltadot)."""
+    if not contact_law(math.sin(th), math.cos(th), om, k) > 0.0:
+        return False
+    if indentation(math.sin(th_end), k) > 0.0:
+        return not contact_law(math.sin(th_end), math.cos(th_end), om_end, k) > 0.0
+    delta_dot = k[K_SHAFT] * math.cos(th_end) * om_end
+    if k[K_C_VISCOUS] != 0.0 and delta_dot != 0.0:
+        return k[K_C_VISCOUS] * delta_dot < 0.0
+    return not 1.0 + k[K_MU0] * delta_dot > 0.0
+
+
+@kernel
 def _clamp_fraction(t, th, om, h, k, slide, tc):
-    """Where in the contact step of length h from (t, th, om) the contact law turns
-    adhesive and the force is clamped at 0 (a kink of the field, where the Jacobian jumps):
-    the fraction of the step, found by bisection; -1 when it does not (or only where the
-    contact ends: the law is 0 out of contact, so a step ending at the exit ends at 0)."""
-    if not (_law_at(t, th, om, 0.0, h, k, slide, tc) > 0.0
-            and _law_at(t, th, om, 1.0, h, k, slide, tc) <= 0.0):
-        return -1.0
+    """Where in the contact step of length h from (t, th, om), which ``_clamps``, the force
+    is clamped: the fraction of the step, found by the Illinois method (regula falsi whose
+    retained end's value is halved when it is kept twice); -1 when only at its end."""
     lo = 0.0
     hi = 1.0
-    for _ in range(60):
-        mid = 0.5 * (lo + hi)
-        if _law_at(t, th, om, mid, h, k, slide, tc) > 0.0:
+    f_lo = _law_at(t, th, om, lo, h, k, slide, tc)
+    f_hi = _law_at(t, th, om, hi, h, k, slide, tc)
+    if f_hi == 0.0:  # the step ends on the surface: the law's end value is not its limit
+        f_hi = -f_lo
+    side = 0
+    for _ in range(100):
+        mid = (lo * f_hi - hi * f_lo) / (f_hi - f_lo)
+        if not lo < mid < hi:
+            mid = 0.5 * (lo + hi)
+        f_mid = _law_at(t, th, om, mid, h, k, slide, tc)
+        if f_mid > 0.0:
             lo = mid
+            f_lo = f_mid
+            if side == 1:
+                f_hi *= 0.5
+            side = 1
         else:
             hi = mid
-        if hi - lo < 1e-15:
+            f_hi = f_mid if f_mid != 0.0 else -f_lo
+            if side == -1:
+                f_lo *= 0.5
+            side = -1
+        if hi - lo < 1e-14:
             break
     return 0.5 * (lo + hi) if hi < 1.0 - 1e-9 else -1.0
 
@@ -297,7 +331,9 @@ def propagate(p, columns, t0, theta0, theta_dot0, contact0, slide0, record, n_re
             # the clamp is a kink of the field, where its Jacobian jumps: a piece ends there,
             # the pieces before it see the law continued smoothly (their last stages sit on
             # the kink), those after it no force at all (free flight's field)
-            clamp = _clamp_fraction(ta, th, om, h, k, slide, tc) if contact else -1.0
+            clamp = -1.0
+            if contact and _clamps(th, om, record[r, REC_THETA], record[r, REC_THETA_DOT], k):
+                clamp = _clamp_fraction(ta, th, om, h, k, slide, tc)
             if clamp > 0.0:
                 pieces = _insert_cut(cuts, pieces, clamp)
             thp = th
@@ -308,10 +344,11 @@ def propagate(p, columns, t0, theta0, theta_dot0, contact0, slide0, record, n_re
                 hp = tq - tp
                 before = clamp > 0.0 and cuts[q] < clamp
                 kp = k_free if clamp > 0.0 and not before else k
+                sampled = gi < n_out and out_t[gi] <= tq
                 thp, omp = _variational_step(tp, thp, omp, hp, kp, slide, tc, columns, d_p,
                                              cos_b, y_th, y_om, kt, ko, st, so, yt_end, yo_end,
-                                             before)
-                if gi < n_out and out_t[gi] <= tq:
+                                             before, sampled)
+                if sampled:
                     _dense_sensitivity(hp, y_th, yt_end, st, ct)
                     _dense_sensitivity(hp, y_om, yo_end, so, co)
                     while gi < n_out and out_t[gi] <= tq:

@@ -32,7 +32,11 @@ from analysis.model import (
     surface_force,
 )
 from analysis.packed import P
-from analysis.simulate.sensitivity import SensitivitySettings, simulate_sensitivities
+from analysis.simulate.sensitivity import (
+    SensitivitySettings,
+    segment_sensitivities,
+    simulate_sensitivities,
+)
 from tests.reference.simulator import Pendulum, TableMotion, simulate_reference
 
 AGREEMENT = 1e-6  # of a column's largest value over the compared times
@@ -266,3 +270,23 @@ def test_bad_settings_are_refused_by_name():
     friction = Model().with_extension("coulomb_friction", Tc_N_m=1e-4)
     with pytest.raises(ValueError, match="Coulomb friction"):
         simulate_sensitivities(friction.pack(), 0.1, 0.0, np.array([0.1]))
+
+
+def test_segments_are_runs_of_their_own():
+    """``segment_sensitivities`` gives each segment what a run of its own from its start
+    gives, its columns 0 and 1 its own start state's, to the bit."""
+    case = CASES["impacts"]
+    p = case.model.pack()
+    t0 = np.array([0.0, 0.2, 0.35])
+    state0 = np.array([[-0.4, 0.0], [0.1, -2.0], [-0.2, 3.0]])
+    times = [t0[k] + np.linspace(0.01, 0.15, 8) for k in range(3)]
+    settings = SensitivitySettings(parameters=("K", "THETA_B"), rtol=1e-9, atol=1e-11)
+    th, om, jacobian, status = segment_sensitivities(
+        p, t0, state0, np.concatenate(times), np.array([0, 8, 16, 24]), settings=settings)
+    assert np.all(status == 0)
+    for k in range(3):
+        alone = simulate_sensitivities(p, *state0[k], times[k], t0=t0[k], settings=settings)
+        rows = slice(8 * k, 8 * k + 8)
+        assert np.array_equal(th[rows], alone.theta)
+        assert np.array_equal(om[rows], alone.theta_dot)
+        assert np.array_equal(jacobian[rows], alone.jacobian)
