@@ -158,9 +158,10 @@ def segment_sensitivities(
     *,
     settings: SensitivitySettings = DEFAULT_SENSITIVITY_SETTINGS,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """The segments of a multiple-shooting fit (as :func:`analysis.simulate.segments.
-    integrate_segments` runs them) with their sensitivities: segment k from (t0[k],
-    state0[k]) sampled at out_t[bounds[k]:bounds[k+1]] (its last time is its end).  Returns
+    """The segments of a multiple-shooting fit, as
+    :func:`analysis.simulate.segments.integrate_segments` runs them, with their
+    sensitivities: segment k from (t0[k], state0[k]) sampled at out_t[bounds[k]:bounds[k+1]]
+    (its last time is its end).  Returns
     theta, theta' (NaN where a run stopped early), the Jacobian (times, 2, columns; a
     segment's columns 0 and 1 are its own start state's) and each segment's status code."""
     p, t0, state0, out_t, bounds = checked_segments(p, t0, state0, out_t, bounds)
