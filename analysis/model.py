@@ -365,6 +365,15 @@ def barrier_force(sin_theta: float, cos_theta: float, theta_dot: float, k: tuple
     Fc = K delta^n (1 + mu0 deltadot) + c deltadot, clamped at 0 (no adhesion); zero out of
     contact, with the barrier off, or beyond the horizontal (the barrier is at the bottom).
     """
+    force = contact_law(sin_theta, cos_theta, theta_dot, k)
+    return force if force > 0.0 else 0.0
+
+
+@numba.njit(cache=True, inline="always")
+def contact_law(sin_theta: float, cos_theta: float, theta_dot: float, k: tuple[float, ...]
+                ) -> float:
+    """The contact law K delta^n (1 + mu0 deltadot) + c deltadot [N] before the no-adhesion
+    clamp (negative where :func:`barrier_force` is 0 in contact); 0 out of contact."""
     if not (k[K_CONTACT_ON] != 0.0 and cos_theta > 0.0):
         return 0.0
     delta = indentation(sin_theta, k)
@@ -374,7 +383,7 @@ def barrier_force(sin_theta: float, cos_theta: float, theta_dot: float, k: tuple
     power = delta * math.sqrt(delta) if k[K_HERTZ] != 0.0 else delta ** k[K_EXPONENT]
     force = k[K_STIFFNESS] * power * (1.0 + k[K_MU0] * delta_dot)
     force += k[K_C_VISCOUS] * delta_dot
-    return force if force > 0.0 else 0.0
+    return force
 
 
 @numba.njit(cache=True, inline="always")
@@ -426,6 +435,115 @@ def sliding_direction(t: float, theta: float, theta_dot: float, k: tuple[float, 
     if abs(acc) <= friction:
         return 0.0
     return 1.0 if acc > 0.0 else -1.0
+
+
+# Derivatives of the equation above, for the integrator's sensitivities
+# (analysis.simulate.sensitivity): written beside the terms they differentiate, and checked
+# against central differences of these same functions (tests/simulate/test_sensitivity.py).
+
+
+@numba.njit(cache=True, inline="always")
+def barrier_force_partials(sin_theta: float, cos_theta: float, theta_dot: float,
+                           k: tuple[float, ...], clamp: bool) -> tuple[float, ...]:
+    """Partial derivatives of :func:`barrier_force`: (theta, theta', l, K, n, mu0, c,
+    sin theta_b); all zero where the force is (out of contact; clamped, with ``clamp``,
+    else those of :func:`contact_law`)."""
+    zero = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+    if not (k[K_CONTACT_ON] != 0.0 and cos_theta > 0.0):
+        return zero
+    delta = indentation(sin_theta, k)
+    if not delta > 0.0:
+        return zero
+    shaft = k[K_SHAFT]
+    delta_dot = shaft * cos_theta * theta_dot
+    n = k[K_EXPONENT]
+    if k[K_HERTZ] != 0.0:
+        slope_power = math.sqrt(delta)  # delta^(n - 1)
+        power = delta * slope_power
+        slope_power *= 1.5
+    else:
+        power = delta**n
+        slope_power = n * delta ** (n - 1.0)
+    stiffness = k[K_STIFFNESS]
+    grip = 1.0 + k[K_MU0] * delta_dot
+    force = stiffness * power * grip + k[K_C_VISCOUS] * delta_dot
+    if clamp and not force > 0.0:
+        return zero
+    d_delta = stiffness * slope_power * grip  # dF / d delta
+    d_rate = stiffness * power * k[K_MU0] + k[K_C_VISCOUS]  # dF / d deltadot
+    return (
+        d_delta * shaft * cos_theta - d_rate * shaft * sin_theta * theta_dot,
+        d_rate * shaft * cos_theta,
+        d_delta * (sin_theta - k[K_SIN_THETA_B]) + d_rate * cos_theta * theta_dot,
+        power * grip,
+        stiffness * power * math.log(delta) * grip,
+        stiffness * power * delta_dot,
+        delta_dot,
+        -d_delta * shaft,
+    )
+
+
+@numba.njit(cache=True, inline="always")
+def surface_force(cos_theta: float, theta_dot: float, k: tuple[float, ...]) -> float:
+    """The limit of :func:`barrier_force` as the penetration falls to 0 from inside
+    (theta -> theta_b+): K delta^n vanishes there, Kelvin-Voigt's c deltadot does not.
+    Zero for the Hunt-Crossley law, whose force is continuous at the surface."""
+    if not (k[K_CONTACT_ON] != 0.0 and cos_theta > 0.0):
+        return 0.0
+    force = k[K_C_VISCOUS] * k[K_SHAFT] * cos_theta * theta_dot
+    return force if force > 0.0 else 0.0
+
+
+@numba.njit(cache=True, inline="always")
+def acceleration_partials(t: float, theta: float, theta_dot: float, k: tuple[float, ...],
+                          direction: float, friction: float, d_p: np.ndarray,
+                          clamp: bool = True) -> tuple[float, float, float]:
+    """Partial derivatives of :func:`sliding_acceleration`: returns those with respect to
+    theta, theta' and t, and writes those with respect to each entry of the packed vector
+    into ``d_p`` (indexed by ``P``; THETA_B, which the equation reads only through
+    SIN_THETA_B, and BARRIER get 0).  The drive's entries get their derivative whenever
+    Omega is not 0, also at a zero amplitude.  Without ``clamp``, those of the equation
+    with the unclamped :func:`contact_law` (its smooth continuation past the clamp)."""
+    s = math.sin(theta)
+    c = math.cos(theta)
+    d_p[:] = 0.0
+    d_p[P.OMEGA2] = -s
+    d_p[P.TWO_ZETA_OMEGA] = -theta_dot
+    d_p[P.C2] = -theta_dot * abs(theta_dot)
+    d_p[P.COULOMB_ACC] = -direction
+    d_theta = -k[K_OMEGA2] * c
+    d_theta_dot = -k[K_TWO_ZETA_OMEGA] - 2.0 * k[K_C2] * abs(theta_dot)
+    d_t = 0.0
+    w = k[K_OMEGA_DRIVE]
+    if w != 0.0:
+        phase = w * t + k[K_PHASE0]
+        second = 2.0 * phase + k[K_PHI2]
+        drive = k[K_A1] * math.sin(phase) + 4.0 * k[K_A2] * math.sin(second)
+        drive_rate = k[K_A1] * math.cos(phase) + 8.0 * k[K_A2] * math.cos(second)  # d / dphase
+        gain = w * w * k[K_INV_L]
+        d_theta -= gain * drive * s
+        d_t = gain * drive_rate * w * c
+        d_p[P.INV_L] = w * w * drive * c
+        d_p[P.OMEGA_DRIVE] = (2.0 * w * drive + w * w * drive_rate * t) * k[K_INV_L] * c
+        d_p[P.PHASE0] = gain * drive_rate * c
+        d_p[P.A1] = gain * math.sin(phase) * c
+        d_p[P.A2] = 4.0 * gain * math.sin(second) * c
+        d_p[P.PHI2] = 4.0 * gain * k[K_A2] * math.cos(second) * c
+    force = contact_law(s, c, theta_dot, k)
+    if force > 0.0 or (not clamp and force != 0.0):
+        f_th, f_om, f_l, f_k, f_n, f_mu0, f_c, f_sb = barrier_force_partials(s, c, theta_dot, k,
+                                                                             clamp)
+        gain = k[K_GAIN]
+        d_theta -= gain * f_th
+        d_theta_dot -= gain * f_om
+        d_p[P.CONTACT_GAIN] = -force
+        d_p[P.SHAFT_L] = -gain * f_l
+        d_p[P.K] = -gain * f_k
+        d_p[P.EXPONENT] = -gain * f_n
+        d_p[P.MU0] = -gain * f_mu0
+        d_p[P.C_VISCOUS] = -gain * f_c
+        d_p[P.SIN_THETA_B] = -gain * f_sb
+    return d_theta, d_theta_dot, d_t
 
 
 @numba.njit(cache=True)

@@ -1,7 +1,13 @@
-"""Fast, exact simulation of the impact pendulum: single runs, a streaming stepper, ensembles."""
+"""Fast, exact simulation of the impact pendulum: single runs, a streaming stepper, ensembles,
+and the sensitivities of a run."""
 
 from analysis.simulate.ensemble import EnsembleResult, simulate_ensemble
 from analysis.simulate.result import ContactEvents, SimulationResult, StickEvents, Trajectory
+from analysis.simulate.sensitivity import (
+    Sensitivities,
+    SensitivitySettings,
+    simulate_sensitivities,
+)
 from analysis.simulate.simulation import (
     SimulationSettings,
     drive_period_s,
@@ -15,6 +21,8 @@ from analysis.simulate.stepper import SimulationStoppedError, Stepper
 __all__ = [
     "ContactEvents",
     "EnsembleResult",
+    "Sensitivities",
+    "SensitivitySettings",
     "SimulationResult",
     "SimulationSettings",
     "SimulationStoppedError",
@@ -27,4 +35,5 @@ __all__ = [
     "simulate",
     "simulate_ensemble",
     "simulate_packed",
+    "simulate_sensitivities",
 ]

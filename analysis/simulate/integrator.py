@@ -598,14 +598,20 @@ def _push_event(events, n_events, row):
 
 
 @kernel
-def _push_dense(dense, n_dense, t, th, om):
+def _push_dense(dense, n_dense, S):
+    """Append the segment end (t, theta, theta') of S to the growable dense record; a record
+    of 5 columns also gets the region the motion continues in (contact flag, sliding
+    direction), which the sensitivities' replay reads (``variational.REC_*``)."""
     if n_dense >= dense.shape[0]:
-        bigger = np.empty((max(1024, 2 * dense.shape[0]), 3))
+        bigger = np.empty((max(1024, 2 * dense.shape[0]), dense.shape[1]))
         bigger[: dense.shape[0]] = dense
         dense = bigger
-    dense[n_dense, 0] = t
-    dense[n_dense, 1] = th
-    dense[n_dense, 2] = om
+    dense[n_dense, 0] = S[S_TB]
+    dense[n_dense, 1] = S[S_THB]
+    dense[n_dense, 2] = S[S_OMB]
+    if dense.shape[1] >= 5:
+        dense[n_dense, 3] = S[S_CONTACT]
+        dense[n_dense, 4] = S[S_SLIDE]
     return dense
 
 
@@ -1116,7 +1122,8 @@ def integrate(
     ``out_om``; Poincare samples are taken at pc_t0 + k pc_dt, k < len(pc_th).
     Outputs not reached (run stopped early, see S[S_STATUS]) are left as NaN.
     Contact and stick events are appended to ``events`` (grown as needed) and, with
-    ``want_dense``, every segment end to ``dense``.  Returns
+    ``want_dense``, every segment end to ``dense`` (given 5 columns, with the region it leads
+    into: ``_push_dense``).  Returns
     (events, n_events, dense, n_dense, outputs written, Poincare samples written).
     """
     tc = p[P.COULOMB_ACC]
@@ -1220,7 +1227,7 @@ def integrate(
                 )
                 steps_this_call += extra
         if want_dense:
-            dense = _push_dense(dense, n_dense, S[S_TB], S[S_THB], S[S_OMB])
+            dense = _push_dense(dense, n_dense, S)
             n_dense += 1
 
     _final_dense(poly_ok, last, last_pr, last_slide, tc, kth, kom, S)

@@ -16,6 +16,32 @@ from analysis.simulate import integrator as ig
 from analysis.simulate.simulation import DEFAULT_MAX_STEPS, check_step_settings
 
 
+def checked_segments(
+    packed: np.ndarray, t0: np.ndarray, state0: np.ndarray, out_t: np.ndarray,
+    bounds: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The arguments of a segments run as contiguous arrays; ValueError, saying which, when
+    their shapes disagree, the bounds do not cut ``out_t`` into non-empty segments or a
+    start state is not finite."""
+    p = np.ascontiguousarray(packed, dtype=float)
+    if p.shape != (P.SIZE,):
+        raise ValueError(f"packed vector has shape {p.shape}; expected ({int(P.SIZE)},)")
+    t0 = np.ascontiguousarray(t0, dtype=float)
+    state0 = np.ascontiguousarray(state0, dtype=float)
+    bounds = np.ascontiguousarray(bounds, dtype=np.int64)
+    out_t = np.ascontiguousarray(out_t, dtype=float)
+    if state0.shape != (t0.size, 2) or bounds.shape != (t0.size + 1,):
+        raise ValueError(
+            f"{t0.size} segments need state0 of shape ({t0.size}, 2) and {t0.size + 1} bounds; "
+            f"got {state0.shape} and {bounds.shape}"
+        )
+    if bounds[0] != 0 or bounds[-1] != out_t.size or np.any(np.diff(bounds) < 1):
+        raise ValueError("bounds must start at 0, end at len(out_t) and give each segment a time")
+    if not np.all(np.isfinite(state0)):
+        raise ValueError("segment start states must be finite")
+    return p, t0, state0, out_t, bounds
+
+
 def integrate_segments(
     packed: np.ndarray,
     t0: np.ndarray,
@@ -35,23 +61,8 @@ def integrate_segments(
     (``integrator.STATUS_NAMES``).  ``max_steps`` caps each segment's steps: a fit's trial
     parameters can make the contact absurdly stiff, and such a trial should fail fast.
     """
-    p = np.ascontiguousarray(packed, dtype=float)
-    if p.shape != (P.SIZE,):
-        raise ValueError(f"packed vector has shape {p.shape}; expected ({int(P.SIZE)},)")
+    p, t0, state0, out_t, bounds = checked_segments(packed, t0, state0, out_t, bounds)
     check_step_settings(rtol, atol)
-    t0 = np.ascontiguousarray(t0, dtype=float)
-    state0 = np.ascontiguousarray(state0, dtype=float)
-    bounds = np.ascontiguousarray(bounds, dtype=np.int64)
-    out_t = np.ascontiguousarray(out_t, dtype=float)
-    if state0.shape != (t0.size, 2) or bounds.shape != (t0.size + 1,):
-        raise ValueError(
-            f"{t0.size} segments need state0 of shape ({t0.size}, 2) and {t0.size + 1} bounds; "
-            f"got {state0.shape} and {bounds.shape}"
-        )
-    if bounds[0] != 0 or bounds[-1] != out_t.size or np.any(np.diff(bounds) < 1):
-        raise ValueError("bounds must start at 0, end at len(out_t) and give each segment a time")
-    if not np.all(np.isfinite(state0)):
-        raise ValueError("segment start states must be finite")
     out_th = np.empty(out_t.size)
     out_om = np.empty(out_t.size)
     status = np.zeros(t0.size)
