@@ -27,6 +27,9 @@ RECORDS = {
     "barrier moved": (4103, "barrier_offset", 10.0, True),
     "sensor zero moved": (4104, "sensor_offset", 2.0, False),
 }
+# How far the equation error's start may miss: the short segments of the multiple shooting
+# converge from "a few per cent of error in a start value" (analysis/identify/forced.py)
+SHOOTING_REACH = 0.05
 
 
 def _record(tmp_path, seed, cause, frequency, laser):
@@ -97,13 +100,14 @@ def test_equation_error_starts_within_the_multiple_shootings_reach(tmp_path):
         table = TableMotion(d.omega_rad_s, d.phase0_rad, amplitude)
         flight = flight_regression(data.t, data.y, data.valid, data.noise_rad, table,
                                    data.rig.g_m_s2)
-        assert flight.omega_rad_s == pytest.approx(case.rig.omega_rad_s, rel=0.05)
+        assert flight.omega_rad_s == pytest.approx(case.rig.omega_rad_s, rel=SHOOTING_REACH)
 
 
 @pytest.mark.parametrize("seed", [4111, 4112, 4113])
 def test_equation_error_finds_gravity_under_a_distorted_table_no_laser_watches(seed, tmp_path):
     # a 10 Hz table with a second harmonic the record does not measure: its 20 Hz push
-    # must not take the gravity term's place (it once turned omega^2 negative)
+    # must not take the gravity term's place (it once turned omega^2 negative), and the
+    # start stays within the shooting's reach (the three land within 1.2 %)
     case = draw_forced_case(seed, "excitation_distortion", frequency_hz=10.0, laser=False,
                             duration_s=20.0)
     data = forced_data(load_record(write_forced_case(case, tmp_path)))
@@ -111,7 +115,7 @@ def test_equation_error_finds_gravity_under_a_distorted_table_no_laser_watches(s
     table = TableMotion(d.omega_rad_s, d.phase0_rad, None)
     flight = flight_regression(data.t, data.y, data.valid, data.noise_rad, table,
                                data.rig.g_m_s2)
-    assert flight.omega_rad_s == pytest.approx(case.rig.omega_rad_s, rel=0.25), \
+    assert flight.omega_rad_s == pytest.approx(case.rig.omega_rad_s, rel=SHOOTING_REACH), \
         case.causes
 
 
@@ -128,7 +132,8 @@ def test_a_table_amplitude_no_rig_has_is_not_a_start(tmp_path):
                              TableMotion(d.omega_rad_s, d.phase0_rad, None), data.rig.g_m_s2)
     assert free.amplitude_m < 0.5 * d.stated_amplitude_m  # the trap is still there
     ident = identify_forced(data, whole=False)
-    assert ident.start["omega_rad_s"] == pytest.approx(case.rig.omega_rad_s, rel=0.05)
+    assert ident.start["omega_rad_s"] == pytest.approx(case.rig.omega_rad_s,
+                                                       rel=SHOOTING_REACH)
     assert ident.start["eps"] == 0.0
     assert any("is no rig's against the stated 1.17 mm" in note for note in ident.notes)
 
