@@ -28,6 +28,7 @@ from analysis.extensions import ModelSpec
 from analysis.identify.forced import forced_data, identify_forced
 from analysis.record_loaders import load_record
 from reference.forced_records import draw_forced_case, write_forced_case
+from tests.tolerance import resolves
 
 PAIR = ("barrier_offset", "sensor_nonlinearity")
 
@@ -55,11 +56,10 @@ def test_a_second_cause_is_fitted_afresh_beside_the_first(tmp_path):
     pair = ModelSpec.of(*PAIR)
     nested = extend(data, first, alone, "barrier_offset", lay.full, 2)
     afresh = _fit_afresh(data, pair, ident, hints, lay, 2)
-    truth = case.causes["barrier_offset"]["theta_b_rad"]
     assert afresh.rss < nested.rss
-    assert afresh.values["theta_b_rad"] == pytest.approx(truth, abs=0.002)
-    assert afresh.values["k3"] == pytest.approx(case.causes["sensor_nonlinearity"]["k3"],
-                                                rel=0.1)
+    for name, key in (("barrier_offset", "theta_b_rad"), ("sensor_nonlinearity", "k3")):
+        truth = case.causes[name][key]
+        assert resolves(afresh.estimates[key], truth), (key, afresh.estimates[key], truth)
     assert afresh.rms < 1.2 * data.noise_rad
 
 

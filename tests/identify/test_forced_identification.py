@@ -18,6 +18,7 @@ from analysis.identify.equation_error import TableMotion, excursion_maxima, flig
 from analysis.identify.forced import forced_data
 from analysis.record_loaders import load_record
 from reference.forced_records import draw_forced_case, write_forced_case
+from tests.tolerance import within_999
 
 # (seed, cause, frequency, laser): both frequencies, with and without the laser, clean, and a
 # barrier and a sensor zero away from 0 (both are identified, not causes, here)
@@ -27,18 +28,14 @@ RECORDS = {
     "barrier moved": (4103, "barrier_offset", 10.0, True),
     "sensor zero moved": (4104, "sensor_offset", 2.0, False),
 }
+# How far the equation error's start may miss: the short segments of the multiple shooting
+# converge from "a few per cent of error in a start value" (analysis/identify/forced.py)
+SHOOTING_REACH = 0.05
 
 
 def _record(tmp_path, seed, cause, frequency, laser):
     case = draw_forced_case(seed, cause, frequency_hz=frequency, laser=laser, duration_s=30.0)
     return case, load_record(write_forced_case(case, tmp_path))
-
-
-def _inside(estimate, truth: float, slack: float) -> bool:
-    """Within the 95 % interval widened by ``slack`` (relative) for the smoother's model."""
-    low, high = estimate.ci95
-    pad = slack * abs(truth)
-    return low - pad <= truth <= high + pad
 
 
 @pytest.mark.parametrize("name", list(RECORDS))
@@ -47,21 +44,17 @@ def test_a_forced_record_alone_gives_the_rigs_parameters(name, tmp_path):
     result = fit_forced(record)
     p = result.parameters
     rig = case.rig
-    assert _inside(p["L_m"], rig.L_m, 0.002), (p["L_m"], rig.L_m)
-    assert _inside(p["zeta"], rig.zeta, 0.1), (p["zeta"], rig.zeta)
-    assert _inside(p["K_N_per_m1.5"], rig.K_N_per_m1_5, 0.05), (p["K_N_per_m1.5"],
-                                                                rig.K_N_per_m1_5)
-    assert _inside(p["mu0_s_per_m"], rig.mu0_s_per_m, 0.05), (p["mu0_s_per_m"],
-                                                              rig.mu0_s_per_m)
     theta_b = case.causes.get("barrier_offset", {}).get("theta_b_rad", 0.0)
     offset = case.causes.get("sensor_offset", {}).get("offset_rad", 0.0)
     noise = case.measurement.angle_noise_rad
-    for key, truth in (("theta_b_rad", theta_b), ("offset_rad", offset)):
+    # every value inside its reported 99.9 % interval, the method's own claim, unpadded
+    for key, truth in (("L_m", rig.L_m), ("zeta", rig.zeta), ("K_N_per_m1.5", rig.K_N_per_m1_5),
+                       ("mu0_s_per_m", rig.mu0_s_per_m), ("theta_b_rad", theta_b),
+                       ("offset_rad", offset), ("amplitude_m", case.drive.stated_amplitude_m)):
+        assert within_999(p[key], truth), (key, p[key], truth)
+    for key in ("theta_b_rad", "offset_rad"):  # and known to a few mrad at worst
         low, high = p[key].ci95
-        assert low - 2e-4 <= truth <= high + 2e-4, (key, p[key], truth)
-        assert high - low < 5e-3, (key, p[key])  # and known to a few mrad at worst
-    amplitude = case.drive.stated_amplitude_m
-    assert p["amplitude_m"].value == pytest.approx(amplitude, rel=0.01)
+        assert high - low < 5e-3, (key, p[key])
     # the fit explains the record down to its noise
     assert result.quality.rms_residual_rad < 1.1 * noise
 
@@ -97,13 +90,14 @@ def test_equation_error_starts_within_the_multiple_shootings_reach(tmp_path):
         table = TableMotion(d.omega_rad_s, d.phase0_rad, amplitude)
         flight = flight_regression(data.t, data.y, data.valid, data.noise_rad, table,
                                    data.rig.g_m_s2)
-        assert flight.omega_rad_s == pytest.approx(case.rig.omega_rad_s, rel=0.05)
+        assert flight.omega_rad_s == pytest.approx(case.rig.omega_rad_s, rel=SHOOTING_REACH)
 
 
 @pytest.mark.parametrize("seed", [4111, 4112, 4113])
 def test_equation_error_finds_gravity_under_a_distorted_table_no_laser_watches(seed, tmp_path):
     # a 10 Hz table with a second harmonic the record does not measure: its 20 Hz push
-    # must not take the gravity term's place (it once turned omega^2 negative)
+    # must not take the gravity term's place (it once turned omega^2 negative), and the
+    # start stays within the shooting's reach (the three land within 1.2 %)
     case = draw_forced_case(seed, "excitation_distortion", frequency_hz=10.0, laser=False,
                             duration_s=20.0)
     data = forced_data(load_record(write_forced_case(case, tmp_path)))
@@ -111,7 +105,7 @@ def test_equation_error_finds_gravity_under_a_distorted_table_no_laser_watches(s
     table = TableMotion(d.omega_rad_s, d.phase0_rad, None)
     flight = flight_regression(data.t, data.y, data.valid, data.noise_rad, table,
                                data.rig.g_m_s2)
-    assert flight.omega_rad_s == pytest.approx(case.rig.omega_rad_s, rel=0.25), \
+    assert flight.omega_rad_s == pytest.approx(case.rig.omega_rad_s, rel=SHOOTING_REACH), \
         case.causes
 
 
@@ -128,7 +122,8 @@ def test_a_table_amplitude_no_rig_has_is_not_a_start(tmp_path):
                              TableMotion(d.omega_rad_s, d.phase0_rad, None), data.rig.g_m_s2)
     assert free.amplitude_m < 0.5 * d.stated_amplitude_m  # the trap is still there
     ident = identify_forced(data, whole=False)
-    assert ident.start["omega_rad_s"] == pytest.approx(case.rig.omega_rad_s, rel=0.05)
+    assert ident.start["omega_rad_s"] == pytest.approx(case.rig.omega_rad_s,
+                                                       rel=SHOOTING_REACH)
     assert ident.start["eps"] == 0.0
     assert any("is no rig's against the stated 1.17 mm" in note for note in ident.notes)
 
