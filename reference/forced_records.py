@@ -21,6 +21,7 @@ import numpy as np
 
 from analysis.exchange import ExchangeMeta, ExchangeRecord, write_exchange
 from reference.cause_sizes import CAUSES, CHOICES, ResponseScale, draw_cause_values
+from reference.frozen import frozen
 from reference.regime_truth import (
     RegimeTruth,
     attractor_extent,
@@ -269,6 +270,12 @@ def true_table(drive: DriveTruth, causes: dict[str, dict[str, float]],
     )
 
 
+def with_motion(case: ForcedCase) -> ForcedCase:
+    """The case with its noiseless motion simulated (a frozen draw is stored without it)."""
+    return replace(case, motion=simulate_true_motion(case))
+
+
+@frozen(restore=with_motion)
 def draw_forced_case(
     seed: int,
     cause: str | tuple[str, ...] | None = None,

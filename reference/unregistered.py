@@ -25,7 +25,9 @@ from reference.forced_records import (
     draw_forced_case,
     simulate_true_motion,
     visibility_of,
+    with_motion,
 )
+from reference.frozen import frozen
 from reference.regime_truth import attractor_extent, judge_regime
 from reference.simulator import OverTheTopError
 
@@ -128,6 +130,7 @@ EFFECTS: dict[str, Effect] = {
 }
 
 
+@frozen(restore=with_motion)
 def draw_unregistered_case(
     seed: int, effect: str, *, frequency_hz: float | None = None, duration_s: float = 60.0,
 ) -> ForcedCase:
