@@ -12,10 +12,9 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from analysis.dynamics.chaos01 import MIN_SAMPLES, zero_one_k
 from analysis.dynamics.regime import (
@@ -206,7 +205,7 @@ class _Entry:
     period: int | None
     candidate: np.ndarray
     points: np.ndarray
-    tree: cKDTree | None = None
+    tree: Any = None  # a scipy.spatial.cKDTree of candidate, for large sets
 
 
 def _scale(theta: np.ndarray, theta_dot: np.ndarray) -> np.ndarray:
@@ -240,9 +239,7 @@ def _match(candidate, period, catalogue, match_tolerance):
     for k, entry in enumerate(catalogue):
         if entry.period != period:
             continue
-        if entry.tree is None:
-            entry.tree = cKDTree(entry.candidate)
-        distance, _ = entry.tree.query(candidate)
+        distance = _nearest_distances(candidate, entry)
         if period is not None:
             if np.max(distance) <= match_tolerance:
                 return k
@@ -250,6 +247,24 @@ def _match(candidate, period, catalogue, match_tolerance):
             # a cloud: most new points fall among the known ones
             return k
     return None
+
+
+BRUTE_FORCE_PAIRS = 1 << 16  # up to this many point pairs, every distance beats a tree
+
+
+def _nearest_distances(points, entry):
+    """Euclidean distance from each of ``points`` to the nearest point of ``entry``: every
+    pair for small sets (the same numbers as a tree, which larger ones use)."""
+    known = entry.candidate
+    if points.shape[0] * known.shape[0] <= BRUTE_FORCE_PAIRS:
+        dx = points[:, None, 0] - known[None, :, 0]
+        dy = points[:, None, 1] - known[None, :, 1]
+        return np.sqrt(np.min(dx * dx + dy * dy, axis=1))
+    if entry.tree is None:
+        from scipy.spatial import cKDTree  # here: most maps never need it
+
+        entry.tree = cKDTree(known)
+    return entry.tree.query(points)[0]
 
 
 def _unique_name(base: str, found: list[Attractor]) -> str:

@@ -144,3 +144,15 @@ def test_groups_of_orbits_are_each_identified_as_if_alone():
     assert together[1][0].tolist() == [NO_ATTRACTOR, 0, 1]
     assert [a.name for a in together[1][1]] == ["period-1", "chaotic"]
     assert together[3][0].size == 0 and together[3][1] == ()
+
+
+def test_large_orbits_are_matched_by_a_tree_to_the_same_attractors(monkeypatch):
+    henon = iterate_map(henon_map, [0.1, 0.1], HENON_CLASSIC, 4 * K, transient=100)
+    theta = np.array([henon[k * K : (k + 1) * K, 0] for k in range(4)])
+    theta_dot = np.array([henon[k * K : (k + 1) * K, 1] for k in range(4)])
+    every_pair = identify_attractors(theta, theta_dot)
+    monkeypatch.setattr("analysis.dynamics.basins.BRUTE_FORCE_PAIRS", 0)  # a tree always
+    by_tree = identify_attractors(theta, theta_dot)
+    assert every_pair[0].tolist() == by_tree[0].tolist()
+    assert by_tree[0][:3].tolist() == [0, 0, 0]  # matched through the tree
+    assert [a.name for a in every_pair[1]] == [a.name for a in by_tree[1]]
