@@ -239,8 +239,8 @@ def _run_on(client: Any, queue: _TaskQueue, store: MapStore, meter: _Meter) -> N
 class _DaskClient:
     """A Dask client on the scheduler at ``address``, or on a new LocalCluster of ``workers``
     processes (closed on exit); every worker loads the integrator and must compute with the
-    same software as this process (``local``: what :func:`warm_up` says here), or the map
-    would not be the same bit for bit."""
+    same software as this process (``local``: what :func:`analysis.maps.tasks.warm_up` says
+    here), or the map would not be the same bit for bit."""
 
     def __init__(self, address: str | None, workers: int, local: dict[str, str]) -> None:
         self.address, self.workers, self.local = address, workers, local
