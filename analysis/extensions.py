@@ -14,7 +14,6 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Literal
 
 import numpy as np
-from scipy.signal import lfilter
 
 from analysis.packed import P, ParameterError
 
@@ -345,6 +344,8 @@ def _lag(t: np.ndarray, theta: np.ndarray, v: Mapping[str, float],
     else:
         first = theta[0] - (v["tau_s"] * theta_dot0 if theta_dot0 is not None else 0.0)
         state = first - b[0] * theta[0]
+    from scipy.signal import lfilter  # here: scipy.signal takes a second to import
+
     filtered, _ = lfilter(b, [1.0, -a], theta, zi=[state])
     if carry is not None:
         carry.update(output=float(filtered[-1]), input=float(theta[-1]), dt_s=dt)

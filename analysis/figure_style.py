@@ -17,10 +17,12 @@ def legend_beside(axes: Any, **options: Any) -> Any:
                        **options)
 
 
-def save_figure(figure: Any, path: str | Path) -> Path:
+def save_figure(figure: Any, path: str | Path, *, crop: bool = True) -> Path:
     """Write ``figure`` as a PNG at PRINT_DPI, cropped to what it draws (legends beside the
-    axes included), with the software that made it in its metadata."""
+    axes included), with the software that made it in its metadata.  ``crop=False`` for a
+    figure whose layout holds all it draws already (constrained layout, legends included):
+    it is then drawn once instead of twice."""
     path = Path(path)
-    figure.savefig(path, format="png", dpi=PRINT_DPI, bbox_inches="tight",
+    figure.savefig(path, format="png", dpi=PRINT_DPI, bbox_inches="tight" if crop else None,
                    metadata=png_metadata())
     return path

@@ -12,12 +12,17 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from scipy.spatial import cKDTree
 
-from analysis.dynamics.regime import Regime, classify_regime, recurrence_distances
+from analysis.dynamics.chaos01 import MIN_SAMPLES, zero_one_k
+from analysis.dynamics.regime import (
+    Regime,
+    classify_regime,
+    closing_period,
+    stacked_recurrence_distances,
+)
 from analysis.dynamics.sweeps import PoincareSettings, Progress, run_poincare
 from analysis.figure_style import legend_beside, save_figure
 from analysis.model import Model
@@ -111,52 +116,119 @@ def identify_attractors(
     Non-periodic orbits need k >= 50 samples for the 0-1 test that names them.
     """
     theta = np.atleast_2d(np.asarray(theta, dtype=float))
+    (result,) = identify_attractor_groups(
+        theta, theta_dot, [theta.shape[0]], ok=ok, tolerance=tolerance,
+        match_tolerance=match_tolerance,
+    )
+    return result
+
+
+def identify_attractor_groups(
+    theta: np.ndarray,
+    theta_dot: np.ndarray,
+    ends: Sequence[int] | np.ndarray,
+    *,
+    ok: np.ndarray | None = None,
+    tolerance: float = 1e-3,
+    match_tolerance: float = 0.02,
+) -> list[tuple[np.ndarray, tuple[Attractor, ...]]]:
+    """:func:`identify_attractors` of each group of orbits, rows ``ends[g-1]:ends[g]``
+    (groups in order, the first from row 0), each group on its own as if alone: its
+    labels and its catalogue.  The orbits' recurrence is computed for all groups at once,
+    which is what makes many small groups (a regime map's points) quick.
+    """
+    theta = np.atleast_2d(np.asarray(theta, dtype=float))
     theta_dot = np.atleast_2d(np.asarray(theta_dot, dtype=float))
     if theta.shape != theta_dot.shape:
         raise ValueError(f"theta {theta.shape} and theta_dot {theta_dot.shape} differ in shape")
     ok = np.ones(theta.shape[0], dtype=bool) if ok is None else np.asarray(ok, dtype=bool)
-    labels, catalogue = _identify(theta, theta_dot, ok, tolerance, match_tolerance)
-    counts = np.bincount(labels[labels >= 0], minlength=len(catalogue))
-    attractors = tuple(
-        Attractor(entry.name, entry.regime, entry.points, float(counts[k]) / labels.size)
-        for k, entry in enumerate(catalogue)
-    )
-    return labels, attractors
+    ends = np.asarray(ends, dtype=np.int64)
+    starts = np.concatenate([[0], ends[:-1]]).astype(np.int64)
+    finite = ok & np.all(np.isfinite(theta), axis=1) & np.all(np.isfinite(theta_dot), axis=1)
+    # One scale per group, so that "same attractor" means the same thing across the group
+    group_scales = []
+    for first, stop in zip(starts, ends, strict=True):
+        rows = first + np.flatnonzero(finite[first:stop])
+        group_scales.append(_scale(theta[rows], theta_dot[rows]) if rows.size else np.ones(2))
+    scales = np.repeat(group_scales, ends - starts, axis=0).reshape(-1, 2)  # per orbit
+    orbits = np.stack([theta, theta_dot], axis=-1)
+    normalised = np.zeros_like(orbits)
+    normalised[finite] = orbits[finite] / scales[finite][:, None, :]
+    recurrence = np.full((theta.shape[0], MAX_PERIOD), np.inf)
+    recurrence[finite] = stacked_recurrence_distances(normalised[finite], MAX_PERIOD)
+    closes = recurrence <= tolerance
+    period = np.where(closes.any(axis=1), np.argmax(closes, axis=1) + 1, 0)
+    groups = []
+    for first, stop, scale in zip(starts, ends, group_scales, strict=True):
+        rows = slice(first, stop)
+        labels, catalogue = _identify(
+            normalised[rows], recurrence[rows], period[rows], finite[rows], scale, tolerance,
+            match_tolerance,
+        )
+        groups.append((labels, catalogue))
+    # the regimes of the new attractors, with the 0-1 test of those that do not close in
+    # one call for them all
+    entries = [(first, entry) for first, (_, catalogue) in zip(starts, groups, strict=True)
+               for entry in catalogue]
+    rows = [first + entry.row for first, entry in entries if entry.period is None]
+    if theta.shape[1] < MIN_SAMPLES:  # classify_regime does without the test
+        rows = []
+    K = dict(zip(rows, zero_one_k(theta[rows]) if rows else [], strict=True))
+    out = []
+    for first, (labels, catalogue) in zip(starts, groups, strict=True):
+        counts = np.bincount(labels[labels >= 0], minlength=len(catalogue))
+        attractors: list[Attractor] = []
+        for k, entry in enumerate(catalogue):
+            row = first + entry.row
+            regime = classify_regime(
+                orbits[row], tolerance=tolerance, scale=scales[row], recurrence=recurrence[row],
+                K=K.get(row),
+            )
+            name = _unique_name(regime.short_name, attractors)
+            attractors.append(
+                Attractor(name, regime, entry.points, float(counts[k]) / labels.size)
+            )
+        out.append((labels, tuple(attractors)))
+    return out
+
+
+MAX_PERIOD = 16  # the longest period an orbit is matched by
 
 
 @dataclass
 class _Entry:
-    name: str
-    regime: Regime
+    """An attractor found in a group: its first orbit (``row`` in the group), the period
+    its regime will have (None: it does not close), its points (normalised, for
+    matching; ``points``: in the orbits' units) and their tree, built when first needed."""
+
+    row: int
+    period: int | None
+    candidate: np.ndarray
     points: np.ndarray
-    tree: cKDTree
+    tree: Any = None  # a scipy.spatial.cKDTree of candidate, for large sets
 
 
-def _identify(theta, theta_dot, ok, tolerance, match_tolerance):
-    """Label each orbit with a catalogue index, building the catalogue on the way."""
-    n = theta.shape[0]
-    labels = np.full(n, NO_ATTRACTOR, dtype=np.int64)
-    finite = ok & np.all(np.isfinite(theta), axis=1) & np.all(np.isfinite(theta_dot), axis=1)
-    if not finite.any():
-        return labels, []
-    # One scale for all orbits, so that "same attractor" means the same thing everywhere.
-    # (spread or RMS, whichever is larger: a single period-1 attractor has no spread)
-    everything = np.column_stack([theta[finite].ravel(), theta_dot[finite].ravel()])
+def _scale(theta: np.ndarray, theta_dot: np.ndarray) -> np.ndarray:
+    """The size of a group's orbits (rows), per coordinate: spread or RMS, whichever is
+    larger (a single period-1 attractor has no spread); 1 where both are 0."""
+    everything = np.column_stack([theta.ravel(), theta_dot.ravel()])
     scale = np.maximum(np.ptp(everything, axis=0), np.sqrt(np.mean(everything**2, axis=0)))
-    scale = np.where(scale > 0, scale, 1.0)
+    return np.where(scale > 0, scale, 1.0)
+
+
+def _identify(normalised, recurrence, period, finite, scale, tolerance, match_tolerance):
+    """Label each orbit of a group with a catalogue index, building the catalogue on the
+    way (the regimes of its entries are named afterwards)."""
+    labels = np.full(normalised.shape[0], NO_ATTRACTOR, dtype=np.int64)
     catalogue: list[_Entry] = []
+    samples = normalised.shape[1]
     for i in np.flatnonzero(finite):
-        orbit = np.column_stack([theta[i], theta_dot[i]])
-        normalised = orbit / scale
-        recurrence = recurrence_distances(normalised, max_period=16, scale=1.0)
-        periodic = np.flatnonzero(recurrence <= tolerance)
-        period = int(periodic[0] + 1) if periodic.size else None
-        candidate = normalised[-period:] if period else normalised
-        found = _match(candidate, period, catalogue, match_tolerance)
+        k = int(period[i]) or None
+        candidate = normalised[i, -k:] if k else normalised[i]
+        found = _match(candidate, k, catalogue, match_tolerance)
         if found is None:
-            regime = classify_regime(orbit, tolerance=tolerance, scale=scale)
-            name = _unique_name(regime.short_name, catalogue)
-            catalogue.append(_Entry(name, regime, candidate * scale, cKDTree(candidate)))
+            closes = closing_period(recurrence[i], samples, tolerance=tolerance)
+            catalogue.append(_Entry(int(i), closes, candidate, candidate * scale))
             found = len(catalogue) - 1
         labels[i] = found
     return labels, catalogue
@@ -165,10 +237,9 @@ def _identify(theta, theta_dot, ok, tolerance, match_tolerance):
 def _match(candidate, period, catalogue, match_tolerance):
     """Catalogue index of the attractor the normalised orbit lies on, or None."""
     for k, entry in enumerate(catalogue):
-        entry_period = entry.regime.period if entry.regime.kind == "periodic" else None
-        if entry_period != period:
+        if entry.period != period:
             continue
-        distance, _ = entry.tree.query(candidate)
+        distance = _nearest_distances(candidate, entry)
         if period is not None:
             if np.max(distance) <= match_tolerance:
                 return k
@@ -178,8 +249,26 @@ def _match(candidate, period, catalogue, match_tolerance):
     return None
 
 
-def _unique_name(base: str, catalogue: list[_Entry]) -> str:
-    taken = {entry.name for entry in catalogue}
+BRUTE_FORCE_PAIRS = 1 << 16  # up to this many point pairs, every distance beats a tree
+
+
+def _nearest_distances(points, entry):
+    """Euclidean distance from each of ``points`` to the nearest point of ``entry``: every
+    pair for small sets (the same numbers as a tree, which larger ones use)."""
+    known = entry.candidate
+    if points.shape[0] * known.shape[0] <= BRUTE_FORCE_PAIRS:
+        dx = points[:, None, 0] - known[None, :, 0]
+        dy = points[:, None, 1] - known[None, :, 1]
+        return np.sqrt(np.min(dx * dx + dy * dy, axis=1))
+    if entry.tree is None:
+        from scipy.spatial import cKDTree  # here: most maps never need it
+
+        entry.tree = cKDTree(known)
+    return entry.tree.query(points)[0]
+
+
+def _unique_name(base: str, found: list[Attractor]) -> str:
+    taken = {attractor.name for attractor in found}
     if base not in taken:
         return base
     suffix = 2

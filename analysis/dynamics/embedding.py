@@ -10,9 +10,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.ndimage import median_filter
-from scipy.signal import find_peaks
-from scipy.spatial import cKDTree
 
 
 @dataclass(frozen=True)
@@ -80,6 +77,9 @@ def first_minimum(values: np.ndarray, *, flat_fraction: float = 0.02) -> int | N
     values = np.asarray(values, dtype=float)
     if values.size < 3:
         return None
+    from scipy.ndimage import median_filter  # here: the map command needs no scipy.signal
+    from scipy.signal import find_peaks
+
     smooth = median_filter(values, 3, mode="nearest")
     margin = flat_fraction * (smooth[0] - smooth.min())
     index, _ = find_peaks(-smooth, prominence=max(margin, 1e-12), plateau_size=(1, None))
@@ -195,6 +195,8 @@ def _nearest_neighbours(
     exactly periodic record) are skipped: the ratio of criterion 1 is meaningless there.
     Points whose neighbour is not among the first candidates get -1.
     """
+    from scipy.spatial import cKDTree
+
     tree = cKDTree(points)
     n = points.shape[0]
     k = min(n, 2 * theiler_window + 8)

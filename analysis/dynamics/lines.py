@@ -12,9 +12,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy import fft as sp_fft
-from scipy import linalg, ndimage
-from scipy.signal import windows
 
 # Chance that a residual of pure white noise shows a line (or any other finding of the
 # residual reading): small enough that a benchmark of hundreds of clean records sees none.
@@ -90,6 +87,9 @@ def periodogram(filled: np.ndarray, ok: np.ndarray, *, window: bool = True) -> n
     """Periodogram of a zero-filled sequence (Blackman-Harris window, or none), scaled so
     that white noise of variance s^2 has every bin's expectation s^2 whatever the gaps
     (bins 0..n/2)."""
+    from scipy import fft as sp_fft  # here: the map command needs no scipy.signal
+    from scipy.signal import windows
+
     taper = windows.blackmanharris(filled.size, sym=False) if window else np.ones(filled.size)
     weight = taper * ok
     return np.abs(sp_fft.rfft(filled * taper)) ** 2 / float(weight @ weight)
@@ -109,6 +109,8 @@ def line_threshold(tested: int) -> float:
 def local_floor(power: np.ndarray) -> np.ndarray:
     """Per bin, the larger of the running median and the median of the ring of bins either
     side of it (a peak on a broad hump or on the skirt of low frequencies is no line)."""
+    from scipy import ndimage
+
     wide = ndimage.median_filter(power, size=FLOOR_WINDOW, mode="reflect")
     ring = np.zeros(2 * RING[1] + 1, dtype=bool)
     ring[: RING[1] - RING[0] + 1] = True
@@ -139,6 +141,8 @@ def fit_sines(
     Lines are at least MERGE_BINS apart, so their sines are nearly orthogonal and the
     normal equations are well conditioned: solved by Cholesky, many times faster than an
     SVD of the samples (an orthogonal solve is the fallback should they not be)."""
+    from scipy import linalg
+
     tt = t - t[0]
     phase = (2.0 * math.pi) * np.outer(tt, np.asarray(frequencies_hz, dtype=float))
     basis = np.empty((tt.size, 2 * phase.shape[1] + 1))

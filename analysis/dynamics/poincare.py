@@ -9,8 +9,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import signal as sp_signal
-from scipy.interpolate import CubicSpline
 
 
 @dataclass(frozen=True)
@@ -46,7 +44,9 @@ def smoothed_derivative(x: np.ndarray, fs_hz: float, *, window_samples: int = 15
         raise ValueError(f"window_samples = {window_samples}: need at least 5 for a cubic fit")
     if x.size < window:
         raise ValueError(f"signal of {x.size} samples is shorter than the {window}-sample window")
-    return sp_signal.savgol_filter(x, window, 3, deriv=1, delta=1.0 / fs_hz, mode="interp")
+    from scipy.signal import savgol_filter  # here: the map command needs no scipy.signal
+
+    return savgol_filter(x, window, 3, deriv=1, delta=1.0 / fs_hz, mode="interp")
 
 
 def poincare_from_pulses(
@@ -72,6 +72,8 @@ def poincare_from_pulses(
         )
     if np.any(np.diff(pulses) <= 0):
         raise ValueError("pulse indices must be strictly increasing")
+    from scipy.interpolate import CubicSpline
+
     rate = smoothed_derivative(theta, fs_hz, window_samples=derivative_window_samples)
     index = np.arange(theta.size, dtype=float)
     theta_at = CubicSpline(index, theta)(pulses)
@@ -106,6 +108,8 @@ def poincare_from_phase(
     first = np.ceil((time_s[0] - offset) / period - 1e-9)
     last = np.floor((time_s[-1] - offset) / period + 1e-9)
     times = offset + period * np.arange(first, last + 1)
+    from scipy.interpolate import CubicSpline
+
     spline_theta = CubicSpline(time_s, theta)
     spline_rate = CubicSpline(time_s, np.asarray(theta_dot, dtype=float))
     return PoincareSection(spline_theta(times), spline_rate(times), times)

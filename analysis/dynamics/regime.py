@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from analysis.dynamics.chaos01 import zero_one_test
+from analysis.dynamics.chaos01 import MIN_SAMPLES, zero_one_test
 from analysis.dynamics.poincare import PoincareSection
 from analysis.dynamics.spectrum import Spectrum
 
@@ -62,14 +62,26 @@ def recurrence_distances(
     over the points so that a rare glitch in measured data does not hide a period.
     """
     points = _as_points(points)
-    size = _scale(points, scale)
-    normalised = points / size
-    out = np.full(max_period, np.inf)
+    normalised = points / _scale(points, scale)
+    return stacked_recurrence_distances(normalised[None], max_period, quantile=quantile)[0]
+
+
+def stacked_recurrence_distances(
+    orbits: np.ndarray, max_period: int, *, quantile: float = 0.95
+) -> np.ndarray:
+    """:func:`recurrence_distances` of many orbits at once: ``orbits`` is (m, n, d), each
+    orbit already divided by its scale; returns (m, max_period), row by row the same
+    numbers as one orbit at a time."""
+    coordinates = np.moveaxis(np.asarray(orbits, dtype=float), 2, 0).copy()  # (d, m, n)
+    count, length = coordinates.shape[1:]
+    out = np.full((count, max_period), np.inf)
     for n in range(1, max_period + 1):
-        if points.shape[0] <= n + 1:
+        if length <= n + 1:
             break
-        d = np.max(np.abs(normalised[n:] - normalised[:-n]), axis=1)
-        out[n - 1] = float(np.quantile(d, quantile))
+        d = np.abs(coordinates[0, :, n:] - coordinates[0, :, :-n])
+        for coordinate in coordinates[1:]:  # the Chebyshev norm
+            np.maximum(d, np.abs(coordinate[:, n:] - coordinate[:, :-n]), out=d)
+        out[:, n - 1] = np.quantile(d, quantile, axis=1)
     return out
 
 
@@ -85,6 +97,8 @@ def classify_regime(
     chaos_threshold: float = 0.5,
     lyapunov_threshold: float = 0.0,
     seed: int = 0,
+    recurrence: np.ndarray | None = None,
+    K: float | None = None,
 ) -> Regime:
     """Classify post-transient Poincare samples (one per drive period; (n,) or (n, d) or a section).
 
@@ -95,12 +109,19 @@ def classify_regime(
     Otherwise chaotic when the 0-1 test's K exceeds ``chaos_threshold`` or the given
     Lyapunov exponent exceeds ``lyapunov_threshold``, else quasi-periodic.  (The
     0-1 test reads measurement noise as chaos, hence the noisy-period rule first.)
+    ``recurrence`` (the points' :func:`recurrence_distances` at ``scale``, lags 1 to
+    ``max_period`` or more) and ``K`` (the 0-1 test's K of the first coordinate with
+    ``seed``, :func:`analysis.dynamics.chaos01.zero_one_k`): when the caller has them
+    already, they are not computed again.
     """
     points = _as_points(poincare.points if isinstance(poincare, PoincareSection) else poincare)
     if points.shape[0] < 3:
         raise ValueError(f"need at least 3 Poincare samples to classify, got {points.shape[0]}")
-    max_period = max(1, min(max_period, (points.shape[0] - 2) // 2))
-    recurrence = recurrence_distances(points, max_period, scale=scale)
+    max_period = _lags(points.shape[0], max_period)
+    if recurrence is None:
+        recurrence = recurrence_distances(points, max_period, scale=scale)
+    else:
+        recurrence = np.array(recurrence[:max_period], dtype=float)
     evidence: dict[str, Any] = {"recurrence": recurrence, "tolerance": tolerance}
     if lyapunov_exponent is not None:
         evidence["lyapunov"] = float(lyapunov_exponent)
@@ -110,8 +131,8 @@ def classify_regime(
     if period is not None:
         label = f"period-{period}" + harmonic_text(harmonics)
         return Regime("periodic", period, label, MappingProxyType(evidence))
-    if points.shape[0] >= 50:
-        K = zero_one_test(points[:, 0], seed=seed).K
+    if points.shape[0] >= MIN_SAMPLES:
+        K = zero_one_test(points[:, 0], seed=seed).K if K is None else float(K)
         evidence["K"] = K
     else:
         K = float("nan")
@@ -125,13 +146,33 @@ def classify_regime(
         )
     if not np.isfinite(K):
         raise ValueError(
-            "not periodic within the tolerance and too few samples (< 50) for the 0-1 test: "
-            "pass a Lyapunov exponent or more Poincare samples"
+            f"not periodic within the tolerance and too few samples (< {MIN_SAMPLES}) for the "
+            "0-1 test: pass a Lyapunov exponent or more Poincare samples"
         )
     label = f"quasi-periodic (K = {K:.2f})"
     if harmonics.get("incommensurate"):
         label += f", lines at {', '.join(harmonics['incommensurate'])}"
     return Regime("quasi_periodic", None, label, MappingProxyType(evidence))
+
+
+def closing_period(
+    recurrence: np.ndarray,
+    samples: int,
+    *,
+    tolerance: float = 1e-3,
+    noise_tolerance: float = 0.05,
+    max_period: int = 16,
+) -> int | None:
+    """The period :func:`classify_regime` finds in ``samples`` Poincare points whose
+    recurrence distances (lags 1, 2, ...) are ``recurrence``; None when the orbit does not
+    close (quasi-periodic or chaotic)."""
+    lags = _lags(samples, max_period)
+    return _period(np.asarray(recurrence[:lags], dtype=float), tolerance, noise_tolerance)
+
+
+def _lags(samples: int, max_period: int) -> int:
+    """The longest lag tried: a period must repeat at least twice in the samples."""
+    return max(1, min(max_period, (samples - 2) // 2))
 
 
 def _period(recurrence: np.ndarray, tolerance: float, noise_tolerance: float) -> int | None:

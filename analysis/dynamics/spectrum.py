@@ -11,7 +11,6 @@ from dataclasses import dataclass
 from fractions import Fraction
 
 import numpy as np
-from scipy import signal as sp_signal
 
 
 @dataclass(frozen=True)
@@ -112,7 +111,9 @@ def amplitude_spectrum(
     n = x.size
     if detrend:
         x = x - np.mean(x)
-    taper = sp_signal.get_window(window, n, fftbins=True)
+    from scipy.signal import get_window  # here: the map command needs no scipy.signal
+
+    taper = get_window(window, n, fftbins=True)
     coherent_gain = float(np.sum(taper))
     amplitude = np.abs(np.fft.rfft(x * taper)) * 2.0 / coherent_gain
     amplitude[0] *= 0.5
@@ -138,7 +139,9 @@ def _find_peaks(
     if not np.isfinite(top):
         return ()
     level_db = np.maximum(level_db, top - dynamic_range_db - 40.0)
-    index, _ = sp_signal.find_peaks(level_db, prominence=6.0, height=top - dynamic_range_db)
+    from scipy.signal import find_peaks
+
+    index, _ = find_peaks(level_db, prominence=6.0, height=top - dynamic_range_db)
     index = index[np.argsort(amplitude[index])[::-1]][:max_peaks]
     bin_hz = frequency[1] - frequency[0]
     found = []

@@ -87,9 +87,9 @@ class MapRunner:
         self._dask: _DaskClient | None = None
 
     def __enter__(self) -> MapRunner:
-        warm_up()  # compiles here first (once per machine), so workers only load numba's cache
+        versions = warm_up()  # compiles here first (once per machine): workers load the cache
         if self.scheduler is not None or self.workers > 1:
-            self._dask = _DaskClient(self.scheduler, self.workers)
+            self._dask = _DaskClient(self.scheduler, self.workers, versions)
             client = self._dask.__enter__()
             self.workers = len(client.scheduler_info()["workers"])
         return self
@@ -239,17 +239,17 @@ def _run_on(client: Any, queue: _TaskQueue, store: MapStore, meter: _Meter) -> N
 class _DaskClient:
     """A Dask client on the scheduler at ``address``, or on a new LocalCluster of ``workers``
     processes (closed on exit); every worker loads the integrator and must compute with the
-    same software as this process, or the map would not be the same bit for bit."""
+    same software as this process (``local``: what :func:`analysis.maps.tasks.warm_up` says
+    here), or the map would not be the same bit for bit."""
 
-    def __init__(self, address: str | None, workers: int) -> None:
-        self.address, self.workers = address, workers
+    def __init__(self, address: str | None, workers: int, local: dict[str, str]) -> None:
+        self.address, self.workers, self.local = address, workers, local
         self.cluster: Any = None
         self.client: Any = None
 
     def __enter__(self) -> Any:
         from distributed import Client, LocalCluster
 
-        local = warm_up()
         try:
             if self.address is None:
                 self.cluster = LocalCluster(
@@ -269,7 +269,7 @@ class _DaskClient:
                     ) from None
             else:
                 self.client = _connect(self.address)
-            _check_workers(self.client, local)
+            _check_workers(self.client, self.local)
         except BaseException:
             self.__exit__(None, None, None)
             raise

@@ -33,11 +33,10 @@ def draw_map(
 ) -> Path:
     """Draw the map read by :func:`analysis.maps.store.read_map` to ``path`` (PNG), a
     bifurcation map with a recorded sweep's points over it when ``overlay`` is given."""
-    if data["kind"] == "bifurcation":
-        figure = _bifurcation(data, overlay)
-    else:
-        figure = {"regimes": _regimes, "basins": _basins}[data["kind"]](data)
-    return save_figure(figure, path)
+    if data["kind"] == "basins":
+        return save_figure(_basins(data), path)
+    figure = _bifurcation(data, overlay) if data["kind"] == "bifurcation" else _regimes(data)
+    return save_figure(figure, path, crop=False)  # constrained layout: drawn once
 
 
 def _figure(size: tuple[float, float], rows: int = 1, heights: tuple[int, ...] = (1,)):

@@ -14,19 +14,22 @@ from analysis.maps.summary import Runner, summarize
 
 
 def finish_map(
-    path: str | Path, figure_path: str | Path, run: Runner | None = None, overlay: Any = None
+    path: str | Path,
+    figure_path: str | Path,
+    run: Runner | None = None,
+    overlay: Any = None,
+    workers: int = 1,
 ) -> dict:
-    """Summarize a map file whose tasks are all done (chunks classified by ``run``), store the
-    summary and draw the figure (with a recorded sweep's points, ``overlay``); returns the
-    file's contents."""
+    """Summarize a map file whose tasks are all done (chunks classified by ``run`` on its
+    ``workers``), store the summary and draw the figure (with a recorded sweep's points,
+    ``overlay``); returns the file's contents."""
     data = read_map(path)
     left = int(np.count_nonzero(data["tasks"]["done"] == 0))
     if left:
         raise ValueError(f"{path}: {left} tasks are not done yet")
     arrays, info = summarize(
-        data["kind"], data["trajectories"], data["points"]["packed"].shape[0], run
+        data["kind"], data["trajectories"], data["points"]["packed"].shape[0], run, workers
     )
-    write_summary(path, arrays, info)
-    data = read_map(path)
+    data.update(summary=arrays, summary_info=write_summary(path, arrays, info), complete=True)
     draw_map(data, figure_path, overlay)
     return data

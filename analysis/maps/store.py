@@ -150,16 +150,21 @@ class MapStore:
         self._file.close()
 
 
-def write_summary(path: str | Path, arrays: dict[str, np.ndarray], info: dict[str, Any]) -> None:
-    """Add the summary of a complete map (group ``summary``, attribute ``summary`` as JSON)."""
+def write_summary(
+    path: str | Path, arrays: dict[str, np.ndarray], info: dict[str, Any]
+) -> dict[str, Any]:
+    """Add the summary of a complete map (group ``summary``, attribute ``summary`` as JSON);
+    returns ``info`` as the file holds it (as :func:`read_map` reads it)."""
+    text = to_json_text(info, one_line=True)
     with h5py.File(path, "r+", libver="latest") as handle:
         if "summary" in handle:
             del handle["summary"]
         group = handle.create_group("summary")
         for name, values in arrays.items():
             group[name] = values
-        handle.attrs["summary"] = to_json_text(info, one_line=True)
+        handle.attrs["summary"] = text
         handle.attrs["complete"] = True
+    return json.loads(text)
 
 
 def read_map(path: str | Path) -> dict[str, Any]:

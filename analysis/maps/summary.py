@@ -3,7 +3,8 @@ many attractors coexist and which regime dominates.
 
 Trajectories are grouped (per point for bifurcation and regime maps, all together for a
 basin map, whose trajectories share one model) and each group's settled Poincare orbits
-are matched into attractors by :func:`analysis.dynamics.basins.identify_attractors`.
+are matched into attractors by
+:func:`analysis.dynamics.basins.identify_attractor_groups`.
 Groups are classified in chunks of plain arrays, so the map's workers can share the work
 (``run``); the result does not depend on who classified which chunk.
 """
@@ -16,11 +17,11 @@ from typing import Any
 
 import numpy as np
 
-from analysis.dynamics.basins import NO_ATTRACTOR, identify_attractors
+from analysis.dynamics.basins import NO_ATTRACTOR, identify_attractor_groups
 from analysis.dynamics.regime import KINDS
 
 NO_REGIME = -1  # kind code where no trajectory of a point stayed in the model
-SUMMARY_CHUNKS = 64  # groups are classified in about this many chunks
+CHUNKS_PER_WORKER = 4  # chunks of groups classified per worker: few, as each is vectorised
 
 Chunk = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]  # theta, theta_dot, ok, group ends
 Runner = Callable[[Callable[[Any], Any], Sequence[Any]], list[Any]]
@@ -30,27 +31,29 @@ def classify_chunk(chunk: Chunk) -> list[dict[str, Any]]:
     """Attractors of each group of a chunk (rows ``ends[k-1]:ends[k]``): per group the
     labels and, per attractor, its regime code, period, name and points."""
     theta, theta_dot, ok, ends = chunk
-    out = []
-    for first, stop in zip(np.concatenate([[0], ends[:-1]]), ends, strict=True):
-        labels, attractors = identify_attractors(
-            theta[first:stop], theta_dot[first:stop], ok=ok[first:stop]
-        )
-        out.append({
+    return [
+        {
             "labels": labels,
             "codes": [KINDS.index(a.regime.kind) for a in attractors],
             "periods": [a.regime.period or 0 for a in attractors],
             "names": [a.name for a in attractors],
             "fractions": [a.basin_fraction for a in attractors],
-            "points": [a.points.tolist() for a in attractors],
-        })
-    return out
+            "points": [a.points for a in attractors],
+        }
+        for labels, attractors in identify_attractor_groups(theta, theta_dot, ends, ok=ok)
+    ]
 
 
 def summarize(
-    kind: str, trajectories: dict[str, np.ndarray], points: int, run: Runner | None = None
+    kind: str,
+    trajectories: dict[str, np.ndarray],
+    points: int,
+    run: Runner | None = None,
+    workers: int = 1,
 ) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
     """Summary arrays and plain facts of a complete map; ``run(function, inputs)`` classifies
-    the chunks (default: here, one after another).
+    the chunks, CHUNKS_PER_WORKER for each of its ``workers`` (default: here, one after
+    another).
 
     Per trajectory: ``label`` (attractor within its group, -1 none), ``regime`` (index into
     analysis.dynamics.regime.KINDS, -1 none) and ``period`` (0 unless periodic).  Per
@@ -61,7 +64,7 @@ def summarize(
     theta, theta_dot = trajectories["theta"], trajectories["theta_dot"]
     status, point = trajectories["status"], trajectories["point"]
     groups = [np.arange(point.size)] if kind == "basins" else _by_point(point, points)
-    per_chunk = math.ceil(len(groups) / SUMMARY_CHUNKS)
+    per_chunk = max(1, math.ceil(len(groups) / (CHUNKS_PER_WORKER * workers)))
     chunks, members_of = [], []
     for start in range(0, len(groups), per_chunk):
         members = groups[start : start + per_chunk]
@@ -111,7 +114,7 @@ def summarize(
         (only,) = results
         info["attractors"] = [
             {"name": name, "regime": KINDS[code], "period": k or None, "fraction": fraction,
-             "points": points}
+             "points": points.tolist()}
             for name, code, k, fraction, points in zip(
                 only["names"], only["codes"], only["periods"], only["fractions"],
                 only["points"], strict=True,

@@ -146,7 +146,7 @@ def run(args: argparse.Namespace) -> int:
             report = _compute(args, plan, runner, resume, figure)
             if report is None:
                 return 0
-            finish_map(args.out, figure, runner.map, overlay)  # workers classify attractors
+            finish_map(args.out, figure, runner.map, overlay, runner.workers)  # on the workers
     except SchedulerError as error:
         raise CommandError(str(error)) from None
     _say(args, f"map {plan.kind}: attractors classified; figure {figure}")

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from analysis.dynamics import NO_ATTRACTOR, basins_of_attraction, identify_attractors, plot_basins
+from analysis.dynamics.basins import identify_attractor_groups
 from analysis.model import Drive, Model, RigParameters, paper_case
 from analysis.simulate import SimulationSettings, simulate
 from tests.dynamics.integrators import iterate_map
@@ -113,3 +114,45 @@ def test_progress_is_reported_up_to_the_number_of_runs():
     )
     assert reports[-1] == (6, 6)
     assert [done for done, _ in reports] == sorted(done for done, _ in reports)
+
+
+def test_groups_of_orbits_are_each_identified_as_if_alone():
+    henon = iterate_map(henon_map, [0.1, 0.1], HENON_CLASSIC, 3 * K, transient=100)
+    cycle = np.array([[0.0, -1.0], [0.2, 0.5], [-0.1, 1.5]])
+    orbits = [np.tile([0.1, 1.0], (K, 1)), henon[:K], cycle[np.arange(K) % 3],  # group 1
+              henon[K : 2 * K], np.tile([0.1, 1.0], (K, 1)), henon[2 * K :],  # group 2
+              cycle[(np.arange(K) + 2) % 3]]  # group 3 (group 4 is empty)
+    theta = np.array([o[:, 0] for o in orbits])
+    theta_dot = np.array([o[:, 1] for o in orbits])
+    ok = np.ones(len(orbits), dtype=bool)
+    ok[3] = False
+    ends = [3, 6, 7, 7]
+    together = identify_attractor_groups(theta, theta_dot, ends, ok=ok)
+    for (first, stop), (labels, attractors) in zip(
+        zip([0, *ends[:-1]], ends, strict=True), together, strict=True
+    ):
+        alone_labels, alone = identify_attractors(
+            theta[first:stop], theta_dot[first:stop], ok=ok[first:stop]
+        )
+        assert labels.tolist() == alone_labels.tolist()
+        assert [(a.name, a.basin_fraction, a.regime.label) for a in attractors] == [
+            (a.name, a.basin_fraction, a.regime.label) for a in alone
+        ]
+        for a, b in zip(attractors, alone, strict=True):
+            assert np.array_equal(a.points, b.points)
+    assert together[0][0].tolist() == [0, 1, 2]
+    assert together[1][0].tolist() == [NO_ATTRACTOR, 0, 1]
+    assert [a.name for a in together[1][1]] == ["period-1", "chaotic"]
+    assert together[3][0].size == 0 and together[3][1] == ()
+
+
+def test_large_orbits_are_matched_by_a_tree_to_the_same_attractors(monkeypatch):
+    henon = iterate_map(henon_map, [0.1, 0.1], HENON_CLASSIC, 4 * K, transient=100)
+    theta = np.array([henon[k * K : (k + 1) * K, 0] for k in range(4)])
+    theta_dot = np.array([henon[k * K : (k + 1) * K, 1] for k in range(4)])
+    every_pair = identify_attractors(theta, theta_dot)
+    monkeypatch.setattr("analysis.dynamics.basins.BRUTE_FORCE_PAIRS", 0)  # a tree always
+    by_tree = identify_attractors(theta, theta_dot)
+    assert every_pair[0].tolist() == by_tree[0].tolist()
+    assert by_tree[0][:3].tolist() == [0, 0, 0]  # matched through the tree
+    assert [a.name for a in every_pair[1]] == [a.name for a in by_tree[1]]

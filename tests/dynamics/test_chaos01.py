@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from analysis.dynamics import zero_one_test
+from analysis.dynamics.chaos01 import zero_one_k
 from tests.dynamics.integrators import iterate_map
 from tests.dynamics.reference_systems import LOGISTIC_FULLY_CHAOTIC, logistic_map
 
@@ -36,3 +37,12 @@ def test_result_is_reproducible_with_its_seed():
     a, b = zero_one_test(orbit, seed=3), zero_one_test(orbit, seed=3)
     assert np.array_equal(a.K_per_c, b.K_per_c)
     assert not np.array_equal(a.c_values, zero_one_test(orbit, seed=4).c_values)
+
+
+def test_many_series_at_once_give_each_series_its_own_k(henon_orbit):
+    logistic = iterate_map(logistic_map, [0.3], LOGISTIC_FULLY_CHAOTIC, 200, transient=100)[:, 0]
+    rows = np.array([logistic, henon_orbit[:200, 0], np.sin(2 * np.pi * K[:200] / 3),
+                     np.full(200, 0.7)])  # the last constant: a fixed point, K = 0
+    expected = [zero_one_test(row).K for row in rows]
+    assert zero_one_k(rows).tolist() == expected  # the same numbers, to the last bit
+    assert expected[3] == 0.0 and expected[0] > 0.9
