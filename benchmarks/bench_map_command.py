@@ -40,7 +40,7 @@ if str(ROOT) not in sys.path:
 
 from analysis.maps import MapRunner, read_map  # noqa: E402
 from analysis.maps.tasks import run_task, task_input  # noqa: E402
-from benchmarks.results import figure, result, save  # noqa: E402
+from harness.results import figure, result, save  # noqa: E402
 from rig.cli import build_parser  # noqa: E402
 from rig.commands.map import plan_from_args  # noqa: E402
 

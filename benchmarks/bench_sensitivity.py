@@ -39,7 +39,7 @@ from analysis.simulate import (  # noqa: E402
 )
 from analysis.simulate.segments import integrate_segments  # noqa: E402
 from analysis.simulate.sensitivity import segment_sensitivities  # noqa: E402
-from benchmarks.results import figure, result, save  # noqa: E402
+from harness.results import figure, result, save  # noqa: E402
 
 COLUMNS = {
     0: (),

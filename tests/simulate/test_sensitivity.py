@@ -37,7 +37,7 @@ from analysis.simulate.sensitivity import (
     segment_sensitivities,
     simulate_sensitivities,
 )
-from tests.reference.simulator import Pendulum, TableMotion, simulate_reference
+from reference.simulator import Pendulum, TableMotion, simulate_reference
 
 AGREEMENT = 1e-6  # of a column's largest value over the compared times
 DIFFERENCE_GOOD_ENOUGH = 1e-5  # the central differences' estimated error, same scale
