@@ -15,8 +15,7 @@ from analysis.record_loaders import load_record
 from reference.decays import PAIRS as DECAY_PAIRS
 from reference.decays import draw_pair_decay
 from reference.free_decays import draw_free_decay
-
-Z_999 = 3.29  # the truth lies inside the 99.9 % interval (1.96 sigma is the 95 % one)
+from tests.tolerance import Z_95, Z_999
 
 CASES = {
     "friction + sensor cubic": (8901, ("coulomb_friction", "sensor_nonlinearity")),
@@ -38,7 +37,7 @@ def _named_with_their_sizes(decay, causes: tuple[str, ...], tmp_path) -> None:
         for parameter, truth in values.items():
             estimate = named[cause]["parameters"][parameter]
             low, high = estimate["ci95"]
-            half = (high - low) / 2.0 * Z_999 / 1.96
+            half = (high - low) / 2.0 * Z_999 / Z_95
             assert abs(estimate["value"] - truth) <= half, (cause, parameter, truth, estimate)
 
 

@@ -12,8 +12,7 @@ from __future__ import annotations
 from analysis.discrepancy import analyze_record
 from analysis.record_loaders import load_record
 from reference.decays import EFFECTS, draw_effect_decay
-
-Z_999 = 3.29  # the truth lies inside the 99.9 % interval (1.96 sigma is the 95 % one)
+from tests.tolerance import Z_95, Z_999
 
 
 def _report(effect: str, tmp_path) -> dict:
@@ -42,7 +41,7 @@ def test_a_stiffening_pivot_spring_is_flagged_and_its_term_proposed_with_its_siz
     terms = report["proposed_terms"]
     assert [(t["term"], t["region"]) for t in terms] == [("theta^3", "flight")], terms
     low, high = terms[0]["ci95"]
-    half = (high - low) / 2.0 * Z_999 / 1.96
+    half = (high - low) / 2.0 * Z_999 / Z_95
     assert abs(terms[0]["coefficient"] + truth["c3_per_s2"]) <= half, (truth, terms[0])
     assert "theta^3" not in {c["cause"] for c in report["causes"]}
 
@@ -75,7 +74,7 @@ def test_a_damping_that_grows_with_the_angle_is_proposed_with_its_size(tmp_path)
     terms = {t["term"]: t for t in report["proposed_terms"] if t["region"] == "flight"}
     assert "theta^2 theta'" in terms, report["proposed_terms"]
     term = terms["theta^2 theta'"]
-    half = (term["ci95"][1] - term["ci95"][0]) / 2.0 * Z_999 / 1.96
+    half = (term["ci95"][1] - term["ci95"][0]) / 2.0 * Z_999 / Z_95
     assert abs(term["coefficient"] + truth["d21_per_rad2_s"]) <= half, (truth, term)
 
 

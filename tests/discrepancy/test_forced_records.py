@@ -21,9 +21,9 @@ from analysis.discrepancy import analyze_record
 from analysis.record_loaders import load_record
 from reference.forced_records import draw_forced_case, draw_pair, write_forced_case
 from reference.unregistered import EFFECTS, draw_unregistered_case
+from tests.tolerance import within_999
 
 DURATION_S = 30.0
-Z_999 = 3.29  # the 99.9 % interval's half-width in standard errors (1.96: the 95 % one)
 # name: (seed, cause, drive frequency, laser, regime asked of the generator)
 CASES = {
     "clean, 2 Hz": (5201, "none", 2.0, None, None),
@@ -54,13 +54,6 @@ def _analyse(name, tmp_path):
          "--report", str(tmp_path / "pages")], capture_output=True, text=True, timeout=300)
     assert done.returncode == 0, done.stderr
     return case, json.loads(out.read_text())
-
-
-def _within_999(estimate: dict, truth: float) -> bool:
-    """``truth`` inside the reported 99.9 % interval (the 95 % one widened, 3.29 / 1.96):
-    the tolerance is what the method claims, not one wider than the effect."""
-    low, high = estimate["ci95"]
-    return abs(estimate["value"] - truth) <= (high - low) / 2 * Z_999 / 1.96
 
 
 def _regime_right(case, report) -> bool:
@@ -97,7 +90,7 @@ def test_a_forced_record_is_explained_from_the_record_alone(name, tmp_path):
         return
     best = next(r for r in report["ranking"] if r["cause"] == case.cause)
     for key, truth in case.causes[case.cause].items():
-        assert _within_999(best["parameters"][key], truth), (key, truth, best["parameters"][key])
+        assert within_999(best["parameters"][key], truth), (key, truth, best["parameters"][key])
     assert report["gain"]["heldout_rms_extended"] < report["gain"]["heldout_rms_baseline"]
     assert report["extended"]["rms_residual"] < 1.5 * noise
 
@@ -133,7 +126,7 @@ def test_a_pivot_or_sensor_cause_is_named_with_its_size_on_a_short_record(name, 
     assert report["unexplained"] is False, report["residual_reading"]["why"]
     found = report["causes"][0]["parameters"]
     for key, truth in case.causes[cause].items():
-        assert _within_999(found[key], truth), (key, truth, found[key])
+        assert within_999(found[key], truth), (key, truth, found[key])
     assert report["extended"]["rms_residual"] < 1.5 * case.measurement.angle_noise_rad
 
 
@@ -172,7 +165,7 @@ def test_two_causes_at_once_are_both_named_with_their_sizes(seed, frequency, tmp
     for cause_name, values in case.causes.items():
         for key, truth in values.items():
             estimate = named[cause_name]["parameters"][key]
-            assert _within_999(estimate, truth), (cause_name, key, truth, estimate)
+            assert within_999(estimate, truth), (cause_name, key, truth, estimate)
     assert report["extended"]["rms_residual"] < 1.5 * case.measurement.angle_noise_rad
 
 

@@ -22,8 +22,7 @@ import pytest
 from analysis.discrepancy import analyze_record
 from analysis.record_loaders import load_record
 from reference.decays import IMPACT, draw_decay
-
-Z_999 = 3.29  # the 99.9 % interval's half-width in standard errors (1.96: the 95 % one)
+from tests.tolerance import Z_95, Z_999
 
 # name: (seed, kind of decay, the hidden causes)
 CASES = {
@@ -60,7 +59,7 @@ def test_a_decays_single_cause_is_named_with_its_size(name, tmp_path):
             for key, truth in values.items():
                 estimate = named[cause]["parameters"][key]
                 low, high = estimate["ci95"]
-                half = (high - low) / 2 * Z_999 / 1.96
+                half = (high - low) / 2 * Z_999 / Z_95
                 assert abs(estimate["value"] - truth) <= half, (cause, key, truth, estimate)
         assert report["gain"]["heldout_rms_extended"] < report["gain"]["heldout_rms_baseline"]
         assert report["gain"]["information_criterion_delta"] > 10

@@ -20,6 +20,7 @@ from reference.simulator import Pendulum, TableMotion, simulate_reference
 from rig.events import DriveSetting, StepMark
 from tests.gui.conftest import run_events, wait_until
 from tests.gui.recordings import RIG, write_recording
+from tests.tolerance import Z_95, Z_999
 
 FS = 1000.0
 DRIVE_HZ = 2.0
@@ -231,7 +232,7 @@ def test_analysis_tab_explains_a_decay_with_dry_friction(qapp, window, tmp_path)
     assert text[0] == "cause: coulomb_friction" == panel.state.text()
     fitted = report["causes"][0]["parameters"]["Tc_N_m"]
     low, high = fitted["ci95"]  # the truth inside the 99.9 % interval
-    assert abs(fitted["value"] - torque) <= (high - low) / 2 * 3.29 / 1.96, fitted
+    assert abs(fitted["value"] - torque) <= (high - low) / 2 * Z_999 / Z_95, fitted
     assert any(line.startswith("    Tc_N_m = ") and "95% CI" in line for line in text)
     before, after = report["baseline"]["rms_residual"], report["extended"]["rms_residual"]
     noise = report["noise_rad"]

@@ -11,6 +11,7 @@ from reference.oracle import free_decay
 from rig.events import DriveSetting
 from tests.gui.conftest import run_events, wait_until
 from tests.gui.recordings import write_recording
+from tests.tolerance import Z_95, Z_999
 
 FS = 1000.0
 DRIVE_HZ = 2.0
@@ -104,7 +105,7 @@ def test_analysis_identifies_a_free_decay_and_overlays_the_model(qapp, window, t
     result = panel.overlay.result
     for key, truth in (("L_m", L_m), ("zeta", zeta)):  # inside the 99.9 % interval
         low, high = result[key].ci95
-        assert abs(result[key].value - truth) <= (high - low) / 2 * 3.29 / 1.96, result[key]
+        assert abs(result[key].value - truth) <= (high - low) / 2 * Z_999 / Z_95, result[key]
     # the model's response lies on the data within the noise
     assert panel.overlay.rms_difference < 1.5 * noise
     x, _ = panel.model_curve.getData()

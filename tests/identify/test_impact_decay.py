@@ -14,9 +14,9 @@ import pytest
 from analysis.identify import IdentificationError, fit_impact_decay
 from analysis.records import Record
 from reference.simulator import Pendulum, TableMotion, simulate_reference
+from tests.tolerance import half_width_999, within_999
 
 RIG_KEYS = {"m_kg": 0.0326, "l_m": 0.05, "R_m": 0.0095, "g": 9.81}
-Z_999 = 3.29  # the 99.9 % interval's half-width in standard errors (1.96: the 95 % one)
 
 
 def _pendulum(L_m: float = 0.046, zeta: float = 0.007, mu0_s_per_m: float = 0.75,
@@ -46,12 +46,6 @@ def _impact_record(rng: np.random.Generator, *, duration_s: float = 6.0, fs_hz: 
     return Record(t, angle, "impact_decay", rig=RIG_KEYS), truth, offset
 
 
-def _within_999(estimate, truth: float) -> bool:
-    """``truth`` inside the estimate's 99.9 % interval (its 95 % one widened)."""
-    low, high = estimate.ci95
-    return abs(estimate.value - truth) <= (high - low) / 2.0 * Z_999 / 1.96
-
-
 def test_stiffness_damping_and_barrier_recovered_with_intervals():
     rng = np.random.default_rng(314)
     for _ in range(2):
@@ -63,7 +57,7 @@ def test_stiffness_damping_and_barrier_recovered_with_intervals():
         assert result["theta_b_rad"].contains(truth.theta_b_rad)
         assert result["L_m"].contains(truth.L_m)
         assert result["zeta"].contains(truth.zeta)
-        assert _within_999(result["offset_rad"], offset), (result["offset_rad"], offset)
+        assert within_999(result["offset_rad"], offset), (result["offset_rad"], offset)
         # E is reported only together with the R it assumes: K = (4/3) E sqrt(R).
         R = result["R_m"].value
         assert result["E_Pa"].value * 4.0 / 3.0 * np.sqrt(R) == pytest.approx(K.value)
@@ -113,6 +107,5 @@ def test_mains_hum_leaves_the_impacts_found_and_the_frequency_within_its_interva
     decay = draw_effect_decay(7477, "mains_hum")
     assert decay.effect_values["frequency_hz"] == 60.0  # the draw this test is about
     result = fit_impact_decay(load_record(decay.write(tmp_path)))
-    low, high = result["omega_rad_s"].ci95
-    half = (high - low) / 2.0 * 3.29 / 1.96  # the 99.9 % interval
+    half = half_width_999(result["omega_rad_s"])
     assert abs(result["omega_rad_s"].value - decay.rig.omega_rad_s) <= half

@@ -17,6 +17,7 @@ import pytest
 from analysis.identify import fit_free_decay
 from analysis.identify.free_decay import _period_factor
 from analysis.record_loaders import load_record
+from tests.tolerance import half_width_999
 
 REAL = Path(__file__).resolve().parents[1] / "data" / "real_exchange"  # SOURCE.md there
 
@@ -38,7 +39,6 @@ CASES = [
     ("rotary_free_swing_2", 0.03, 0.137),
     ("rotary_free_swing_3", 0.03, 0.137),
 ]
-Z_999 = 3.29  # the 99.9 % interval's half-width in standard errors (1.96: the 95 % one)
 
 
 def _measured_period(t: np.ndarray, angle: np.ndarray, offset: float) -> tuple[float, float]:
@@ -65,7 +65,7 @@ def test_real_free_decay(name, low, high):
     record = load_record(REAL / f"{name}.csv")
     result = fit_free_decay(record)
     L = result["L_m"]
-    slack = (L.ci95[1] - L.ci95[0]) / 2 * Z_999 / 1.96  # the fit's own 99.9 % half-width
+    slack = half_width_999(L)  # the fit's own 99.9 % half-width
     assert low - slack < L.value < high + slack, L
     assert L.ci95[0] < L.value < L.ci95[1]
     zeta = result["zeta"]
