@@ -201,9 +201,9 @@ def rescreened_from_baseline(
     """The screenings that ended worse than the baseline's, fitted again from the baseline's
     own solution with the cause neutral (the forward selection's step), where that ends
     closer.  A model that holds the baseline cannot explain less: its cold start found a
-    worse basin, which says nothing against the cause (dry friction on a 10 Hz record
-    without a laser screened 1000 below the baseline, and a 1 % amplitude error was named
-    in its place)."""
+    worse basin, which says nothing against the cause
+    (``tests/discrepancy/test_screening.py``, the screening stuck worse than the baseline).
+    """
     base = screened[NONE]
     with SideBySide(threads) as batch:
         nested = {name: batch.add(extend, data, BASELINE, base, name, ident.short,

@@ -114,7 +114,7 @@ def flight_regression(
     else:
         # the fundamental's two quadratures (x_t'' per unit amplitude at phases 0, pi/2),
         # and the second harmonic's: a table that no laser watches may be distorted, and a
-        # 20 Hz push the basis lacks turns the gravity term's sign on a 10 Hz record
+        # harmonic the basis lacks is absorbed by the other terms (the gravity term's sign)
         w2 = 2.0 * table.omega_rad_s
         columns = [yd, sin_y, cos_y, table.shape(t, 0.0) * cos_y / g,
                    table.shape(t, 0.5 * math.pi) * cos_y / g,

@@ -52,9 +52,9 @@ from analysis.identify.result import Estimate, Residuals
 from analysis.identify.threads import blas_on_one_thread
 from analysis.simulate.segments import integrate_segments
 
-# The runs' tolerances: 1e-7 of a swing of ~0.1 rad is 1e-8 rad, far below any rig's
-# noise, and 10-15 % faster than 1e-8 with the same fits.  At 1e-6 the runs' own error
-# shows: on a 10 Hz record without laser L moved 0.27 % and its interval shrank 30-fold.
+# The runs' tolerances: the runs' own error must stay far below any rig's noise, or it
+# moves the fitted values and narrows their intervals; 1e-7 of a swing of ~0.1 rad is
+# 1e-8 rad.
 RTOL = 1e-7
 ATOL = 1e-9
 MAX_ITERATIONS = 40

@@ -1,12 +1,11 @@
 """BLAS on one thread for the whole process, once an analysis starts.
 
-A fitted value must not depend on how many threads the linear algebra had: with two BLAS
-threads a shooting fit's value differed from one's in the eighth digit, and a decay's
-marginal choice (quadratic drag in an impact decay, seed 3902 of the reference decays)
-came out one way on one thread and the other way on two, so a machine's core count, or
-whether a forced record had been analysed before in the same process, would show.  The
-fits share the cores out over threads of their own; BLAS threads beside them would only
-spin (a quarter of a screening fit's time on 2 cores).
+A fitted value, and so a marginal choice between causes, must not depend on how many
+threads the linear algebra had: multithreaded BLAS sums in an order that changes with the
+thread count, and a machine's core count would show in the report
+(``tests/discrepancy/test_hidden_cause.py``, the impact decay with drag, is the
+regression test).  The fits share the cores out over threads of their own; BLAS threads
+beside them would only spin.
 """
 
 from __future__ import annotations
