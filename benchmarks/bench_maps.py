@@ -10,6 +10,7 @@ per task (empty tasks), with what it costs at the automatic batch size.
 
     nice -n 10 python benchmarks/bench_maps.py            # three maps of 1440-1800 runs
     nice -n 10 python benchmarks/bench_maps.py --quick    # smaller maps
+    nice -n 10 python benchmarks/bench_maps.py --save     # also benchmarks/results/maps.json
 """
 
 from __future__ import annotations
@@ -27,6 +28,7 @@ sys.path.insert(0, str(ROOT))
 
 from analysis.maps import MapRunner, MapStore, read_map  # noqa: E402
 from analysis.provenance import provenance  # noqa: E402
+from harness.results import figure, result, save  # noqa: E402
 from rig.cli import build_parser  # noqa: E402
 from rig.commands.map import plan_from_args  # noqa: E402
 
@@ -113,7 +115,10 @@ def main() -> int:
                         help="local Dask workers (default: one per core)")
     parser.add_argument("--repeat", type=int, default=3,
                         help="runs of each map on each side; the best counts (a shared machine)")
+    parser.add_argument("--save", action="store_true",
+                        help="also write the figures to benchmarks/results/maps.json")
     args = parser.parse_args()
+    load = os.getloadavg()[0]
     logging.getLogger("distributed").setLevel(logging.ERROR)
     maps = QUICK if args.quick else MAPS
     n = args.workers
@@ -164,6 +169,31 @@ def main() -> int:
         share = per_task / (batch * per_run + per_task)
         print(f"  {kind}: {tasks} tasks of {batch:.0f} trajectories on average (automatic "
               f"batch) -> overhead {100 * share:.2f} % of a task")
+    if args.save:
+        batch = runs / sum(r[2] for r in rows)
+        share = per_task / (batch * per_run + per_task)
+        identical = sum(row[5] for row in rows)
+        counts = sorted(r[1] for r in rows)
+        save(result("maps", [
+            figure("maps identical bit for bit",
+                   "all" if identical == len(rows) else f"{identical} of {len(rows)}", "all"),
+            figure(f"speed-up, {n} workers against 1 process (best of {args.repeat} "
+                   "alternating runs), all maps",
+                   f"{total1 / totaln:.2f} (" + ", ".join(
+                       f"{kind} {t1 / tn:.2f}" for kind, _, _, (t1, _), (tn, _), _ in rows) + ")",
+                   f">= {0.8 * n:.1f} (0.8 N)"),
+            figure(f"throughput, {n} workers / 1 process",
+                   f"{runs / totaln:.0f} / {runs / total1:.0f} trajectories per s"),
+            figure("workers' CPU seconds (driver included) per CPU second of the one process",
+                   f"{cpun / cpu1:.2f}"),
+            figure("scheduler cost per empty task at full throughput / round trip",
+                   f"{per_task * 1e3:.1f} ms / {latency * 1e3:.1f} ms ({100 * share:.1f} % of a "
+                   f"task at the automatic batch of {batch:.0f} trajectories)"),
+            figure(f"LocalCluster of {n} processes ready (integrator loaded)", f"{startup:.1f} s"),
+        ], about=f"`impact-rig map` on 1 process vs N local Dask workers: {len(rows)} maps of "
+                 f"{counts[0]}-{counts[-1]} trajectories"
+                 + ("" if args.quick else ", the Done-when bifurcation among them"),
+           load_at_start=load))
     return 0 if all(row[5] for row in rows) else 1
 
 
