@@ -13,6 +13,8 @@ the same acquisition with a subscriber that drops the data instead of recording
 it, so the ratio is what recording costs on top of acquiring.
 
     python benchmarks/bench_record.py --seconds 10      (full run: 60 s)
+    python benchmarks/bench_record.py --save            (also benchmarks/results/record.json
+                                                         and record-live-rate.json)
 """
 
 from __future__ import annotations
@@ -41,6 +43,7 @@ from drivers.sensors import (  # noqa: E402
     Tachometer,
 )
 from drivers.serial_daq import SerialDaqBackend  # noqa: E402
+from harness.results import figure, result, save  # noqa: E402
 from rig.engine import AcquisitionEngine  # noqa: E402
 from rig.recorder import (  # noqa: E402
     ChannelSpec,
@@ -232,11 +235,15 @@ def main(argv: list[str] | None = None) -> int:
         default="auto",
         help="recorder compression (auto: lzf at 200 kHz)",
     )
+    parser.add_argument("--save", action="store_true",
+                        help="also write the figures to benchmarks/results/record.json and "
+                        "record-live-rate.json")
     parser.add_argument("--reader", nargs=2, metavar=("FILE", "ORIGIN"), help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
     if args.reader:
         read_while_written(args.reader[0], float(args.reader[1]))
         return 0
+    load = os.getloadavg()[0]
     baseline_s = args.baseline_seconds or min(10.0, args.seconds)
     compression = None if args.compression == "none" else args.compression
     print(
@@ -269,9 +276,10 @@ def main(argv: list[str] | None = None) -> int:
         f"on disk: {rec['bytes']:,} bytes, {rec['bytes'] / max(rec['samples'], 1):.3f} bytes "
         "per stored sample (counter-source data: highly compressible; all datasets counted)"
     )
+    rig_like = realistic_bytes_per_sample(compression)
     print(
         f"rig-like content (swinging signals + ADC noise of a few counts): "
-        f"{realistic_bytes_per_sample(compression):.2f} bytes per sample "
+        f"{rig_like:.2f} bytes per sample "
         "(raw int16 + float32 + uint8 flags = 7 bytes uncompressed)"
     )
     swmr = rec.get("swmr") or {}
@@ -284,6 +292,26 @@ def main(argv: list[str] | None = None) -> int:
         )
     goal = "met" if rec["lost"] == 0 and not rec["error"] else "NOT met"
     print(f"zero lost samples: {goal}")
+    if args.save:
+        delay = (f"{swmr['mean_s']:.2f} s mean, {swmr['max_s']:.1f} s max"
+                 if swmr.get("max_s") is not None else "not measured (no reader summary)")
+        lost = f"{rec['lost']:,} of {rec['samples'] / 1e6:.0f} M" + (
+            f" (stopped: {rec['error']})" if rec["error"] else "")
+        save(result("record", [
+            figure(f"4 x {RATE_HZ / 1e3:.0f} kHz through a pty into HDF5 for "
+                   f"{args.seconds:g} s: samples lost", lost),
+            figure("CPU", f"{rec['cpu_share']:.0%} of a core "
+                          f"({rec['cpu_share'] / max(base['cpu_share'], 1e-9):.2f}x acquiring "
+                          "alone)"),
+            figure("file size for rig-like signals", f"{rig_like:.1f} bytes per sample"),
+            figure("SWMR reader delay", delay),
+        ], load_at_start=load))
+        save(result("record-live-rate", [
+            figure(f"the live rate estimate (status panel) while recording "
+                   f"{RATE_HZ / 1e3:.0f} kHz",
+                   f"{rec['estimated_rate_hz']:,.0f} Hz "
+                   f"({rec['estimated_rate_hz'] / RATE_HZ - 1:+.1%})"),
+        ], load_at_start=load))
     return 0
 
 
