@@ -16,6 +16,7 @@ Baseline, measured in the same run: the same streaming and recording without the
 window, so the CPU ratio shows what the display costs on top of acquisition.
 
     python benchmarks/bench_gui.py --seconds 10      # full run: --seconds 60
+    python benchmarks/bench_gui.py --save            # also benchmarks/results/gui.json
 Goal: 0 lost, >= 30 fps on 2 cores.
 """
 
@@ -47,6 +48,7 @@ from drivers.sensors import (  # noqa: E402
     Tachometer,
 )
 from drivers.serial_daq import SerialDaqBackend  # noqa: E402
+from harness.results import figure, result, save  # noqa: E402
 from rig.engine import AcquisitionEngine  # noqa: E402
 from rig.recorder import (  # noqa: E402
     ChannelSpec,
@@ -203,7 +205,10 @@ def main(argv: list[str] | None = None) -> int:
         choices=("cycle", "time", "spectrum", "poincare", "phase"),
         help="the view in front (cycle: each for 5 s in turn)",
     )
+    parser.add_argument("--save", action="store_true",
+                        help="also write the figures to benchmarks/results/gui.json")
     args = parser.parse_args(argv)
+    load = os.getloadavg()[0]
     with tempfile.TemporaryDirectory(prefix="bench-gui-") as tmp:
         folder = Path(tmp)
         print(f"4 x {RATE_HZ:,.0f} Hz + tach, recording to HDF5, {args.seconds:g} s, "
@@ -239,6 +244,16 @@ def main(argv: list[str] | None = None) -> int:
     )
     met = gui["lost"] == 0 and gui["file_lost"] == 0 and statistics.mean(fps) >= GOAL_FPS
     print(f"goal (0 lost, >= {GOAL_FPS:g} fps): {'met' if met else 'NOT met'}")
+    if args.save:
+        view = "" if args.view == "cycle" else f" ({args.view} view)"
+        save(result("gui", [
+            figure(f"GUI while streaming 4 x {RATE_HZ / 1e3:.0f} kHz and recording, "
+                   f"{args.seconds:g} s{view}: frame rate", f"{statistics.mean(fps):.1f} fps mean"),
+            figure("event-loop latency",
+                   f"p50 {percentile(lat, 0.5):.2f} ms, p99 {percentile(lat, 0.99):.0f} ms"),
+            figure("samples lost", f"{gui['lost']:,}" if gui["file_lost"] == gui["lost"] == 0
+                   else f"{gui['lost']:,} (engine), {gui['file_lost']:,} (file)"),
+        ], load_at_start=load))
     return 0
 
 
