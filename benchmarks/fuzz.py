@@ -14,15 +14,20 @@ and the run goes on.
 
 Printed per boundary: inputs tried, distinct failures (with one example each), the
 slowest answer; the figures also as one JSON line at the end (``--json FILE`` writes it).
+``--save`` writes the table's rows: the file boundaries to benchmarks/results/fuzz.json,
+the amplifier's and the command lines' to benchmarks/results/fuzz-hardware-and-cli.json
+(each file only when one of its boundaries ran).
 
     python benchmarks/fuzz.py --minutes 10                      (every boundary, 10 min each)
     python benchmarks/fuzz.py --minutes 1 --boundary exchange --boundary cli
+    python benchmarks/fuzz.py --minutes 1 --save
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 import tempfile
 import time
@@ -37,10 +42,22 @@ from hypothesis.errors import HypothesisException
 
 from harness.fuzz import boundaries as b
 from harness.fuzz import command_line, modbus
+from harness.results import figure, result, save
 
 BOUNDARIES = (
     "frames", "exchange", "rig_file", "recording", "modbus_driver", "modbus_server", "cli"
 )
+# the benchmarks page's rows: a results key, how its figure starts, its boundaries in order
+SAVED = (
+    ("fuzz", "generated input per boundary ({}): ", {
+        "frames": "DAQ frames", "exchange": "exchange CSV + sidecar", "rig_file": "rig file",
+        "recording": "damaged recording"}),
+    ("fuzz-hardware-and-cli", "generated {}: ", {
+        "cli": "command lines for every sub-command",
+        "modbus_driver": "the shaker driver against mangled amplifier replies",
+        "modbus_server": "hostile requests to the amplifier emulator"}),
+)
+GOAL = "0 bad answers, every answer within 5 s, over 10 min per boundary"
 
 
 class Boundary:
@@ -144,6 +161,27 @@ def fuzz(boundary: Boundary, seconds: float, round_size: int) -> None:
             boundary.failures.setdefault(kind_of(error), str(error)[:400])
 
 
+def save_rows(results: list[dict[str, object]], load: float) -> None:
+    """Write each results file of :data:`SAVED` whose boundaries ran: inputs tried, distinct
+    bad answers and the slowest answer per boundary, in one row."""
+    by_name = {row["boundary"]: row for row in results}
+    for key, start, labels in SAVED:
+        ran = [by_name[name] for name in labels if name in by_name]
+        if not ran:
+            continue
+        bad = sum(row["distinct_failures"] for row in ran)
+        kinds = [kind for row in ran for kind in row["failures"]]
+        working = sum(row["still_working_after_5_s"] for row in ran)
+        now = (" / ".join(f"{row['inputs_tried']:,}" for row in ran) + " inputs; "
+               + f"{bad} bad answers" + (f" ({'; '.join(kinds)})" if kinds else "") + "; slowest "
+               + " / ".join(f"{row['slowest_answer_s']:.2f}" for row in ran) + " s"
+               + (f" ({working:,} command lines accepted and still at work after 5 s, killed "
+                  "and not judged)" if working else ""))
+        what = start.format(" / ".join(labels[row["boundary"]] for row in ran))
+        save(result(key, [figure(what + "inputs tried, distinct bad answers, slowest answer",
+                                 now, GOAL)], load_at_start=load))
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--minutes", type=float, default=1.0, help="per boundary (1)")
@@ -155,7 +193,11 @@ def main(argv: list[str] | None = None) -> int:
     )
     parser.add_argument("--round", type=int, default=200, help="examples per Hypothesis round")
     parser.add_argument("--json", type=Path, help="also write the figures to this file")
+    parser.add_argument("--save", action="store_true",
+                        help="also write the figures to benchmarks/results/fuzz.json and "
+                        "fuzz-hardware-and-cli.json")
     args = parser.parse_args(argv)
+    load = os.getloadavg()[0]
     results = []
     amplifier = modbus.amplifier()
     with tempfile.TemporaryDirectory(prefix="impact-rig-fuzz-") as folder:
@@ -180,6 +222,8 @@ def main(argv: list[str] | None = None) -> int:
     print(text)
     if args.json is not None:
         args.json.write_text(text + "\n", encoding="utf-8")
+    if args.save:
+        save_rows(results, load)
     return 1 if any(r["distinct_failures"] for r in results) else 0
 
 
