@@ -12,17 +12,20 @@ Printed: resident memory growth after warm-up (this process), CPU share, samples
 outside the fault windows (goal 0), every fault window in the file (garbled frames as
 gaps, unplugs as outages with their length, amplifier losses as drive-off rows), stored
 samples that repeat an index, and whether the file reads (the project's reader, h5py,
-``impact-rig export``); the figures also as one JSON line (``--json FILE`` writes it).
+``impact-rig export``); the figures also as one JSON line (``--json FILE`` writes it), and
+with ``--save`` as the benchmarks page's row (benchmarks/results/soak.json).
 The exit status is 1 when a goal is missed.
 
     python benchmarks/soak.py                       (an hour at 200 kHz)
     python benchmarks/soak.py --minutes 10 --fault-every 20
+    python benchmarks/soak.py --minutes 16 --rate 50000 --save
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 import tempfile
 from dataclasses import asdict
@@ -30,6 +33,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from harness.results import figure, result, save
 from harness.soak import SoakFigures, run_soak
 
 GOAL_RSS_GROWTH_PCT = 5.0
@@ -57,6 +61,38 @@ def missed(figures: SoakFigures) -> list[str]:
     return [words for ok, words in checks if not ok]
 
 
+def row(f: SoakFigures) -> dict[str, str]:
+    """The benchmarks page's row of a run."""
+    kinds = [kind for _, kind in f.faults]
+    every = "a fault a minute" if f.fault_every_s == 60 else f"a fault every {f.fault_every_s:g} s"
+    what = (f"{f.seconds / 60:g} min from the virtual rig (2 channels + tach at "
+            f"{f.sample_rate_hz / 1e3:g} kHz, pty + Modbus TCP), {every} "
+            f"({kinds.count('garbled')} garbled, {f.unplugs} unplugs, {f.amplifier_restarts} "
+            "amplifier restarts): memory growth after warm-up / lost outside fault windows / "
+            "windows in the file / stored twice / file read")
+    by_log = ", ".join(f"{kind} {count:,}" for kind, count in f.lost_outside_by_board_log.items())
+    rows, restarts = f.drive_off_rows_in_file, f.amplifier_restarts
+    drive_off = (f"drive-off rows for {rows} of {restarts} restarts" if rows < restarts else
+                 f"drive-off rows for {restarts} restarts"
+                 + (f" and {rows - restarts} more link losses" if rows > restarts else ""))
+    after = {"reader": f.reader_ok, f"h5py {f.h5py_version}": f.h5py_ok, "export": f.export_ok}
+    failed = [name for name, ok in after.items() if not ok]
+    reads = (f"{f.live_reads_ok} reads while written"
+             + (f" ({len(f.live_reads_failed)} failed)" if f.live_reads_failed else "")
+             + f", {', '.join(after)} "
+             + ("all ok" if not failed else f"failed: {', '.join(failed)}"))
+    now = " / ".join([
+        f"{f.rss_growth_pct:.2f} % ({f.rss_warm_mb:.1f} to {f.rss_end_mb:.1f} MB)",
+        f"{f.samples_lost_outside_fault_windows:,} samples" + (f" (board log: {by_log})"
+                                                               if by_log else ""),
+        f"{f.injected_windows_in_file} of {f.injected_windows} garbled frames, "
+        f"{f.outages_in_file} of {f.unplugs} outages, {drive_off}",
+        f"{f.duplicated_samples:,}",
+        reads,
+    ])
+    return figure(what, now, "under 5 %, 0 lost, every window, over an hour at 200 kHz")
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--minutes", type=float, default=60.0, help="how long to record (60)")
@@ -71,7 +107,10 @@ def main(argv: list[str] | None = None) -> int:
     )
     parser.add_argument("--folder", type=Path, help="where the recording goes (a temporary one)")
     parser.add_argument("--json", type=Path, help="also write the figures to this file")
+    parser.add_argument("--save", action="store_true",
+                        help="also write the figures to benchmarks/results/soak.json")
     args = parser.parse_args(argv)
+    load = os.getloadavg()[0]
     if not (args.minutes > 0 and args.fault_every > 0 and args.rate > 0):
         parser.error("--minutes, --fault-every and --rate must be positive")
     with tempfile.TemporaryDirectory(prefix="impact-rig-soak-", dir=args.folder) as folder:
@@ -109,6 +148,8 @@ def main(argv: list[str] | None = None) -> int:
     print(text)
     if args.json is not None:
         args.json.write_text(text + "\n", encoding="utf-8")
+    if args.save:
+        save(result("soak", [row(figures)], load_at_start=load))
     return 1 if problems else 0
 
 
