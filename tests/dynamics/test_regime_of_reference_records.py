@@ -47,10 +47,6 @@ def _judge(case, *, noise_understated: float = 1.0):
     return regime
 
 
-def _draw(seed: int, cause: str):
-    return draw_forced_case(seed, cause, frequency_hz=DRIVE_HZ, duration_s=RECORD_S)
-
-
 def _band_period_of_truth(case) -> int:
     """The smallest m whose multiples all bring the noiseless section points at least twice
     as close as typical lags do (relative to the attractor's extent): the bands the true
@@ -85,16 +81,23 @@ def test_a_chaotic_record_is_judged_chaotic_in_its_bands(seed):
         (regime.evidence["lyapunov_per_period"], truth_per_period)
 
 
-@pytest.mark.parametrize(("seed", "cause", "period"), [(1499, "contact_damping_law", 12),
-                                                       (9044, "sensor_nonlinearity", 28)])
-def test_a_long_period_is_found_and_never_read_as_chaos(seed, cause, period):
-    """Period 12 and period 28 with impacts: the period judged right; and with the noise
-    understated, when no period holds within it, the points scattered about the orbit
-    are not taken for chaos in its bands."""
-    case = _draw(seed, cause)
-    assert case.period == period
+# Subharmonic 10 Hz records (any period k >= 2, the regime asked of the generator, the
+# cause, rig, drive and noise drawn from the seed) from a contiguous range of seeds, every
+# one kept, none allowed to miss.  With numpy 2.4.6 and scipy 1.17.1 the range holds
+# period 20 (seed 0) and period 2 (seed 1).
+SUBHARMONIC_SEEDS = range(2)
+
+
+@pytest.mark.parametrize("seed", SUBHARMONIC_SEEDS)
+def test_a_subharmonic_period_is_found_and_never_read_as_chaos(seed):
+    """The period judged right; and with the noise understated, when no period holds
+    within it, the points scattered about the orbit are not taken for chaos in its
+    bands."""
+    case = draw_forced_case(seed, None, frequency_hz=DRIVE_HZ, duration_s=RECORD_S,
+                            regime="period-k")
+    assert case.period >= 2, case.regime
     regime = _judge(case)
-    assert (regime.kind, regime.period) == ("periodic", period), regime.label
+    assert (regime.kind, regime.period) == ("periodic", case.period), regime.label
     for understated in (2.0, 3.0):
         regime = _judge(case, noise_understated=understated)
         assert regime.kind != "chaotic", regime.label

@@ -60,10 +60,14 @@ def test_the_gui_killed_while_recording_leaves_all_but_the_last_second(tmp_path)
         angle, table = recording.channel("angle"), recording.channel("table")
         notes = recording.info.notes
     assert notes == "killed GUI"
-    # every sample from the recording's start to within the last second, once, in order
-    np.testing.assert_array_equal(np.diff(angle.indices), 1)
-    np.testing.assert_array_equal(table.indices, angle.indices[: len(table)])
-    assert angle.indices[-1] + 1 >= taken - MAX_FLUSH_INTERVAL_S * RATE_HZ
+    # every sample of each channel from the recording's start to within the last second,
+    # once, in order; the channels are flushed one after the other, so either may hold a
+    # few more samples than the other when the kill comes (CI under load: table 32 400,
+    # angle 32 200)
+    assert table.indices[0] == angle.indices[0]
+    for channel in (angle, table):
+        np.testing.assert_array_equal(np.diff(channel.indices), 1)
+        assert channel.indices[-1] + 1 >= taken - MAX_FLUSH_INTERVAL_S * RATE_HZ
     assert np.all(np.isfinite(angle.values)) and np.all(np.isfinite(table.values))
 
     # what a user does next: export it, and repair it for tools that do not read SWMR
