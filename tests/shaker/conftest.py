@@ -9,23 +9,16 @@ from dataclasses import dataclass
 import pytest
 
 from drivers.amplifier_registers import Holding
-from drivers.limits import ShakerLimits
 from drivers.modbus_shaker import ModbusTcpBackend
 from drivers.shaker import RegisterBackend, ShakerAmplifier
 from hardware_sim.amplifier_emulator import AmplifierEmulator
 from hardware_sim.amplifier_firmware import AmplifierFirmware
 from hardware_sim.shaker_response import ShakerDynamics, ShakerResponse
+from harness.fuzz.modbus import LIMITS  # the test amplifier's limits, the fuzzing's too
 from tests.shaker.sim_shaker_backend import SimShakerBackend
 
 # Quick mechanics so that tests settle in a fraction of a second.
 FAST = ShakerDynamics(frequency_slew_hz_s=200.0, amplitude_tau_s=0.01, frequency_tau_s=0.01)
-LIMITS = ShakerLimits(
-    max_amplitude_m=0.005,
-    min_frequency_hz=0.5,
-    max_frequency_hz=40.0,
-    min_ramp_rate_m_s=1e-5,
-    max_ramp_rate_m_s=0.05,
-)
 # Settings every drive must refuse under LIMITS before anything is sent: (name, value).
 OUT_OF_LIMITS = [
     ("amplitude_m", 0.0051),  # just above max_amplitude_m
