@@ -101,8 +101,9 @@ def test_a_forced_record_is_explained_from_the_record_alone(name, tmp_path):
 # pendulum strikes the barrier about twice a drive period (24 contacts in either record).  A
 # law shows only through its impacts, so the generator sizes it, and redraws the record,
 # until it shows after the baseline's refit: seed 3914's exponent (n = 1.07) on its sixth
-# sub-seed, 0.49 noise sigmas left against a threshold of 0.3; seed 3915's Kelvin-Voigt
-# damping on the seed itself, 3.3 sigmas
+# sub-seed, 0.49 noise sigmas left against a threshold of 0.3 (the seed and its first five
+# sub-seeds left 0.04-0.29: at 2 Hz the baseline's refit absorbs most of the exponent); seed
+# 3915's Kelvin-Voigt damping on the seed itself, 3.3 sigmas
 # name: (seed, cause, drive frequency, duration)
 SHORT_CASES = {
     "sensor zero, 10 s": (3911, "sensor_offset", 10.0, 10.0),
