@@ -5,6 +5,8 @@ is, analytically)."""
 
 from __future__ import annotations
 
+import pickle
+
 import pytest
 
 from analysis.suggest import ReportError, competing_pairs, report_rig, search, settings_grid
@@ -14,13 +16,17 @@ FREQUENCY_HZ = 2.0
 AMPLITUDES_M = (0.3e-3, 0.6e-3, 3e-3, 4e-3)
 
 
-@pytest.fixture(scope="module")
-def searched():
+def run_search(amplitudes_m=AMPLITUDES_M, run_map=None):
     report = contact_pair_report()
     pairs = competing_pairs(report, "report.json")
-    settings = settings_grid([FREQUENCY_HZ], AMPLITUDES_M, settle_s=10.0, dwell_s=10.0)
+    settings = settings_grid([FREQUENCY_HZ], amplitudes_m, settle_s=10.0, dwell_s=10.0)
     return search(pairs, report_rig(report, "report.json"), settings, noise_rad=NOISE_RAD,
-                  sample_rate_hz=FS_HZ, draws=4)
+                  sample_rate_hz=FS_HZ, draws=4, run_map=run_map)
+
+
+@pytest.fixture(scope="module")
+def searched():
+    return run_search()
 
 
 def test_the_settings_that_reach_the_barrier_are_ranked_first(searched) -> None:
@@ -64,3 +70,22 @@ def test_a_report_with_nothing_to_tell_apart_says_so() -> None:
     report = contact_pair_report(named="none", indistinct=False)
     with pytest.raises(ReportError, match="no competing explanations"):
         competing_pairs(report, "r.json")
+
+
+
+def test_the_tasks_travel_to_a_worker_as_plain_data() -> None:
+    """What a Dask worker gets (analysis.maps.MapRunner.map): the function and each task
+    pickled; the figures it sends back are the ones found here."""
+    calls = []
+
+    def through_pickle(function, tasks):
+        calls.append(len(tasks))
+        function = pickle.loads(pickle.dumps(function))
+        return [pickle.loads(pickle.dumps(function(pickle.loads(pickle.dumps(task)))))
+                for task in tasks]
+
+    amplitudes = (0.6e-3, 3e-3)
+    here = run_search(amplitudes)
+    there = run_search(amplitudes, through_pickle)
+    assert calls == [len(amplitudes)]  # one task per setting
+    assert [s.result for s in there[0].ranked] == [s.result for s in here[0].ranked]
