@@ -175,9 +175,9 @@ def run(args: argparse.Namespace) -> int:
     progress(f"{len(pairs)} pair(s) of explanations, {len(settings)} settings, "
              f"{1 + args.draws} parameter set(s) per candidate, settle {settle:g} s, dwell "
              f"{args.dwell:g} s; simulating {where} ...")
-    started = time.perf_counter()
     try:
         with MapRunner(args.workers or 1, args.scheduler) as runner:
+            started = time.perf_counter()  # the search, not the workers' start
             found = search(pairs, rig, settings, noise_rad=float(noise),
                            sample_rate_hz=float(rate), draws=args.draws, run_map=runner.map)
     except SchedulerError as error:
