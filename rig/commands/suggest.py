@@ -282,8 +282,9 @@ def _settings(args: argparse.Namespace, report: dict[str, Any], config: RigConfi
             continue
         allowed.append(setting)
     if refused:
-        progress(f"left out {len(refused)} setting(s) of the default grid that the shaker "
-                 f"limits of {config.source} forbid")
+        print(f"left out {len(refused)} setting(s) of the default grid that the shaker limits "
+              f"of {config.source} forbid: " + ", ".join(
+                  f"{s.frequency_hz:.4g} Hz {s.amplitude_m * 1e3:.4g} mm" for s in refused))
     if not allowed:
         raise CommandError(f"no setting of the grid lies within the shaker limits of "
                            f"{config.source}")

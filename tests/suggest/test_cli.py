@@ -14,7 +14,7 @@ import pytest
 from analysis.experiment_plan import read_plan
 from analysis.hdf5_records import read_recording_arrays
 from rig.cli import main
-from tests.suggest.reports import write_report
+from tests.suggest.reports import contact_pair_report, write_report
 
 SEARCH = ["--frequency-hz", "2", "--amplitude-mm", "0.6:3:2", "--draws", "2", "--best", "1",
           "--settle", "2", "--dwell", "3"]
@@ -95,3 +95,16 @@ def test_a_plan_does_not_mix_with_a_sweeps_settings(tmp_path: Path, capsys) -> N
     assert main(["sweep", "--sim", "--plan", str(plan), "--dwell", "9",
                  "--out", str(tmp_path / "x.h5")]) == 2
     assert "the plan's steps set the drive; drop --dwell" in error_line(capsys)
+
+
+def test_the_default_grid_leaves_out_what_the_limits_forbid_and_says_so(
+        tmp_path: Path, capsys) -> None:
+    report = tmp_path / "big.json"
+    content = contact_pair_report()
+    content["drive"]["stated"]["amplitude_m"] = 6e-3  # the default grid reaches 12 mm
+    report.write_text(json.dumps(content))
+    assert main(["suggest", str(report), "--draws", "0", "--settle", "1", "--dwell", "1",
+                 "--out", str(tmp_path / "p.toml"), "--quiet"]) == 0
+    printed = capsys.readouterr().out
+    assert "left out 5 setting(s) of the default grid that the shaker limits" in printed
+    assert "1.2 Hz 12 mm" in printed and "2.8 Hz 12 mm" in printed
