@@ -146,8 +146,12 @@ def competing_pairs(report: Mapping[str, Any], source: str) -> list[CompetingPai
 
     def add(a: str, b: str, why: str) -> None:
         key = frozenset((a, b))
-        if key in seen or a not in entries or b not in entries:
+        if key in seen:
             return
+        for name in (a, b):
+            if name not in entries:
+                raise ReportError(f"{source}: {name!r} competes ({why}) but has no entry in "
+                                  "the ranking")
         seen.add(key)
         pairs.append(CompetingPair(candidate(entries[a], source),
                                    candidate(entries[b], source), why))
