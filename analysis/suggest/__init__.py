@@ -8,7 +8,7 @@ from analysis.suggest.candidates import (
     competing_pairs,
     report_rig,
 )
-from analysis.suggest.search import (
+from analysis.suggest.forced_steps import (
     PairSearch,
     Setting,
     Suggestion,
