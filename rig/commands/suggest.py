@@ -69,6 +69,7 @@ DEFAULT_FREQUENCIES = (0.6, 1.4, 5)  # x the record's frequency: from, to, value
 DEFAULT_AMPLITUDES = (0.25, 2.0, 5)  # x the record's amplitude
 SETTLE_DECAY_TIMES = 3.0  # default settle: this many 1 / (zeta omega) of the slowest model
 MIN_SETTLE_S = 5.0
+MAX_SETTLE_S = 60.0  # a candidate fitted with no viscous damping settles on its impacts
 
 
 def grid(text: str) -> tuple[float, float, int]:
@@ -119,7 +120,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                         "record's, 5 values)")
     search.add_argument("--settle", type=float, metavar="SECONDS",
                         help="settle time of each step (default: 3 decay times 1/(zeta "
-                        "omega) of the slowest candidate, at least 5 s)")
+                        "omega) of the slowest candidate, 5 to 60 s)")
     search.add_argument("--dwell", type=float, default=DEFAULT_DWELL_S, metavar="SECONDS",
                         help=f"steady-state time of each step (default {DEFAULT_DWELL_S:g})")
     search.add_argument("--draws", type=int, default=DEFAULT_DRAWS, metavar="N",
@@ -230,10 +231,10 @@ def _read_report(path: Path) -> dict[str, Any]:
 
 
 def _default_settle(pairs: list) -> float:
-    """Three decay times of the slowest candidate (its linear free decay), at least 5 s."""
+    """Three decay times of the slowest candidate (its linear free decay), 5 to 60 s."""
     slowest = max(1.0 / max(c.values["zeta"] * c.values["omega_rad_s"], 1e-9)
                   for p in pairs for c in (p.first, p.second))
-    return max(MIN_SETTLE_S, round(SETTLE_DECAY_TIMES * slowest, 1))
+    return min(MAX_SETTLE_S, max(MIN_SETTLE_S, round(SETTLE_DECAY_TIMES * slowest, 1)))
 
 
 def _settings(args: argparse.Namespace, report: dict[str, Any], config: RigConfig,
