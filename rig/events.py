@@ -46,7 +46,7 @@ class StepMark:
     """One step of a forced sweep: its setting and where its settle and dwell lie in the data."""
 
     step: int
-    direction: int  # +1 going up, -1 coming down
+    direction: int  # +1 going up, -1 coming down, 0 a plan's step (neither)
     frequency_hz: float
     amplitude_m: float
     settle_start_index: int

@@ -22,6 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
+from analysis.experiment_plan import ExperimentPlan
 from analysis.experiments import FORCED, experiment_kind
 from analysis.provenance import invocation_operator, provenance
 from drivers.interfaces import DeviceError, LimitError, SampleBlock
@@ -607,11 +608,17 @@ class SweepPlan:
                 out.append((direction, self.fixed, value))
         return out
 
+    def schedule(self) -> list[tuple[int, float, float, float, float]]:
+        """(direction, frequency_hz, amplitude_m, settle_s, dwell_s) of every step in order
+        (as :meth:`analysis.experiment_plan.ExperimentPlan.schedule`, which run_sweep runs
+        too)."""
+        return [(d, f, a, self.settle_s, self.dwell_s) for d, f, a in self.steps()]
+
 
 def run_sweep(
     devices: RigDevices,
     path: str | Path,
-    plan: SweepPlan,
+    plan: SweepPlan | ExperimentPlan,
     *,
     notes: str = "",
     overwrite: bool = False,
@@ -620,14 +627,16 @@ def run_sweep(
     engine: AcquisitionEngine | None = None,
     cancel: Cancel | None = None,
 ) -> ProcedureResult:
-    """A forced-response sweep; each step is marked in the file (``/sweep_steps``).
+    """A forced-response sweep, or the steps of an experiment plan (each with its own settle
+    and dwell, direction 0); each step is marked in the file (``/sweep_steps``).
 
     ``engine``: one already running on the devices (the GUI's), else the sweep runs its
     own; ``cancel``: stops the sweep from another thread (see ``Cancel``).
     """
     progress = progress or (lambda text: None)
-    check_drives(devices.shaker.limits, devices.config.source, [(f, a) for _, f, a in plan.steps()])
-    first = plan.steps()[0]
+    steps = plan.schedule()
+    check_drives(devices.shaker.limits, devices.config.source, [(f, a) for _, f, a, *_ in steps])
+    first = steps[0]
     drive = {"frequency_hz": first[1], "amplitude_m": first[2]}
     meta = base_metadata(devices, FORCED.name, notes, drive, asdict(plan))
     session = ProcedureSession(
@@ -640,19 +649,19 @@ def run_sweep(
         engine=engine,
         cancel=cancel,
     )
-    steps = plan.steps()
     done = 0
     with session:
-        for number, (direction, frequency_hz, amplitude_m) in enumerate(steps):
+        for number, (direction, frequency_hz, amplitude_m, settle_s, dwell_s) in \
+                enumerate(steps):
             session.set_drive(frequency_hz, amplitude_m)
             settle_start = session.engine.latest_index or 0
-            arrow = "up" if direction > 0 else "down"
+            arrow = {1: "up", -1: "down"}.get(direction, "planned")
             session.engine.mark_step(
                 StepBegun(number, len(steps), direction, frequency_hz, amplitude_m, settle_start)
             )
             progress(
                 f"step {number + 1}/{len(steps)} {arrow}: {frequency_hz:g} Hz, "
-                f"{amplitude_m * 1e3:g} mm, settling {plan.settle_s:g} s"
+                f"{amplitude_m * 1e3:g} mm, settling {settle_s:g} s"
             )
             mark = StepMark(
                 number,
@@ -665,10 +674,10 @@ def run_sweep(
                 complete=False,
             )
             try:
-                dwell_start = session.wait_samples(settle_start, plan.settle_s)
+                dwell_start = session.wait_samples(settle_start, settle_s)
                 mark = replace(mark, dwell_start_index=dwell_start, dwell_end_index=dwell_start)
-                progress(f"step {number + 1}/{len(steps)} {arrow}: dwell {plan.dwell_s:g} s")
-                end = session.wait_samples(dwell_start, plan.dwell_s)
+                progress(f"step {number + 1}/{len(steps)} {arrow}: dwell {dwell_s:g} s")
+                end = session.wait_samples(dwell_start, dwell_s)
             except BaseException:
                 end = session.engine.latest_index or mark.dwell_start_index
                 session.engine.mark_step(replace(mark, dwell_end_index=end))

@@ -230,11 +230,15 @@ class Analysis:
                 "earns_keep": c.verdict.earns_keep,
                 "implausible": c.verdict.implausible,
                 "verdict": c.verdict.why,
+                "model": {"causes": list(c.model.causes),
+                          "parameters": report_parameters(c.full, rig)},
             }
             for c in self.ranked()
         ]
         out: dict[str, Any] = {
             "experiment": self.data.experiment,
+            "rig": rig.as_dict(),
+            "sample_rate_hz": self.record.sample_rate_hz,
             "cause": self.chosen,
             "causes": self.selected(),
             "indistinct": self.indistinct,

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 
 import numpy as np
 
@@ -23,7 +24,13 @@ the next --dwell seconds are the step's steady state. Every step is marked in th
 recording (/sweep_steps: its setting, where it settled and where its dwell lies),
 so 'impact-rig export --per-step' can cut the file into one record per step.
 
-Every step is checked against the rig file's safety limits before the shaker moves.
+With --plan FILE the steps are a plan's instead (a TOML file that 'impact-rig suggest'
+writes, or one written by hand: [[step]] tables of frequency_hz, amplitude_m, settle_s and
+dwell_s), run in the file's order, each with its own settle and dwell; they are marked as
+a sweep's are, with direction 0 (neither up nor down).
+
+Every step is checked against the rig file's safety limits before the shaker moves; a
+plan's step outside them is refused, naming the step.
 On Ctrl-C or any error the shaker ramps to zero and the file is closed valid (the
 interrupted step is marked incomplete).
 """
@@ -34,7 +41,13 @@ examples:
       --settle 3 --dwell 10 --out fsweep.h5
   impact-rig sweep --sim --sweep amplitude --start 0.5 --stop 3 --steps 6 --drive-hz 10 \\
       --out asweep.h5
+  impact-rig sweep --sim --plan next.toml --out next.h5
 """
+
+
+DEFAULT_STEPS = 5
+DEFAULT_SETTLE_S = 3.0
+DEFAULT_DWELL_S = 5.0
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -48,17 +61,21 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     add_rig_options(parser)
     plan = parser.add_argument_group("sweep")
-    plan.add_argument(
-        "--sweep", choices=("frequency", "amplitude"), required=True, help="what is stepped"
+    what = plan.add_mutually_exclusive_group(required=True)
+    what.add_argument("--sweep", choices=("frequency", "amplitude"), help="what is stepped")
+    what.add_argument(
+        "--plan", type=Path, metavar="FILE",
+        help="run a plan's steps instead (TOML, as 'impact-rig suggest' writes)",
     )
     plan.add_argument(
         "--start",
         type=float,
-        required=True,
-        help="first value (Hz for frequency, mm for amplitude)",
+        help="first value (Hz for frequency, mm for amplitude); needed with --sweep",
     )
-    plan.add_argument("--stop", type=float, required=True, help="last value on the way up")
-    plan.add_argument("--steps", type=int, default=5, help="values on the way up (default 5)")
+    plan.add_argument(
+        "--stop", type=float, help="last value on the way up; needed with --sweep"
+    )
+    plan.add_argument("--steps", type=int, help="values on the way up (default 5)")
     plan.add_argument(
         "--drive-hz", type=float, metavar="HZ", help="the fixed frequency of an amplitude sweep"
     )
@@ -72,14 +89,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     plan.add_argument(
         "--settle",
         type=float,
-        default=3.0,
         metavar="SECONDS",
         help="settle time per step (default 3)",
     )
     plan.add_argument(
         "--dwell",
         type=float,
-        default=5.0,
         metavar="SECONDS",
         help="steady-state data per step (default 5)",
     )
@@ -91,10 +106,15 @@ def run(args: argparse.Namespace) -> int:
     """Build the plan, check it against the limits, open the rig and sweep."""
     from rig.procedures import SweepPlan, run_sweep
 
-    if args.steps < 1:
-        raise CommandError(f"--steps is {args.steps}; expected at least 1")
+    if args.plan is not None:
+        return _run_plan(args)
+    if args.start is None or args.stop is None:
+        raise CommandError("--sweep needs --start and --stop")
+    steps = DEFAULT_STEPS if args.steps is None else args.steps
+    if steps < 1:
+        raise CommandError(f"--steps is {steps}; expected at least 1")
     config = load_rig_config(args)
-    values = np.linspace(args.start, args.stop, args.steps)
+    values = np.linspace(args.start, args.stop, steps)
     if args.sweep == "frequency":
         if args.beta is None and args.amplitude_mm is None:
             raise CommandError(
@@ -111,12 +131,43 @@ def run(args: argparse.Namespace) -> int:
             args.sweep,
             tuple(float(v) for v in values),
             float(fixed),
-            settle_s=args.settle,
-            dwell_s=args.dwell,
+            settle_s=DEFAULT_SETTLE_S if args.settle is None else args.settle,
+            dwell_s=DEFAULT_DWELL_S if args.dwell is None else args.dwell,
             down=not args.up_only,
         )
     except ValueError as error:
         raise CommandError(str(error)) from None
     check_drive_limits(config, [(f, a) for _, f, a in plan.steps()])
+    record_and_report(args, config, args.fs, run_sweep, plan)
+    return 0
+
+
+# the options of a --sweep that a plan's steps take the place of
+SWEEP_ONLY = ("start", "stop", "steps", "drive_hz", "beta", "amplitude_mm", "settle", "dwell",
+              "up_only")
+
+
+def _run_plan(args: argparse.Namespace) -> int:
+    """Run the plan file's steps: every one checked against the limits (the step named)
+    before the rig is opened."""
+    from analysis.experiment_plan import PlanFileError, read_plan
+    from drivers.interfaces import LimitError
+    from rig.procedures import check_drives, run_sweep
+
+    given = [name for name in SWEEP_ONLY if getattr(args, name) not in (None, False)]
+    if given:
+        raise CommandError(f"--plan {args.plan}: the plan's steps set the drive; drop "
+                           + ", ".join("--" + name.replace("_", "-") for name in given))
+    try:
+        plan = read_plan(args.plan)
+    except PlanFileError as error:
+        raise CommandError(str(error)) from None
+    config = load_rig_config(args)
+    for number, step in enumerate(plan.steps, start=1):
+        try:
+            check_drives(config.limits, config.source, [(step.frequency_hz, step.amplitude_m)])
+        except LimitError as error:
+            raise CommandError(f"{args.plan}: step {number} ({step.frequency_hz:g} Hz, "
+                               f"{step.amplitude_m * 1e3:g} mm): {error}") from None
     record_and_report(args, config, args.fs, run_sweep, plan)
     return 0

@@ -53,6 +53,13 @@ def test_analyze_writes_section_6_json_and_report(tmp_path):
     assert lo <= case.rig.L_m <= hi
     for row in report["ranking"]:
         assert {"cause", "score", "parameters"} <= set(row)
+        # the whole candidate as fitted, that suggest simulates (docs/MODEL.md section 6)
+        assert row["model"]["causes"] == [row["cause"]]
+        assert {"omega_rad_s", "zeta", *row["parameters"]} <= set(row["model"]["parameters"])
+    stated = json.loads(csv.with_suffix(".json").read_text(encoding="utf-8"))["rig"]
+    assert {k: report["rig"][k] for k in ("m_kg", "l_m", "R_m")} == \
+        {k: stated[k] for k in ("m_kg", "l_m", "R_m")}
+    assert report["sample_rate_hz"] > 0
     # the rules it was decided under, as the analysis held them
     assert {k: v["value"] for k, v in report["policy"].items() if "value" in v} == \
         dataclasses.asdict(DEFAULT_POLICY)

@@ -64,6 +64,7 @@ from markdown_it import MarkdownIt
 
 from harness.results import load_results
 from rig.cli import build_parser, main
+from tests.suggest.reports import write_report
 
 ROOT = Path(__file__).resolve().parents[2]
 PAGES = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
@@ -344,13 +345,15 @@ REAL_DECAY = ROOT / "tests" / "data" / "real_exchange" / "uw_single_small_decay.
 SCPI_SHAKER = ('kind = "modbus"\n', 'kind = "scpi"\nresource = "sim"\ngain_m_per_v = 2e-3\n')
 # The files a page's commands take as given, each made when a command names it and it is
 # not there yet: the reader's own rig file (here the shipped virtual rig), a decay recorded
-# elsewhere (a real one), a sweep step and an impact decay as exchange CSV.
+# elsewhere (a real one), a sweep step and an impact decay as exchange CSV, and a forced
+# record's analysis report with two competing explanations (tests/suggest/reports.py).
 GIVEN: dict[str, Callable[[Path], None]] = {
     "lab.toml": _rig_file(),
     "scpi_rig.toml": _rig_file(SCPI_SHAKER),
     "their_decay.csv": _copy_pair(REAL_DECAY, "their_decay.csv", "their_decay.json"),
     "their_impacts.csv": _exported("impacts.h5", "their_impacts.csv", "impacts.json"),
     "sweep_step.csv": _exported("sweep.h5", "sweep_step.csv", "sweep_step.json", step=True),
+    "run.report.json": lambda folder: write_report(folder / "run.report.json"),
 }
 
 

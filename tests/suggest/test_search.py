@@ -1,0 +1,91 @@
+"""The search finds the drive settings where two explanations predict different records, and
+ranks them first: a barrier with Hertz contact against one with a soft contact law, the same
+wherever the pendulum stays clear of the barrier (tests/suggest/reports.py says where that
+is, analytically)."""
+
+from __future__ import annotations
+
+import pickle
+
+import pytest
+
+from analysis.suggest import ReportError, competing_pairs, report_rig, search, settings_grid
+from tests.suggest.reports import FS_HZ, NOISE_RAD, contact_pair_report, reaches_barrier
+
+FREQUENCY_HZ = 2.0
+AMPLITUDES_M = (0.3e-3, 0.6e-3, 3e-3, 4e-3)
+
+
+def run_search(amplitudes_m=AMPLITUDES_M, run_map=None):
+    report = contact_pair_report()
+    pairs = competing_pairs(report, "report.json")
+    settings = settings_grid([FREQUENCY_HZ], amplitudes_m, settle_s=10.0, dwell_s=10.0)
+    return search(pairs, report_rig(report, "report.json"), settings, noise_rad=NOISE_RAD,
+                  sample_rate_hz=FS_HZ, draws=4, run_map=run_map)
+
+
+@pytest.fixture(scope="module")
+def searched():
+    return run_search()
+
+
+def test_the_settings_that_reach_the_barrier_are_ranked_first(searched) -> None:
+    impacting = {a for a in AMPLITUDES_M if reaches_barrier(FREQUENCY_HZ, a)}
+    clear = {a for a in AMPLITUDES_M if reaches_barrier(FREQUENCY_HZ, a) is False}
+    assert impacting == {3e-3, 4e-3} and clear == {0.3e-3, 0.6e-3}  # the oracle's split
+    (result,) = searched
+    ranked = [s.setting.amplitude_m for s in result.ranked]
+    assert set(ranked[:2]) == impacting, ranked
+    assert [s.setting.amplitude_m for s in result.best(3)] == ranked[:2]
+    for s in result.ranked[:2]:
+        assert s.result.separation > 1.0  # beyond both spreads, by more than the noise
+        assert s.expected_bic_difference is None or s.expected_bic_difference > 100
+
+
+def test_where_the_barrier_is_never_reached_the_two_predict_the_same_record(searched) -> None:
+    (result,) = searched
+    for s in result.ranked[2:]:
+        assert reaches_barrier(FREQUENCY_HZ, s.setting.amplitude_m) is False
+        assert s.result.distance == 0.0  # the same equations in flight, the same numbers
+        assert s.result.separation < 0  # only the intervals' own spread is left
+        assert s.result.regime_first == s.result.regime_second == "period-1"
+
+
+def test_the_draws_are_the_same_wherever_they_are_made() -> None:
+    (pair,) = competing_pairs(contact_pair_report(), "r")
+    first = pair.first.draws(3, (37, 0))
+    assert first == pair.first.draws(3, (37, 0))
+    for drawn in first:
+        for key, (low, high) in pair.first.intervals.items():
+            assert low <= drawn[key] <= high
+
+
+def test_a_named_cause_is_set_against_its_runner_up() -> None:
+    (pair,) = competing_pairs(contact_pair_report(indistinct=False), "r")
+    assert (pair.first.name, pair.second.name) == ("barrier_offset", "contact_exponent")
+    assert "runner-up" in pair.why
+
+
+def test_a_report_with_nothing_to_tell_apart_says_so() -> None:
+    report = contact_pair_report(named="none", indistinct=False)
+    with pytest.raises(ReportError, match="no competing explanations"):
+        competing_pairs(report, "r.json")
+
+
+
+def test_the_tasks_travel_to_a_worker_as_plain_data() -> None:
+    """What a Dask worker gets (analysis.maps.MapRunner.map): the function and each task
+    pickled; the figures it sends back are the ones found here."""
+    calls = []
+
+    def through_pickle(function, tasks):
+        calls.append(len(tasks))
+        function = pickle.loads(pickle.dumps(function))
+        return [pickle.loads(pickle.dumps(function(pickle.loads(pickle.dumps(task)))))
+                for task in tasks]
+
+    amplitudes = (0.6e-3, 3e-3)
+    here = run_search(amplitudes)
+    there = run_search(amplitudes, through_pickle)
+    assert calls == [len(amplitudes)]  # one task per setting
+    assert [s.result for s in there[0].ranked] == [s.result for s in here[0].ranked]
