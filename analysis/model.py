@@ -307,19 +307,11 @@ class Model:
 # fails on a stale cache).
 
 # Positions in the coefficient tuple: the packed vector's entries hoisted into scalars once
-# per call, with flags that skip the drive, its second harmonic and the general power law
-# when they are off.
+# per call, with flags that skip the drive and the general power law when they are off
+# (table_acceleration skips the second harmonic itself when its amplitude is 0).
 K_OMEGA2, K_TWO_ZETA_OMEGA, K_C2, K_INV_L, K_OMEGA_DRIVE, K_PHASE0 = 0, 1, 2, 3, 4, 5
 K_A1, K_A2, K_PHI2, K_GAIN, K_SHAFT, K_STIFFNESS, K_EXPONENT = 6, 7, 8, 9, 10, 11, 12
-K_MU0, K_C_VISCOUS, K_SIN_THETA_B, K_CONTACT_ON, K_HERTZ, K_FORCED, K_HARMONIC2 = (
-    13,
-    14,
-    15,
-    16,
-    17,
-    18,
-    19,
-)
+K_MU0, K_C_VISCOUS, K_SIN_THETA_B, K_CONTACT_ON, K_HERTZ, K_FORCED = 13, 14, 15, 16, 17, 18
 
 
 @numba.njit(cache=True, inline="always")
@@ -347,7 +339,6 @@ def coefficients(p: np.ndarray, contact: bool) -> tuple[float, ...]:
         1.0 if (contact and p[P.BARRIER] != 0.0) else 0.0,
         1.0 if p[P.EXPONENT] == 1.5 else 0.0,
         1.0 if forced else 0.0,
-        1.0 if p[P.A2] != 0.0 else 0.0,
     )
 
 
@@ -386,16 +377,42 @@ def contact_law(sin_theta: float, cos_theta: float, theta_dot: float, k: tuple[f
     return force
 
 
+# The table's motion, written once: the equations below, the virtual rig's table channel,
+# ``simulate``'s recorded table and the fits' regressions all evaluate these two functions.
+# Compiled, they take scalars (inside the kernels) or arrays (called from Python).
+
+
+@numba.njit(cache=True, inline="always")
+def table_displacement(phase: float | np.ndarray, a1_m: float, a2_m: float, phi2_rad: float
+                       ) -> float | np.ndarray:
+    """The table's displacement x_t [m] at drive phase ``phase`` = Omega t + phase0:
+    A1 sin(phase) + A2 sin(2 phase + phi2) (docs/MODEL.md sections 1 and 6; the second
+    harmonic is there only with excitation_distortion).  A float or an array of phases."""
+    x = a1_m * np.sin(phase)
+    if a2_m != 0.0:
+        x = x + a2_m * np.sin(2.0 * phase + phi2_rad)
+    return x
+
+
+@numba.njit(cache=True, inline="always")
+def table_acceleration(phase: float | np.ndarray, omega_rad_s: float, a1_m: float, a2_m: float,
+                       phi2_rad: float) -> float | np.ndarray:
+    """The table's acceleration x_t'' [m/s^2] at drive phase ``phase`` of the motion of
+    :func:`table_displacement` at drive angular frequency ``omega_rad_s``:
+    -Omega^2 (A1 sin(phase) + 4 A2 sin(2 phase + phi2)).  A float or an array of phases."""
+    shape = a1_m * np.sin(phase)
+    if a2_m != 0.0:
+        shape = shape + 4.0 * a2_m * np.sin(2.0 * phase + phi2_rad)
+    return -omega_rad_s * omega_rad_s * shape
+
+
 @numba.njit(cache=True, inline="always")
 def table_forcing(t: float, cos_theta: float, k: tuple[float, ...]) -> float:
-    """-(x_t''(t) / L) cos(theta), the table's push on the pendulum [1/s^2], for
-    x_t = A1 sin(phase) + A2 sin(2 phase + phi2), phase = Omega t + phase0."""
+    """-(x_t''(t) / L) cos(theta), the table's push on the pendulum [1/s^2] (x_t'' of
+    :func:`table_acceleration`)."""
     w = k[K_OMEGA_DRIVE]
-    phase = w * t + k[K_PHASE0]
-    drive = k[K_A1] * math.sin(phase)
-    if k[K_HARMONIC2] != 0.0:
-        drive += 4.0 * k[K_A2] * math.sin(2.0 * phase + k[K_PHI2])
-    return w * w * drive * k[K_INV_L] * cos_theta
+    acc = table_acceleration(w * t + k[K_PHASE0], w, k[K_A1], k[K_A2], k[K_PHI2])
+    return -acc * k[K_INV_L] * cos_theta
 
 
 @numba.njit(cache=True, inline="always")
@@ -518,7 +535,8 @@ def acceleration_partials(t: float, theta: float, theta_dot: float, k: tuple[flo
     if w != 0.0:
         phase = w * t + k[K_PHASE0]
         second = 2.0 * phase + k[K_PHI2]
-        drive = k[K_A1] * math.sin(phase) + 4.0 * k[K_A2] * math.sin(second)
+        # -x_t'' / Omega^2: the acceleration at unit Omega, negated (exact, as written)
+        drive = -table_acceleration(phase, 1.0, k[K_A1], k[K_A2], k[K_PHI2])
         drive_rate = k[K_A1] * math.cos(phase) + 8.0 * k[K_A2] * math.cos(second)  # d / dphase
         gain = w * w * k[K_INV_L]
         d_theta -= gain * drive * s

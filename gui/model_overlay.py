@@ -8,7 +8,6 @@ thread; :func:`explanation_lines` says what the analysis found in the GUI's unit
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
@@ -19,7 +18,8 @@ from analysis.estimate_text import estimate_text
 from analysis.experiments import FREE_DECAY
 from analysis.identify import IdentificationResult, fit_drive, fit_free_decay, fit_impact_decay
 from analysis.identify.free_decay import averaging_solution, simulated_free_decay
-from analysis.model import Drive, Model
+from analysis.model import Drive, Model, table_displacement
+from analysis.progress import ProgressText
 from analysis.record_loaders import load_record
 from analysis.records import Record
 from gui.units import DISPLAY, parameter_unit
@@ -74,7 +74,7 @@ class Explanation:
 def explain_recording(
     path: str | Path,
     experiment: str | None = None,
-    progress: Callable[[str], None] | None = None,
+    progress: ProgressText | None = None,
 ) -> Explanation:
     """Run ``analyze`` on a recording: its JSON report (analysis.report) and model curves.
 
@@ -169,7 +169,7 @@ def identify_recording(path: str | Path, experiment: str | None = None) -> Model
     amplitude = result["amplitude_m"].value
     phase = result["phase_rad"].value
     omega = 2.0 * math.pi * result["frequency_hz"].value
-    sine = amplitude * np.sin(omega * t + phase)
+    sine = table_displacement(omega * t + phase, amplitude, 0.0, 0.0)  # the fundamental
     table = np.asarray(record.table_m, dtype=float)
     sine += float(np.nanmean(table - sine))
     return ModelOverlay(str(path), "table", t, table, t, sine, result)

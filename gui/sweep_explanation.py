@@ -5,12 +5,14 @@ report's JSON and the report's own figures)."""
 from __future__ import annotations
 
 import tempfile
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
+
+from analysis.progress import ProgressText
 
 if TYPE_CHECKING:
     from analysis.sweep.diagram import JudgedStep
@@ -49,7 +51,7 @@ def is_sweep_recording(path: str | Path) -> bool:
 
 
 def explain_sweep(path: str | Path,
-                  progress: Callable[[str], None] | None = None) -> SweepExplanation:
+                  progress: ProgressText | None = None) -> SweepExplanation:
     """Run ``analyze_sweep`` on the sweep in ``path`` (blocking: call on a worker); a file
     that is no usable sweep raises its loader's one-line error."""
     from analysis.report.sweep import sweep_report_json, write_sweep_report

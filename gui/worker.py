@@ -22,6 +22,7 @@ from pathlib import Path
 
 from PySide6.QtCore import QObject, Signal
 
+from analysis.progress import ProgressText
 from drivers.interfaces import ActuatorStatus, DeviceError, PulseBlock, SampleBlock, StreamStatus
 from drivers.shaker import ShakerAmplifier
 from recording.reader import open_recording
@@ -31,7 +32,6 @@ from rig.engine import AcquisitionEngine, EngineStats, Subscription
 from rig.procedures import (
     Cancel,
     ProcedureResult,
-    Progress,
     SweepPlan,
     base_metadata,
     check_drives,
@@ -305,7 +305,7 @@ class LiveSession(Session):
         plan: SweepPlan,
         path: str | Path,
         notes: str = "",
-        progress: Progress | None = None,
+        progress: ProgressText | None = None,
     ) -> ProcedureResult:
         """Run ``rig.procedures.run_sweep`` on the live engine (blocking: call on a TaskRunner).
 

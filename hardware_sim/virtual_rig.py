@@ -20,7 +20,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from analysis.extensions import cause
-from analysis.model import Drive, Model
+from analysis.model import Drive, Model, table_displacement
 from analysis.packed import P
 from analysis.simulate import SimulationStoppedError, Stepper
 from hardware_sim.shaker_response import ShakerDynamics, ShakerOutput, ShakerResponse
@@ -339,9 +339,7 @@ class VirtualRig:
     def _table(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         p = self._p
         phase = self._omega * t + self._phase0
-        x = p[P.A1] * np.sin(phase)
-        if p[P.A2] != 0.0:  # second harmonic only when excitation_distortion is on
-            x += p[P.A2] * np.sin(2.0 * phase + p[P.PHI2])
+        x = table_displacement(phase, p[P.A1], p[P.A2], p[P.PHI2])
         tach = np.zeros(t.size, dtype=bool)
         if self._omega > 0:
             cycle = np.floor(phase / TWO_PI)

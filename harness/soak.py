@@ -30,9 +30,13 @@ import threading
 import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import h5py
 import numpy as np
+
+if TYPE_CHECKING:
+    from analysis.progress import ProgressText
 
 ROOT = Path(__file__).resolve().parents[1]
 FAULT_KINDS = ("garbled", "unplug", "amplifier")
@@ -257,7 +261,7 @@ def run_soak(
     fault_every_s: float = 60.0,
     rate_hz: float = 200_000.0,
     warmup_s: float | None = None,
-    progress=None,
+    progress: ProgressText | None = None,
 ) -> SoakFigures:
     """Record for ``seconds`` with a fault every ``fault_every_s``; read the file; figures."""
     from drivers.daq import DaqBoard

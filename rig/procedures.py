@@ -24,6 +24,7 @@ import numpy as np
 
 from analysis.experiment_plan import ExperimentPlan
 from analysis.experiments import FORCED, experiment_kind
+from analysis.progress import ProgressText
 from analysis.provenance import invocation_operator, provenance
 from drivers.interfaces import DeviceError, LimitError, SampleBlock
 from drivers.limits import ShakerLimits
@@ -40,7 +41,6 @@ from rig.engine import (
 from rig.events import COMMANDED, DriveSetting, StepBegun, StepMark
 from rig.recorder import Recorder, RecorderThread, RecordingError, RecordingMetadata
 
-Progress = Callable[[str], None]
 FIRST_DATA_TIMEOUT_S = 15.0  # generous: a loaded lab PC can be slow to start streaming
 TRIGGER_SLACK_S = 2.0  # how late the release may be noticed without shortening the pre-trigger
 # A wait counted on the samples that sees no new sample this long (wall clock) ends the
@@ -223,7 +223,7 @@ class ProcedureSession:
         compression: str | None = "auto",
         pretrigger_s: float | None = None,
         flush_interval_s: float = 0.5,
-        progress: Progress | None = None,
+        progress: ProgressText | None = None,
         engine: AcquisitionEngine | None = None,
         cancel: Cancel | None = None,
     ) -> None:
@@ -443,7 +443,7 @@ def record_timed(
     *,
     notes: str = "",
     overwrite: bool = False,
-    progress: Progress | None = None,
+    progress: ProgressText | None = None,
     compression: str | None = "auto",
 ) -> ProcedureResult:
     """A plain recording: optional steady drive, then ``duration_s`` of data."""
@@ -463,7 +463,8 @@ def record_timed(
     return session.result(plan.experiment)
 
 
-def _wait_with_progress(session: ProcedureSession, seconds: float, progress: Progress, what: str):
+def _wait_with_progress(session: ProcedureSession, seconds: float, progress: ProgressText,
+                        what: str):
     start = time.monotonic()
     while True:
         elapsed = time.monotonic() - start
@@ -501,7 +502,7 @@ def record_decay(
     *,
     notes: str = "",
     overwrite: bool = False,
-    progress: Progress | None = None,
+    progress: ProgressText | None = None,
     compression: str | None = "auto",
 ) -> ProcedureResult:
     """Free decay (barrier removed) or impact decay (barrier in): wait for the release with a
@@ -622,7 +623,7 @@ def run_sweep(
     *,
     notes: str = "",
     overwrite: bool = False,
-    progress: Progress | None = None,
+    progress: ProgressText | None = None,
     compression: str | None = "auto",
     engine: AcquisitionEngine | None = None,
     cancel: Cancel | None = None,

@@ -24,6 +24,7 @@ from typing import Any, Protocol
 import numpy as np
 
 from analysis.output_paths import HDF5_SUFFIXES, OutputPathError, check_suffix
+from analysis.progress import ProgressText
 from drivers.interfaces import PulseBlock, SampleBlock
 from drivers.sensors import FLAG_NOT_FINITE
 from recording.layout import (
@@ -576,7 +577,7 @@ class RecorderThread(threading.Thread):
             if isinstance(error, DiskFullError):
                 self._keep_annotations()
 
-    def finish(self, progress: Callable[[str], None] | None = None) -> None:
+    def finish(self, progress: ProgressText | None = None) -> None:
         """Wait until the writer has written everything queued (call after the engine stopped).
 
         There is no time limit: the file must not be closed while this thread still writes

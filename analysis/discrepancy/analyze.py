@@ -14,7 +14,7 @@ from __future__ import annotations
 import math
 import os
 import time
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from concurrent.futures import Executor, ProcessPoolExecutor
 from contextlib import nullcontext
 from dataclasses import dataclass, replace
@@ -51,12 +51,11 @@ from analysis.identify.result import Estimate
 from analysis.identify.threads import blas_on_one_thread
 from analysis.model import Drive
 from analysis.model_values import packed_from_values
+from analysis.progress import ProgressText
 from analysis.records import Record
 
 MAX_FIT_SAMPLES = 4000
 MAX_FIT_SAMPLES_WITH_CONTACT = 8000  # contacts last milliseconds: keep more samples
-
-Progress = Callable[[str], None]
 
 
 # --------------------------------------------------------------------------- preparation
@@ -412,7 +411,7 @@ class DecaySteps:
 
 
 def analyze_record(
-    record: Record, *, workers: int | None = None, progress: Progress | None = None,
+    record: Record, *, workers: int | None = None, progress: ProgressText | None = None,
     causes: list[str] | None = None, priors: Mapping[str, float] | None = None,
     policy: SelectionPolicy = DEFAULT_POLICY,
 ) -> Analysis:
@@ -432,7 +431,7 @@ def analyze_record(
 
 
 def analyze_decay(
-    record: Record, *, workers: int = 1, progress: Progress | None = None,
+    record: Record, *, workers: int = 1, progress: ProgressText | None = None,
     causes: list[str] | None = None, policy: SelectionPolicy = DEFAULT_POLICY,
 ) -> Analysis:
     """The discrepancy analysis of a free or impact decay, point by point."""

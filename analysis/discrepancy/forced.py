@@ -23,7 +23,7 @@
 from __future__ import annotations
 
 import time
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -82,9 +82,8 @@ from analysis.identify.forced import (
 )
 from analysis.identify.result import Estimate, IdentificationError
 from analysis.identify.shooting import ShootingFit
+from analysis.progress import ProgressText
 from analysis.records import Record
-
-Progress = Callable[[str], None]
 
 
 @dataclass
@@ -109,7 +108,7 @@ class ForcedOutcome:
 def analyze_forced_fits(
     record_or_data, *, priors: Mapping[str, float] | None = None,
     causes: Sequence[str] | None = None, chaotic: bool = False, period: int = 1,
-    progress: Progress | None = None, threads: int | None = None,
+    progress: ProgressText | None = None, threads: int | None = None,
     policy: SelectionPolicy = DEFAULT_POLICY,
 ) -> ForcedOutcome:
     """Identify, fit the baseline and every candidate, judge them by ``policy``'s rules.
@@ -216,7 +215,7 @@ def rescreened_from_baseline(
 def _fit_over_record(
     data: ForcedData, names: list[str], screened: Mapping[str, ShootingFit],
     bic: dict[str, float], base_full: ShootingFit, lay: Layouts, threads: int | None,
-    period: int, say: Progress, policy: SelectionPolicy,
+    period: int, say: ProgressText, policy: SelectionPolicy,
 ) -> dict[str, ShootingFit]:
     """Fit the policy's ``refined`` best screened causes over the whole record (see
     analyze_forced_fits); ``bic`` is updated in place: a fitted cause's gain over the
@@ -253,7 +252,7 @@ def _fit_over_record(
 
 def _finish_rivals(
     data: ForcedData, fits: dict[str, ShootingFit], bic: dict[str, float],
-    base_full: ShootingFit, lay: Layouts, threads: int | None, say: Progress,
+    base_full: ShootingFit, lay: Layouts, threads: int | None, say: ProgressText,
     policy: SelectionPolicy,
 ) -> None:
     """Fits stopped at their iteration cap while within the policy's ``rival_bic`` share of
@@ -511,7 +510,7 @@ def regime_summary(regime: Regime) -> dict[str, Any]:
 
 def analyze_forced(
     record: Record, *, priors: Mapping[str, float] | None = None,
-    causes: Sequence[str] | None = None, progress: Progress | None = None,
+    causes: Sequence[str] | None = None, progress: ProgressText | None = None,
     threads: int | None = None, policy: SelectionPolicy = DEFAULT_POLICY,
 ) -> Analysis:
     """The discrepancy analysis of a forced record (see the module's docstring), decided

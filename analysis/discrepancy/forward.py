@@ -28,7 +28,7 @@ the same way for every kind.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from typing import Any, Protocol, TypeVar
 
 import numpy as np
@@ -37,11 +37,10 @@ from analysis.discrepancy.policy import SelectionPolicy
 from analysis.discrepancy.selection import Verdict
 from analysis.extensions import ModelSpec, cause
 from analysis.identify.result import Estimate
+from analysis.progress import ProgressText
 
 Fitted = TypeVar("Fitted")  # a kind's fitted model (it has ``.model``)
 Fit = Any  # a kind's fit of a model over the record
-
-Progress = Callable[[str], None]
 
 
 class Steps(Protocol[Fitted]):
@@ -87,7 +86,7 @@ class Steps(Protocol[Fitted]):
 
 def forward_selection(
     steps: Steps[Fitted], first: Fitted, verdict: Verdict | None, policy: SelectionPolicy,
-    say: Progress,
+    say: ProgressText,
 ) -> tuple[Fitted, list[tuple[str, Verdict]]]:
     """Causes added to ``first`` (the accepted single cause, fitted, and its ``verdict``
     against the baseline; or the baseline itself, fitted, and None: every cause is then

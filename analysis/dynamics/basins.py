@@ -9,7 +9,7 @@ added to the catalogue under a name such as "period-2" or "chaotic".
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -23,9 +23,10 @@ from analysis.dynamics.regime import (
     closing_period,
     stacked_recurrence_distances,
 )
-from analysis.dynamics.sweeps import PoincareSettings, Progress, run_poincare
+from analysis.dynamics.sweeps import PoincareSettings, run_poincare
 from analysis.figure_style import legend_beside, save_figure
 from analysis.model import Model
+from analysis.progress import Progress
 
 if TYPE_CHECKING:  # matplotlib is imported by the plot functions only (slow import)
     from matplotlib.figure import Figure
@@ -68,14 +69,14 @@ def basins_of_attraction(
     rtol: float = 1e-8,
     atol: float = 1e-10,
     workers: int | None = None,
-    progress: Progress | None = None,
+    progress: Callable[[Progress], None] | None = None,
 ) -> BasinMap:
     """Which attractor each initial state (at drive phase 0) settles on.
 
     ``tolerance`` (relative to the attractor size) decides periodicity as in the
     classifier; ``match_tolerance`` (relative to the size of all orbits together)
-    decides that two orbits are the same attractor.  ``progress(done, total)`` is
-    called as runs finish.
+    decides that two orbits are the same attractor.  ``progress`` is told the runs done
+    of all (a :class:`~analysis.progress.Progress`) as runs finish.
     """
     theta0 = np.asarray(theta0_values, dtype=float).ravel()
     theta_dot0 = np.asarray(theta_dot0_values, dtype=float).ravel()

@@ -15,7 +15,7 @@ Simulated sweeps come in two kinds (``mode``):
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -24,9 +24,10 @@ import numpy as np
 
 from analysis.dynamics.model_parameters import model_with
 from analysis.dynamics.poincare import PoincareSection
-from analysis.dynamics.sweeps import PoincareSettings, Progress, continue_along, run_poincare
+from analysis.dynamics.sweeps import PoincareSettings, continue_along, run_poincare
 from analysis.figure_style import legend_beside, save_figure
 from analysis.model import Model
+from analysis.progress import Progress
 
 if TYPE_CHECKING:  # matplotlib is imported by the plot functions only (slow import)
     from matplotlib.figure import Figure
@@ -68,7 +69,7 @@ def simulate_bifurcation(
     rtol: float = 1e-8,
     atol: float = 1e-10,
     workers: int | None = None,
-    progress: Progress | None = None,
+    progress: Callable[[Progress], None] | None = None,
     parameter: str = "beta",
 ) -> tuple[BifurcationDiagram, ...]:
     """Bifurcation diagram(s) of ``model`` over ``beta_values`` (sorted ascending here), or
@@ -77,7 +78,8 @@ def simulate_bifurcation(
     Each beta runs ``periods`` drive periods, of which the last ``record_periods`` give
     the Poincare samples (drive phase 0).  Returns (up, down) diagrams for
     ``mode="continuation"`` and a single 'fixed' diagram for ``mode="fixed"``.
-    ``progress(done, total)`` is called as runs finish.
+    ``progress`` is told the runs done of all (a :class:`~analysis.progress.Progress`) as
+    runs finish.
     """
     betas = np.sort(np.asarray(beta_values, dtype=float).ravel())
     if betas.size == 0:

@@ -64,6 +64,7 @@ from analysis.dynamics.periodic_orbits import (
     ShootingError,
     find_periodic_orbit,
 )
+from analysis.progress import ProgressText
 
 INITIAL_STEP = 0.01
 MAX_STEP = 0.02
@@ -79,8 +80,6 @@ NEAR_GRAZING_RAD = 1e-4
 SWITCH_STEP = 1e-3  # displacement along the -1 eigenvector to the period-2k branch
 
 EVENT_KINDS = ("period_doubling", "fold", "branch_point", "grazing")  # grazing: contacts
-
-Progress = Callable[[str], None]
 
 
 class ContinuationError(RuntimeError):
@@ -302,7 +301,7 @@ def continue_orbits(
     max_periods: int | None = None,
     max_points: int = MAX_POINTS,
     max_step: float = MAX_STEP,
-    progress: Progress | None = None,
+    progress: ProgressText | None = None,
 ) -> ContinuationResult:
     """Follow the period-k orbit through ``guess`` at ``start`` towards ``stop`` (k =
     ``period_map.periods``), and the period-2k, 4k ... branches born at its
@@ -358,7 +357,7 @@ def continue_orbits(
 
 
 def _follow(problem: _Branching, branch: Branch, index: int, bounds: tuple[float, float],
-            max_points: int, max_step: float, progress: Progress | None) -> None:
+            max_points: int, max_step: float, progress: ProgressText | None) -> None:
     """Extend ``branch`` from its last point until it leaves ``bounds`` or the step fails."""
     h = min(INITIAL_STEP, max_step)
     name = problem.map.parameter

@@ -17,9 +17,8 @@ import numpy as np
 
 from analysis.model import Model
 from analysis.packed import P
+from analysis.progress import Progress
 from analysis.simulate import simulate_ensemble
-
-Progress = Callable[[int, int], None]  # (runs done, runs in all)
 
 
 @dataclass(frozen=True)
@@ -69,14 +68,14 @@ def run_poincare(
     settings: PoincareSettings,
     *,
     workers: int | None = None,
-    progress: Progress | None = None,
+    progress: Callable[[Progress], None] | None = None,
 ) -> PoincareRuns:
     """Simulate runs (packed (n, P.SIZE), initial (n, 2)) and keep their Poincare samples.
 
     Each run integrates ``settings.transient_periods`` drive periods, then records one
     sample per period for ``settings.record_periods`` periods (rows may differ in drive
-    frequency).  ``workers`` caps the threads; ``progress(done, total)`` is called as
-    chunks of runs finish.
+    frequency).  ``workers`` caps the threads; ``progress`` is told the runs done of all
+    (a :class:`~analysis.progress.Progress`) as chunks of runs finish.
     """
     packed, initial = _check_runs(packed, initial)
     n = packed.shape[0]
@@ -88,7 +87,7 @@ def run_poincare(
             _ensemble(packed[start:stop], initial[start:stop], settings, workers)
         )
         if progress is not None:
-            progress(stop, n)
+            progress(Progress(stop, n))
     return PoincareRuns(
         np.concatenate([part.theta for part in parts]),
         np.concatenate([part.theta_dot for part in parts]),
@@ -104,7 +103,7 @@ def continue_along(
     settings: PoincareSettings,
     *,
     workers: int | None = None,
-    progress: Progress | None = None,
+    progress: Callable[[Progress], None] | None = None,
     restart_state: tuple[float, float] | np.ndarray | None = None,
 ) -> tuple[PoincareRuns, ...]:
     """Continuation sweeps: each step starts from the final state of the step before.
@@ -140,7 +139,7 @@ def continue_along(
         ok = np.array(run.status) == "ok"
         state = np.where(ok[:, None], run.final_state, restart)
         if progress is not None:
-            progress((k + 1) * sweeps, steps * sweeps)
+            progress(Progress((k + 1) * sweeps, steps * sweeps))
     return tuple(
         PoincareRuns(theta[m], theta_dot[m], final[m], tuple(status[m]), contacts[m])
         for m in range(sweeps)

@@ -21,6 +21,7 @@ import numpy as np
 from scipy.signal import savgol_filter
 
 from analysis.identify.result import IdentificationError
+from analysis.model import table_acceleration
 
 SMOOTHING_S = 0.012  # Savitzky-Golay window: resolves drive harmonics well past 10 Hz
 POLYORDER = 3
@@ -62,8 +63,7 @@ class TableMotion:
     def shape(self, t: np.ndarray, phase_rad: float) -> np.ndarray:
         """x_t'' / A (the acceleration per unit amplitude) at the given phase."""
         w = self.omega_rad_s
-        phase = w * t + phase_rad
-        return -w * w * (np.sin(phase) + 4.0 * self.h2 * np.sin(2.0 * phase + self.phi2_rad))
+        return table_acceleration(w * t + phase_rad, w, 1.0, self.h2, self.phi2_rad)
 
 
 def excursion_maxima(y: np.ndarray, valid: np.ndarray) -> np.ndarray:
@@ -115,10 +115,11 @@ def flight_regression(
         # the fundamental's two quadratures (x_t'' per unit amplitude at phases 0, pi/2),
         # and the second harmonic's: a table that no laser watches may be distorted, and a
         # harmonic the basis lacks is absorbed by the other terms (the gravity term's sign)
-        w2 = 2.0 * table.omega_rad_s
+        w = table.omega_rad_s
         columns = [yd, sin_y, cos_y, table.shape(t, 0.0) * cos_y / g,
                    table.shape(t, 0.5 * math.pi) * cos_y / g,
-                   -w2 * w2 * np.sin(w2 * t) * cos_y / g, -w2 * w2 * np.cos(w2 * t) * cos_y / g]
+                   table_acceleration(w * t, w, 0.0, 1.0, 0.0) * cos_y / g,
+                   table_acceleration(w * t, w, 0.0, 1.0, 0.5 * math.pi) * cos_y / g]
     basis = np.column_stack(columns)
 
     def regress(level: float) -> tuple[np.ndarray, float, np.ndarray]:

@@ -20,7 +20,7 @@ built by the one mechanism every fit uses (:mod:`analysis.model_values`).
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from typing import Any
 
@@ -65,6 +65,7 @@ from analysis.model_values import (
     measurement_has_memory,
     packed_from_values,
 )
+from analysis.progress import ProgressText
 from analysis.records import Record
 
 SHORT_SEGMENT_S = 0.1  # first stage: short enough that 10 % off in omega is a small phase error
@@ -79,7 +80,6 @@ MIN_DURATION_S = 2.0
 PLAUSIBLE_EPS = (-0.5, 1.0)
 SMOOTHING_S = 0.012
 
-Progress = Callable[[str], None]
 
 # Baseline parameters of a forced fit: name -> (finite-difference step, log scale, bounds)
 BASELINE_PLANS: dict[str, tuple[float, bool, float, float]] = {
@@ -127,7 +127,6 @@ class ForcedData(SampledRecord):
         records in CHAOTIC_SEGMENT_S)."""
         chaotic = kind in ("chaotic", "undetermined")
         return replace(self, segment_s=CHAOTIC_SEGMENT_S if chaotic else SEGMENT_S)
-
 
 
 def forced_data(record: Record) -> ForcedData:
@@ -260,7 +259,7 @@ def inherited_states(new: Segments, old: Segments, old_states: np.ndarray,
 
 def fit_over_record(
     model: ForcedModel, free: Sequence[FreeParameter], fixed: Mapping[str, float], *,
-    heldout_s: float = 0.0, threads: int | None = None, progress: Progress | None = None,
+    heldout_s: float = 0.0, threads: int | None = None, progress: ProgressText | None = None,
     start_from: tuple[ShootingFit, Segments] | None = None,
     max_iterations: int = MAX_ITERATIONS,
 ) -> tuple[ShootingFit, Segments]:
@@ -379,7 +378,7 @@ class ForcedIdentification:
 
 def identify_forced(
     record: Record | ForcedData, *, priors: Mapping[str, float] | None = None,
-    progress: Progress | None = None, threads: int | None = None, whole: bool = True,
+    progress: ProgressText | None = None, threads: int | None = None, whole: bool = True,
 ) -> ForcedIdentification:
     """Identify a forced record on its own; ``priors`` (decays' values of omega, zeta, K,
     mu0) only replace the nominal start values.  ``whole=False`` stops after the short
@@ -488,7 +487,7 @@ def record_regime(record: Record, data: ForcedData) -> Regime:
 
 def fit_forced(
     record: Record, *, priors: Mapping[str, float] | None = None,
-    progress: Progress | None = None,
+    progress: ProgressText | None = None,
 ) -> IdentificationResult:
     """``impact-rig identify`` of a forced record: every parameter it determines, with 95 %
     intervals, and the drive as measured."""

@@ -21,6 +21,7 @@ from typing import Any
 from analysis.maps.plan import MapPlan, Task
 from analysis.maps.store import MapStore
 from analysis.maps.tasks import TaskInput, continued_state, run_task, task_input, warm_up
+from analysis.progress import Progress
 
 CONNECT_TIMEOUT_S = 5.0
 WORKERS_TIMEOUT_S = 30.0
@@ -34,13 +35,11 @@ class SchedulerError(RuntimeError):
 
 @dataclass(frozen=True)
 class MapProgress:
-    """Where a run stands: tasks and trajectories done (this run and earlier ones), the rate
-    of this run in trajectories per second and the time it still needs."""
+    """Where a run stands: tasks and trajectories done of all (this run and earlier ones),
+    the rate of this run in trajectories per second and the time it still needs."""
 
-    tasks_done: int
-    tasks_total: int
-    trajectories_done: int
-    trajectories_total: int
+    tasks: Progress
+    trajectories: Progress
     elapsed_s: float
     rate_per_s: float
     eta_s: float
@@ -61,8 +60,6 @@ class RunReport:
         """Trajectories per second of wall time."""
         return self.trajectories / self.seconds if self.seconds > 0 else float("nan")
 
-
-Progress = Callable[[MapProgress], None]
 
 
 def default_workers() -> int:
@@ -111,7 +108,8 @@ class MapRunner:
         client = self._dask.client  # one submission per input: no single large graph
         return client.gather([client.submit(function, item, pure=False) for item in inputs])
 
-    def run(self, plan: MapPlan, store: MapStore, progress: Progress | None = None) -> RunReport:
+    def run(self, plan: MapPlan, store: MapStore,
+            progress: Callable[[MapProgress], None] | None = None) -> RunReport:
         """Run every task of ``plan`` not yet done in ``store``, writing each as it finishes."""
         queue = _TaskQueue(plan, store)
         meter = _Meter(plan, store, progress)
@@ -169,7 +167,8 @@ class _TaskQueue:
 class _Meter:
     """Counts finished tasks and reports progress."""
 
-    def __init__(self, plan: MapPlan, store: MapStore, progress: Progress | None) -> None:
+    def __init__(self, plan: MapPlan, store: MapStore,
+                 progress: Callable[[MapProgress], None] | None) -> None:
         self.plan, self.progress = plan, progress
         self.started = time.perf_counter()
         self.tasks_run = self.trajectories_run = 0
@@ -194,8 +193,8 @@ class _Meter:
         eta = left / rate if self.trajectories_run else float("nan")
         self.progress(
             MapProgress(
-                self.tasks_done, len(self.plan.tasks), self.trajectories_done,
-                self.plan.trajectories, elapsed, rate, eta,
+                Progress(self.tasks_done, len(self.plan.tasks)),
+                Progress(self.trajectories_done, self.plan.trajectories), elapsed, rate, eta,
             )
         )
 

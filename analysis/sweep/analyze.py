@@ -31,6 +31,7 @@ from analysis.discrepancy.policy import DEFAULT_POLICY, SelectionPolicy
 from analysis.discrepancy.residual_reading import Finding
 from analysis.model import Drive, Model
 from analysis.model_values import model_from_values
+from analysis.progress import ProgressText
 from analysis.sweep.causes import SweepCauses, causes_json, select_causes
 from analysis.sweep.diagram import (
     DiagramComparison,
@@ -49,7 +50,6 @@ from analysis.sweep.fit import (
 )
 from analysis.sweep.steps import Sweep
 
-Progress = Callable[[str], None]
 RunMap = Callable[[Callable[[Any], Any], Sequence[Any]], list[Any]]
 # Where a simulated sweep starts when its fit did not reach the first dwell's first
 # sample: the pendulum at rest at the first settle's start, drive phase 0.
@@ -175,7 +175,7 @@ def _first_state(ident: SweepIdentification, fit: Any) -> tuple[float, float] | 
 
 
 def analyze_sweep(
-    sweep: Sweep, *, threads: int | None = None, progress: Progress | None = None,
+    sweep: Sweep, *, threads: int | None = None, progress: ProgressText | None = None,
     policy: SelectionPolicy = DEFAULT_POLICY, diagram: bool = True,
     run_map: RunMap | None = None,
 ) -> SweepAnalysis:
@@ -212,7 +212,7 @@ def analyze_sweep(
     return analysis
 
 
-def _identified(sweep: Sweep, say: Progress, threads: int | None
+def _identified(sweep: Sweep, say: ProgressText, threads: int | None
                 ) -> tuple[Sweep, SweepData, SweepIdentification]:
     """The sweep's rig identified once for every step; a step that is no forced record fit
     for a fit, or that cannot be identified alone, is set aside with the reason and the

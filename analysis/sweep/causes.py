@@ -31,7 +31,7 @@ a fitted one the laser contradicts is disqualified.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
 from typing import Any
 
@@ -58,6 +58,7 @@ from analysis.identify.forced import record_segments
 from analysis.identify.intervals import Z95
 from analysis.identify.result import Estimate
 from analysis.identify.shooting import FreeParameter, ShootingFit
+from analysis.progress import ProgressText
 from analysis.sweep.constancy import spread_across_steps
 from analysis.sweep.fit import (
     STEP_MARK,
@@ -72,8 +73,6 @@ from analysis.sweep.fit import (
     sweep_parameters,
     sweep_state_steps,
 )
-
-Progress = Callable[[str], None]
 
 
 @dataclass(frozen=True)
@@ -302,7 +301,7 @@ class SweepCauses:
 
 def select_causes(
     ident: SweepIdentification, policy: SelectionPolicy, *, threads: int | None = None,
-    progress: Progress | None = None,
+    progress: ProgressText | None = None,
 ) -> SweepCauses:
     """The forward selection over the sweep, then each named cause's constancy across its
     steps (see the module's docstring)."""
@@ -332,7 +331,7 @@ def select_causes(
 
 def size_per_step(
     data: SweepData, final: SweepModelFits, name: str, lay: SweepLayouts,
-    threads: int | None, say: Progress,
+    threads: int | None, say: ProgressText,
 ) -> tuple[ShootingFit, Finding | None]:
     """The final model refitted with cause ``name``'s parameters of each step's own, and a
     ``constancy`` finding when they differ between the steps beyond their intervals."""

@@ -32,6 +32,7 @@ from analysis.identify.preprocess import noise_and_quantum
 from analysis.measurement import MeasurementModel
 from analysis.model import Drive, Model, RigParameters
 from analysis.packed import P
+from analysis.progress import ProgressText
 from analysis.simulate import SimulationSettings, simulate_packed
 from analysis.sweep.steps import DOWN, UP, Sweep, SweepStep
 
@@ -515,7 +516,7 @@ def assemble(
 
 def model_orbits(
     comparison: DiagramComparison, model: Model, sweep: Sweep, *,
-    max_points: int = 400, progress: Callable[[str], None] | None = None,
+    max_points: int = 400, progress: ProgressText | None = None,
 ) -> ContinuationResult | None:
     """The model's periodic orbits, stable and unstable, over the sweep's way up: the
     continuation (:mod:`analysis.dynamics.continuation`) of the orbit the simulation

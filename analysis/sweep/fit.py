@@ -54,9 +54,9 @@ from analysis.identify.shooting import (
     ShootingProblem,
 )
 from analysis.model_values import has_measurement, measured_angle, measurement_has_memory
+from analysis.progress import ProgressText
 from analysis.sweep.steps import Sweep
 
-Progress = Callable[[str], None]
 # The parameters a step has of its own when they are fitted: its drive's phase (and its
 # frequency when neither tach nor table channel timed the drive).
 PER_STEP = ("drive_phase_rad", "drive_frequency_hz")
@@ -283,7 +283,7 @@ class SweepIdentification:
 
 
 def identify_sweep(
-    data: SweepData, *, progress: Progress | None = None, threads: int | None = None,
+    data: SweepData, *, progress: ProgressText | None = None, threads: int | None = None,
 ) -> SweepIdentification:
     """Identify the rig once for every step (see the module's docstring); the steps that
     cannot be identified alone are named, with the reason, by StepsNotIdentifiedError."""
@@ -329,7 +329,7 @@ def identify_sweep(
 
 def fit_sweep_over_record(
     model: SweepModel, free: Sequence[FreeParameter], fixed: Mapping[str, float], *,
-    threads: int | None = None, progress: Progress | None = None,
+    threads: int | None = None, progress: ProgressText | None = None,
     start_from: tuple[ShootingFit, JoinedSegments] | None = None,
     max_iterations: int = MAX_ITERATIONS,
 ) -> tuple[ShootingFit, JoinedSegments]:

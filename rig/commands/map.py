@@ -354,8 +354,8 @@ def _progress_text(progress: Any) -> str:
     speed = f"{rate:.0f} trajectories/s" if math.isfinite(rate) else "starting"
     eta = f"ETA {progress.eta_s:.0f} s" if math.isfinite(progress.eta_s) else "ETA -"
     return (
-        f"map: {progress.tasks_done}/{progress.tasks_total} tasks, "
-        f"{progress.trajectories_done}/{progress.trajectories_total} trajectories, "
+        f"map: {progress.tasks.done}/{progress.tasks.total} tasks, "
+        f"{progress.trajectories.done}/{progress.trajectories.total} trajectories, "
         f"{speed}, {eta}"
     )
 

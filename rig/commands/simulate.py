@@ -396,6 +396,7 @@ def run(args: argparse.Namespace) -> int:
 
     from analysis.exchange import ExchangeRecord, write_exchange
     from analysis.measurement import MeasurementModel, has_measurement_causes
+    from analysis.model import table_displacement
     from analysis.output_paths import HDF5_SUFFIXES, check_outputs, check_suffix
     from analysis.packed import P, ParameterError
     from analysis.simulate import SimulationSettings, simulate
@@ -448,7 +449,7 @@ def run(args: argparse.Namespace) -> int:
     p = model.pack()
     if experiment_kind(experiment).driven:
         phase = p[P.OMEGA_DRIVE] * result.t + p[P.PHASE0]
-        table = p[P.A1] * np.sin(phase) + p[P.A2] * np.sin(2.0 * phase + p[P.PHI2])
+        table = table_displacement(phase, p[P.A1], p[P.A2], p[P.PHI2])
         tach = _tach(result.t, p, args.fs)
     extra = {
         "rig": model.rig.as_dict(),

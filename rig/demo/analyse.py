@@ -17,7 +17,8 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from analysis.experiments import FREE_DECAY, IMPACT_DECAY
-from rig.demo.settings import NONE, DemoError, DemoSettings, Progress, indented
+from analysis.progress import ProgressText
+from rig.demo.settings import NONE, DemoError, DemoSettings, indented
 
 if TYPE_CHECKING:  # the analysis's result types, for the hints only (imported when run)
     from analysis.discrepancy import Analysis
@@ -47,7 +48,7 @@ def load_records(results: Mapping[str, Any], notes: list[str]) -> dict[str, Any]
     return records
 
 
-def identify(records: Mapping[str, Any], say: Progress) -> dict[str, IdentificationResult]:
+def identify(records: Mapping[str, Any], say: ProgressText) -> dict[str, IdentificationResult]:
     """The baseline model's identification: L, zeta from the free decay, then K, mu0 (and
     theta_b) from the impact decay with L and zeta held."""
     from analysis.identify import IdentificationError, fit_free_decay, fit_impact_decay
@@ -78,7 +79,7 @@ def combined_parameters(identified: Mapping[str, Any]) -> dict[str, dict[str, An
     return out
 
 
-def classify_steps(steps: list[Any], say: Progress) -> tuple[list[dict[str, Any]], list[Any]]:
+def classify_steps(steps: list[Any], say: ProgressText) -> tuple[list[dict[str, Any]], list[Any]]:
     """Regime of each step, judged from its strobe points locked to the tachometer (the same
     judgement as every measured record's), and each step's settled Poincare section."""
     from analysis.dynamics import judge_record_regime
@@ -133,7 +134,7 @@ def analyse_discrepancies(
     regimes: list[dict[str, Any]],
     baseline: Mapping[str, Mapping[str, Any]],
     settings: DemoSettings,
-    say: Progress,
+    say: ProgressText,
     notes: list[str],
 ) -> dict[str, Analysis]:
     """The discrepancy analysis (analysis.discrepancy) on each decay, then on one sweep step
@@ -191,7 +192,7 @@ def bifurcation_diagrams(
     settings: DemoSettings,
     regimes: list[dict[str, Any]],
     sections: list[np.ndarray],
-    say: Progress,
+    say: ProgressText,
 ):
     """Simulated (the identified model, continuation up and down) and measured diagrams."""
     from analysis.dynamics import bifurcation_from_recording, simulate_bifurcation
@@ -278,7 +279,7 @@ def explained_parameters(
     return out, causes
 
 
-def explain_sweep(path: Any, say: Progress, notes: list[str]) -> SweepAnalysis | None:
+def explain_sweep(path: Any, say: ProgressText, notes: list[str]) -> SweepAnalysis | None:
     """The sweep explained as one (``analysis.sweep.analyze_sweep``): one rig for every
     step, the causes that hold across the steps, and, when the analysis compares them, the
     baseline's and the explained model's diagrams with the measured one.  None (with a

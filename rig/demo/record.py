@@ -7,6 +7,7 @@ from dataclasses import replace
 from pathlib import Path
 from types import MappingProxyType
 
+from analysis.progress import ProgressText
 from rig.config import RigConfig
 from rig.demo.settings import (
     ANALYSIS,
@@ -16,7 +17,6 @@ from rig.demo.settings import (
     DemoError,
     DemoSettings,
     HiddenCause,
-    Progress,
     indented,
 )
 from rig.procedures import (
@@ -86,7 +86,7 @@ def true_values(config: RigConfig) -> dict[str, float]:
 
 
 def record_everything(
-    config: RigConfig, folder: Path, settings: DemoSettings, say: Progress
+    config: RigConfig, folder: Path, settings: DemoSettings, say: ProgressText
 ) -> dict[str, ProcedureResult]:
     """The three recordings; a device or recording failure is a DemoError saying so."""
     try:
@@ -99,7 +99,7 @@ def record_everything(
 
 
 def _record_on_open_rig(
-    config: RigConfig, folder: Path, settings: DemoSettings, say: Progress
+    config: RigConfig, folder: Path, settings: DemoSettings, say: ProgressText
 ) -> dict[str, ProcedureResult]:
     from rig.devices import open_rig
 

@@ -7,6 +7,7 @@ from __future__ import annotations
 import time
 from pathlib import Path
 
+from analysis.progress import ProgressText
 from rig.config import load_config
 from rig.demo.analyse import (
     analyse_discrepancies,
@@ -44,7 +45,6 @@ from rig.demo.settings import (
     REPORT_NAME,
     DemoSettings,
     HiddenCause,
-    Progress,
     hidden_cause,
 )
 
@@ -56,7 +56,7 @@ def run_demo(
     hidden: HiddenCause | None = None,
     config_path: str | Path | None = None,
     overwrite: bool = False,
-    progress: Progress | None = None,
+    progress: ProgressText | None = None,
 ) -> DemoResult:
     """Record, identify, explain and report on the virtual rig; returns what was found."""
     say = progress or (lambda text: None)

@@ -3,11 +3,11 @@ names of its report, and its error; the leaf every stage of the demo imports."""
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from types import MappingProxyType
 
-Progress = Callable[[str], None]
+from analysis.progress import ProgressText
 
 NONE = "none"
 DEFAULT_CAUSE = "coulomb_friction"
@@ -121,7 +121,7 @@ QUICK = DemoSettings(
 )
 
 
-def indented(say: Progress) -> Progress:
+def indented(say: ProgressText) -> ProgressText:
     """Progress one level deeper (the steps of a stage)."""
     return lambda text: say(f"    {text}")
 

@@ -110,7 +110,7 @@ def test_progress_is_reported_up_to_the_number_of_runs():
         transient_periods=20,
         record_periods=50,
         workers=1,
-        progress=lambda done, total: reports.append((done, total)),
+        progress=lambda progress: reports.append((progress.done, progress.total)),
     )
     assert reports[-1] == (6, 6)
     assert [done for done, _ in reports] == sorted(done for done, _ in reports)
