@@ -4,10 +4,12 @@ real protocols), and the report folder it leaves: report, figures, JSON reports,
 from __future__ import annotations
 
 import json
+import os
 import re
 import shutil
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -23,6 +25,7 @@ from tests.strict_json import strict_loads
 
 pytestmark = pytest.mark.slow
 
+ROOT = Path(__file__).resolve().parents[2]
 TRUE_L_M = load_config().constants.L_m
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 SECTION_6_KEYS = {"experiment", "cause", "ranking", "baseline", "extended", "gain", "localization"}
@@ -39,6 +42,14 @@ def _command() -> list[str]:
     return [script] if script else [sys.executable, "-m", "rig.cli"]
 
 
+def _env() -> dict[str, str]:
+    """The environment with this checkout first on the path: the ``impact-rig`` script runs
+    the code under test, not a copy installed beside it (``pip install .`` in CI, or an
+    editable install of another tree), and loads the compiled integrator the tests' own
+    processes cached instead of compiling it again for that copy."""
+    paths = os.pathsep.join(filter(None, [str(ROOT), os.environ.get("PYTHONPATH")]))
+    return {**os.environ, "PYTHONPATH": paths}
+
 
 @pytest.fixture(scope="module")
 def demo(tmp_path_factory):
@@ -50,6 +61,7 @@ def demo(tmp_path_factory):
         text=True,
         timeout=600,
         check=False,
+        env=_env(),
     )
     return folder, done
 
