@@ -14,6 +14,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from analysis.discrepancy.candidates import candidates_for
+from analysis.experiments import FORCED
 from analysis.extensions import CAUSES
 from analysis.hdf5_records import load_hdf5_steps
 from recording.reader import open_recording
@@ -317,6 +319,10 @@ def test_the_demo_explains_its_sweep_as_one_and_says_whether_the_diagrams_agree(
     said = f"the explained model's diagram {verdict} the measured one"
     report = (folder / "report.md").read_text(encoding="utf-8")
     assert said in done.stdout and said in report
+    # the quick demo checks the sweep only for a cause the free decay showed, and says so
+    found = _json(folder, "analysis/free_decay.json")["cause"]
+    checked_for_it = f"quick demo: the sweep was checked for {found} only" in report
+    assert checked_for_it == (found in {c.name for c in candidates_for(FORCED.name)})
     section = report.split("### The sweep explained as one")[1].split("\n## ")[0]
     for figure in sweep["figures"]:  # the sweep report's diagrams, shown in the demo's
         assert f"]({figure})" in section
