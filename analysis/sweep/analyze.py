@@ -177,12 +177,13 @@ def _first_state(ident: SweepIdentification, fit: Any) -> tuple[float, float] | 
 def analyze_sweep(
     sweep: Sweep, *, threads: int | None = None, progress: ProgressText | None = None,
     policy: SelectionPolicy = DEFAULT_POLICY, diagram: bool = True,
-    run_map: RunMap | None = None,
+    run_map: RunMap | None = None, causes: Sequence[str] | None = None,
 ) -> SweepAnalysis:
     """Identify one rig for every step of ``sweep``, select the causes that hold across
-    its steps and (``diagram``) compare the baseline's and the explained model's diagrams
-    with the measured one, their simulations spread by ``run_map`` (see the module's
-    docstring)."""
+    its steps (``causes`` restricts the candidates; default: every cause that can show in
+    a forced record) and (``diagram``) compare the baseline's and the explained model's
+    diagrams with the measured one, their simulations spread by ``run_map`` (see the
+    module's docstring)."""
     say = progress or (lambda message: None)
     clock = time.perf_counter()
     n = len(sweep.steps)
@@ -191,7 +192,7 @@ def analyze_sweep(
     sweep, data, ident = _identified(sweep, say, threads)
     timings = {"identification": time.perf_counter() - clock}
     say("causes across the sweep, each of one size for every step")
-    causes = select_causes(ident, policy, threads=threads, progress=say)
+    causes = select_causes(ident, policy, threads=threads, progress=say, causes=causes)
     timings["causes"] = time.perf_counter() - clock - timings["identification"]
     findings = list(causes.findings)
     warnings = []

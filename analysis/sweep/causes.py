@@ -301,10 +301,11 @@ class SweepCauses:
 
 def select_causes(
     ident: SweepIdentification, policy: SelectionPolicy, *, threads: int | None = None,
-    progress: ProgressText | None = None,
+    progress: ProgressText | None = None, causes: Sequence[str] | None = None,
 ) -> SweepCauses:
     """The forward selection over the sweep, then each named cause's constancy across its
-    steps (see the module's docstring)."""
+    steps (see the module's docstring); ``causes`` restricts the candidates (default: every
+    cause that can show in a forced record)."""
     say = progress or (lambda message: None)
     data = ident.data
     lay = sweep_layouts(data)
@@ -316,7 +317,8 @@ def select_causes(
                        threads, REFINE_ITERATIONS)
     say(f"  rms {base_full.rms / data.noise_rad:.3g} x noise")
     base = SweepModelFits(BASELINE, base_full)
-    names = [c.name for c in candidates_for(FORCED.name)]
+    names = [c.name for c in candidates_for(FORCED.name)
+             if causes is None or c.name in causes]
     steps = SweepSteps(ident, lay, hints, names, threads, policy)
     final, taken = forward_selection(steps, base, None, policy, say)
     dropped, findings, per_step = [], [], {}

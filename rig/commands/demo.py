@@ -30,7 +30,9 @@ physical effect switched on that the baseline model lacks:
   5. write a report folder: report.md and report.html with figures, the JSON reports
      (docs/MODEL.md sections 6 and 7) and the recordings; the effect is revealed there
 
-Takes a few minutes on two cores (--quick: under a minute, smaller records).
+Takes a few minutes on two cores.  --quick takes about a minute: smaller records and
+simulations, no analysis of a single sweep step, and the impact decay and the sweep are
+checked only for the cause the free decay showed (the full demo tries every candidate).
 """
 
 EPILOG = """\
@@ -64,7 +66,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--overwrite", action="store_true", help="write into a non-empty --out folder"
     )
     parser.add_argument(
-        "--quick", action="store_true", help="smaller records and simulations (under a minute)"
+        "--quick",
+        action="store_true",
+        help="about a minute: smaller records and simulations; the impact decay and the "
+        "sweep checked only for the cause the free decay showed",
     )
     parser.add_argument(
         "--cause",

@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from analysis.experiments import FREE_DECAY, IMPACT_DECAY
+from analysis.experiments import FORCED, FREE_DECAY, IMPACT_DECAY
 from analysis.progress import ProgressText
 from rig.demo.settings import NONE, DemoError, DemoSettings, indented
 
@@ -173,6 +173,26 @@ def analyse_discrepancies(
     return findings
 
 
+def sweep_candidates(
+    analyses: Mapping[str, Analysis], settings: DemoSettings, notes: list[str]
+) -> list[str] | None:
+    """The causes the sweep is checked for: in the quick demo, what the free decay found
+    (when that can show in a forced record; a note says so); else every candidate."""
+    from analysis.discrepancy.candidates import candidates_for
+
+    free_decay = analyses.get(FREE_DECAY.name)
+    found = free_decay.chosen if free_decay is not None else NONE
+    if not settings.carry_free_decay_finding or found not in {
+        c.name for c in candidates_for(FORCED.name)
+    }:
+        return None
+    notes.append(
+        f"quick demo: the sweep was checked for {found} only (what the free decay showed); "
+        "the full demo tries every candidate cause"
+    )
+    return [found]
+
+
 FORCED_PRIORS = ("omega_rad_s", "zeta", "K_N_per_m1.5", "mu0_s_per_m")
 
 
@@ -279,17 +299,20 @@ def explained_parameters(
     return out, causes
 
 
-def explain_sweep(path: Any, say: ProgressText, notes: list[str]) -> SweepAnalysis | None:
+def explain_sweep(
+    path: Any, say: ProgressText, notes: list[str], causes: list[str] | None = None
+) -> SweepAnalysis | None:
     """The sweep explained as one (``analysis.sweep.analyze_sweep``): one rig for every
-    step, the causes that hold across the steps, and, when the analysis compares them, the
-    baseline's and the explained model's diagrams with the measured one.  None (with a
-    note) when the sweep cannot be explained."""
+    step, the causes that hold across the steps (``causes``: only these candidates), and,
+    when the analysis compares them, the baseline's and the explained model's diagrams with
+    the measured one.  None (with a note) when the sweep cannot be explained."""
     from analysis.sweep.analyze import analyze_sweep
     from analysis.sweep.load import load_sweep
     from recording.errors import RecordFormatError
 
     try:
-        return analyze_sweep(load_sweep([path]), threads=1, progress=indented(say))
+        return analyze_sweep(load_sweep([path]), threads=1, progress=indented(say),
+                             causes=causes)
     except (RecordFormatError, ValueError) as error:
         notes.append(f"the sweep cannot be explained as one: {error}")
         return None

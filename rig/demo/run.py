@@ -19,6 +19,7 @@ from rig.demo.analyse import (
     identified_model,
     identify,
     load_records,
+    sweep_candidates,
 )
 from rig.demo.record import (
     demo_config,
@@ -115,7 +116,8 @@ def run_demo(
     )
     lap("discrepancy")
     say("  the sweep as one: one rig for every step, the causes across its steps")
-    sweep_analysis = explain_sweep(results["sweep"].path, say, notes)
+    sweep_analysis = explain_sweep(results["sweep"].path, say, notes,
+                                   sweep_candidates(analyses, settings, notes))
     sweep = (None if sweep_analysis is None else
              write_sweep_explanation(folder, sweep_analysis, overwrite=overwrite))
     lap("sweep")

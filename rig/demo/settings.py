@@ -77,8 +77,8 @@ class DemoSettings:
     simulated_periods: int
     simulated_record_periods: int
     analyze_forced_step: bool  # the discrepancy analysis of a sweep step (slow)
-    # check the impact decay only for what the free decay found (when it found something)
-    # instead of for every candidate: a shortcut of the quick demo
+    # check the impact decay and the sweep only for what the free decay found (when it
+    # found something) instead of for every candidate: a shortcut of the quick demo
     carry_free_decay_finding: bool
 
 

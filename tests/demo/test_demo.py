@@ -4,14 +4,18 @@ real protocols), and the report folder it leaves: report, figures, JSON reports,
 from __future__ import annotations
 
 import json
+import os
 import re
 import shutil
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
 
+from analysis.discrepancy.candidates import candidates_for
+from analysis.experiments import FORCED
 from analysis.extensions import CAUSES
 from analysis.hdf5_records import load_hdf5_steps
 from recording.reader import open_recording
@@ -23,6 +27,7 @@ from tests.strict_json import strict_loads
 
 pytestmark = pytest.mark.slow
 
+ROOT = Path(__file__).resolve().parents[2]
 TRUE_L_M = load_config().constants.L_m
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 SECTION_6_KEYS = {"experiment", "cause", "ranking", "baseline", "extended", "gain", "localization"}
@@ -39,6 +44,14 @@ def _command() -> list[str]:
     return [script] if script else [sys.executable, "-m", "rig.cli"]
 
 
+def _env() -> dict[str, str]:
+    """The environment with this checkout first on the path: the ``impact-rig`` script runs
+    the code under test, not a copy installed beside it (``pip install .`` in CI, or an
+    editable install of another tree), and loads the compiled integrator the tests' own
+    processes cached instead of compiling it again for that copy."""
+    paths = os.pathsep.join(filter(None, [str(ROOT), os.environ.get("PYTHONPATH")]))
+    return {**os.environ, "PYTHONPATH": paths}
+
 
 @pytest.fixture(scope="module")
 def demo(tmp_path_factory):
@@ -50,6 +63,7 @@ def demo(tmp_path_factory):
         text=True,
         timeout=600,
         check=False,
+        env=_env(),
     )
     return folder, done
 
@@ -305,6 +319,10 @@ def test_the_demo_explains_its_sweep_as_one_and_says_whether_the_diagrams_agree(
     said = f"the explained model's diagram {verdict} the measured one"
     report = (folder / "report.md").read_text(encoding="utf-8")
     assert said in done.stdout and said in report
+    # the quick demo checks the sweep only for a cause the free decay showed, and says so
+    found = _json(folder, "analysis/free_decay.json")["cause"]
+    checked_for_it = f"quick demo: the sweep was checked for {found} only" in report
+    assert checked_for_it == (found in {c.name for c in candidates_for(FORCED.name)})
     section = report.split("### The sweep explained as one")[1].split("\n## ")[0]
     for figure in sweep["figures"]:  # the sweep report's diagrams, shown in the demo's
         assert f"]({figure})" in section

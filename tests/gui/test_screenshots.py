@@ -17,7 +17,7 @@ from rig.cli import main
 
 # a stage's hang bound, under the test's own 300 s: on a fresh clone the virtual rig's first
 # open compiles the integrator, which took over 120 s on CI's 2 cores under load
-QUICK = ScreenshotPlan(live_s=2.0, view_s=0.6, replay_s=1.0, timeout_s=240.0)
+QUICK = ScreenshotPlan(live_s=2.0, view_s=0.6, replay_s=1.0, decay_s=4.0, timeout_s=240.0)
 
 
 def pixels(image: QImage, region: QRect) -> np.ndarray:
