@@ -422,13 +422,14 @@ def _save(args: argparse.Namespace, figures: dict[str, Any], load: float) -> Non
                    "as measured)"),
             figure("hidden cause named; its parameters within their 95 % intervals",
                    f"{_percent(explanation['hidden_cause_named'])}; "
-                   f"{_percent(explanation['hidden_cause_named_within_ci95'])}"),
+                   f"{_percent(explanation['hidden_cause_named_within_ci95'])}",
+                   f">= {_percent(LEAST_SHARE)} within"),
             figure("clean sweeps with no cause named",
-                   _percent(explanation["clean_sweeps_no_cause"])),
+                   _percent(explanation["clean_sweeps_no_cause"]), "100 %"),
             figure("explained model right where the fitted baseline is wrong",
                    f"{_percent(explanation['explained_agreeing_where_baseline_missed'])} of "
-                   f"{explanation['baseline_missed_steps']} steps"),
-            figure("explanations failed", f"{explanation['failed']}/{figures['sweeps']}"),
+                   f"{explanation['baseline_missed_steps']} steps", f">= {_percent(LEAST_SHARE)}"),
+            figure("explanations failed", f"{explanation['failed']}/{figures['sweeps']}", "0"),
         ]
     timing = figures.get("timing_16_steps_of_20_s")
     if timing is not None:
