@@ -298,13 +298,15 @@ class Model:
 # The equations of motion are defined once, here, as functions of the coefficient tuple
 # below; the compiled integrator (analysis.simulate.integrator) calls these same functions
 # for its right-hand side in every region, and the functions of the packed vector further
-# down (what the rest of the analysis calls) are these functions too.  Each is inlined
-# into its caller (numba inline="always"), so it is compiled with the caller's own flags;
-# no caller may set fast-math flags, not even "contract" (fused multiply-adds): the
-# integrator's comment on its kernels says why, and without them the integrator and these
-# entry points round every term alike.  numba caches a kernel by its own file only: after
-# editing these equations, delete analysis/simulate/__pycache__ (tests/simulate/test_rhs.py
-# fails on a stale cache).
+# down (what the rest of the analysis calls) are these functions too.  Each is compiled
+# once and linked into its callers, where LLVM inlines it (numba's own inline="always"
+# copied their IR into every call site, which cost a fifth of the integrator's cold
+# compile, 55 s to 44 s, for the same speed and bit for bit the same trajectories).
+# Neither they nor any caller may set fast-math flags, not even "contract" (fused
+# multiply-adds): the integrator's comment on its kernels says why, and without them the
+# integrator and these entry points round every term alike.  numba caches a kernel by its
+# own file only: after editing these equations, delete analysis/simulate/__pycache__
+# (tests/simulate/test_rhs.py fails on a stale cache).
 
 # Positions in the coefficient tuple: the packed vector's entries hoisted into scalars once
 # per call, with flags that skip the drive and the general power law when they are off
@@ -314,7 +316,7 @@ K_A1, K_A2, K_PHI2, K_GAIN, K_SHAFT, K_STIFFNESS, K_EXPONENT = 6, 7, 8, 9, 10, 1
 K_MU0, K_C_VISCOUS, K_SIN_THETA_B, K_CONTACT_ON, K_HERTZ, K_FORCED = 13, 14, 15, 16, 17, 18
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True)
 def coefficients(p: np.ndarray, contact: bool) -> tuple[float, ...]:
     """The packed vector as the equations' coefficient tuple; ``contact`` False drops the
     barrier term (the integrator's free-flight region)."""
@@ -342,13 +344,13 @@ def coefficients(p: np.ndarray, contact: bool) -> tuple[float, ...]:
     )
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True)
 def indentation(sin_theta: float, k: tuple[float, ...]) -> float:
     """Penetration delta = l (sin theta - sin theta_b) [m], > 0 in contact."""
     return k[K_SHAFT] * (sin_theta - k[K_SIN_THETA_B])
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True)
 def barrier_force(sin_theta: float, cos_theta: float, theta_dot: float, k: tuple[float, ...]
                   ) -> float:
     """Barrier force Fc [N] of docs/MODEL.md section 2, generalised by the contact extensions.
@@ -360,7 +362,7 @@ def barrier_force(sin_theta: float, cos_theta: float, theta_dot: float, k: tuple
     return force if force > 0.0 else 0.0
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True)
 def contact_law(sin_theta: float, cos_theta: float, theta_dot: float, k: tuple[float, ...]
                 ) -> float:
     """The contact law K delta^n (1 + mu0 deltadot) + c deltadot [N] before the no-adhesion
@@ -382,7 +384,7 @@ def contact_law(sin_theta: float, cos_theta: float, theta_dot: float, k: tuple[f
 # Compiled, they take scalars (inside the kernels) or arrays (called from Python).
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True)
 def table_displacement(phase: float | np.ndarray, a1_m: float, a2_m: float, phi2_rad: float
                        ) -> float | np.ndarray:
     """The table's displacement x_t [m] at drive phase ``phase`` = Omega t + phase0:
@@ -394,7 +396,7 @@ def table_displacement(phase: float | np.ndarray, a1_m: float, a2_m: float, phi2
     return x
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True)
 def table_acceleration(phase: float | np.ndarray, omega_rad_s: float, a1_m: float, a2_m: float,
                        phi2_rad: float) -> float | np.ndarray:
     """The table's acceleration x_t'' [m/s^2] at drive phase ``phase`` of the motion of
@@ -406,7 +408,7 @@ def table_acceleration(phase: float | np.ndarray, omega_rad_s: float, a1_m: floa
     return -omega_rad_s * omega_rad_s * shape
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True)
 def table_forcing(t: float, cos_theta: float, k: tuple[float, ...]) -> float:
     """-(x_t''(t) / L) cos(theta), the table's push on the pendulum [1/s^2] (x_t'' of
     :func:`table_acceleration`)."""
@@ -415,7 +417,7 @@ def table_forcing(t: float, cos_theta: float, k: tuple[float, ...]) -> float:
     return -acc * k[K_INV_L] * cos_theta
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True)
 def region_acceleration(t: float, theta: float, theta_dot: float, k: tuple[float, ...]
                         ) -> float:
     """theta'' from every term but Coulomb friction: damping, drag, gravity, table, barrier."""
@@ -431,7 +433,7 @@ def region_acceleration(t: float, theta: float, theta_dot: float, k: tuple[float
     return acc
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True)
 def sliding_acceleration(t: float, theta: float, theta_dot: float, k: tuple[float, ...],
                          direction: float, friction: float) -> float:
     """theta'' while sliding in ``direction`` (+1, -1; 0 adds no friction) against the
@@ -439,7 +441,7 @@ def sliding_acceleration(t: float, theta: float, theta_dot: float, k: tuple[floa
     return region_acceleration(t, theta, theta_dot, k) - direction * friction
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True)
 def sliding_direction(t: float, theta: float, theta_dot: float, k: tuple[float, ...],
                       friction: float) -> float:
     """Direction of motion for Coulomb friction: the sign of theta', and at theta' = 0 the
@@ -459,7 +461,7 @@ def sliding_direction(t: float, theta: float, theta_dot: float, k: tuple[float, 
 # against central differences of these same functions (tests/simulate/test_sensitivity.py).
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True)
 def barrier_force_partials(sin_theta: float, cos_theta: float, theta_dot: float,
                            k: tuple[float, ...], clamp: bool) -> tuple[float, ...]:
     """Partial derivatives of :func:`barrier_force`: (theta, theta', l, K, n, mu0, c,
@@ -500,7 +502,7 @@ def barrier_force_partials(sin_theta: float, cos_theta: float, theta_dot: float,
     )
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True)
 def surface_force(cos_theta: float, theta_dot: float, k: tuple[float, ...]) -> float:
     """The limit of :func:`barrier_force` as the penetration falls to 0 from inside
     (theta -> theta_b+): K delta^n vanishes there, Kelvin-Voigt's c deltadot does not.
@@ -511,7 +513,7 @@ def surface_force(cos_theta: float, theta_dot: float, k: tuple[float, ...]) -> f
     return force if force > 0.0 else 0.0
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True)
 def acceleration_partials(t: float, theta: float, theta_dot: float, k: tuple[float, ...],
                           direction: float, friction: float, d_p: np.ndarray,
                           clamp: bool = True) -> tuple[float, float, float]:

@@ -154,7 +154,7 @@ STUCK_SCAN_PER_PERIOD = 128  # release search resolution while stuck under forci
 
 # ----------------------------------------------------------------------------- right-hand side
 # The right-hand side is analysis.model's definition of the equations, not a copy: its
-# functions are inlined into these kernels (and compiled with their flags).  numba's cache
+# functions are linked into these kernels (and inlined there by LLVM).  numba's cache
 # tracks only a kernel's own file, so after editing the equations in analysis/model.py
 # delete this folder's __pycache__ (tests/simulate/test_rhs.py finds a stale cache: the
 # kernels' right-hand side then differs from the model's).

@@ -20,7 +20,7 @@ of docs/MODEL.md section 2 is continuous at the surface (its force K delta^n van
 there), so f+ = f- and the matrix is the identity; Kelvin-Voigt damping (``c deltadot``)
 jumps at entry, and there the matrix is not.
 
-These kernels inline the integrator's step (``integrator._rk_step``, ``rhs``) and the
+These kernels inline the integrator's step (``integrator._rk_step``, ``rhs``) and link the
 model's equations and their derivatives; numba's cache tracks only a kernel's own file, so
 after editing analysis/model.py or analysis/simulate/integrator.py delete this folder's
 __pycache__ (as the integrator's own note says of the model).

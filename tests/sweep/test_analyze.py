@@ -15,15 +15,14 @@ from pathlib import Path
 
 import pytest
 
-from analysis.identify.intervals import Z95
 from analysis.json_output import json_ready
 from analysis.sweep import analyze
 from analysis.sweep.analyze import compare_with_measured
 from reference.sweeps import generate_sweep
 from rig.cli import main
+from tests.tolerance import within_999
 
 THETA_B_RAD = 0.015
-Z999 = 3.2905  # two-sided 99.9 %
 
 
 @pytest.fixture(scope="module")
@@ -57,9 +56,7 @@ def test_one_rig_for_every_step_holds_the_truth_in_its_intervals(analysed) -> No
                         ("K_N_per_m1.5", rig.K_N_per_m1_5), ("mu0_s_per_m", rig.mu0_s_per_m),
                         ("theta_b_rad", THETA_B_RAD), ("offset_rad", 0.0),
                         ("L_m", rig.L_m)):
-        low, high = shared[name]["ci95"]
-        centre, half = 0.5 * (low + high), 0.5 * (high - low) * Z999 / Z95
-        assert abs(value - centre) <= half, (name, value, shared[name])
+        assert within_999(shared[name], value), (name, value, shared[name])
     assert [s["step"] for s in sweep["steps"]] == [0, 1, 2]
     for step in sweep["steps"]:
         assert step["rms_over_noise"] < 1.2
@@ -70,16 +67,11 @@ def test_one_rig_for_every_step_holds_the_truth_in_its_intervals(analysed) -> No
     assert js["policy"]["bic_margin"]["value"] > 0
 
 
-def _within(estimate: dict, value: float) -> bool:
-    low, high = estimate["ci95"]
-    return abs(value - 0.5 * (low + high)) <= 0.5 * (high - low) * Z999 / Z95
-
-
 def test_the_hidden_barrier_offset_is_named_with_one_size_for_every_step(analysed) -> None:
     sweep = analysed[0]["sweep"]
     assert sweep["cause"] == "barrier_offset" and sweep["causes"]["named"] == ["barrier_offset"]
     (entry,) = sweep["causes"]["selected"]
-    assert entry["named"] and _within(entry["parameters"]["theta_b_rad"], THETA_B_RAD)
+    assert entry["named"] and within_999(entry["parameters"]["theta_b_rad"], THETA_B_RAD)
     assert sorted(entry["per_step"]) == [f"theta_b_rad@{k}" for k in range(3)]
     assert not sweep["residual_findings"]
     assert all(step["explained_rms_over_noise"] < 1.2 for step in sweep["steps"])
@@ -91,7 +83,7 @@ def test_a_clean_sweep_names_no_cause(tmp_path: Path) -> None:
     assert main(["analyze", str(path), "--json", str(tmp_path / "out.json")]) == 0
     sweep = json.loads((tmp_path / "out.json").read_text())["sweep"]
     assert sweep["cause"] == "none" and sweep["causes"]["selected"] == []
-    assert _within(sweep["shared"]["theta_b_rad"], 0.0)
+    assert within_999(sweep["shared"]["theta_b_rad"], 0.0)
 
 
 def test_report_page_has_a_row_per_step_and_the_step_set_aside(analysed) -> None:
