@@ -17,12 +17,14 @@ from typing import Any
 import numpy as np
 
 from analysis.extensions import NONE, cause
+from analysis.identify.forced import BASELINE_PLANS
+from analysis.identify.intervals import Z95
 from analysis.model import RigParameters
 
-# the baseline's parameters a candidate model is built from (docs/MODEL.md section 7 keys)
-RIG_KEYS = ("omega_rad_s", "zeta", "K_N_per_m1.5", "mu0_s_per_m")
-# a 95 % interval spans 2 x 1.96 standard deviations of a normal estimate
-CI95_WIDTH_IN_SD = 2.0 * 1.959964
+# the baseline's parameters a candidate model is built from: those the forced fit adjusts
+RIG_KEYS = tuple(BASELINE_PLANS)
+# a 95 % interval spans 2 x Z95 standard deviations of a normal estimate
+CI95_WIDTH_IN_SD = 2.0 * Z95
 
 
 class ReportError(ValueError):
@@ -75,8 +77,8 @@ class CompetingPair:
 
 
 def _bounds(causes: Sequence[str]) -> dict[str, tuple[float, float]]:
-    out = {"zeta": (0.0, math.inf), "omega_rad_s": (1e-9, math.inf),
-           "K_N_per_m1.5": (1e-12, math.inf), "mu0_s_per_m": (0.0, math.inf)}
+    # the forced fit's bounds: the report's candidates were fitted within them
+    out = {name: (low, high) for name, (_, _, low, high) in BASELINE_PLANS.items()}
     for name in causes:
         for spec in cause(name).parameters:
             out[spec.name] = (spec.lower, spec.upper)
