@@ -11,6 +11,7 @@ import pytest
 from harness.soak import FAULT_KINDS, GARBLED_FRAMES, run_soak
 
 
+@pytest.mark.slow
 @pytest.mark.timeout(180)
 def test_a_recording_with_every_fault_loses_only_the_fault_windows_and_reads_after(tmp_path):
     figures = run_soak(tmp_path, 12.0, fault_every_s=3.0, rate_hz=20_000.0, warmup_s=2.0)

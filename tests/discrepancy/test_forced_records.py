@@ -23,6 +23,8 @@ from reference.forced_records import draw_forced_case, draw_pair, write_forced_c
 from reference.unregistered import EFFECTS, draw_unregistered_case
 from tests.tolerance import within_999
 
+pytestmark = pytest.mark.slow  # each test analyses a whole record
+
 DURATION_S = 30.0
 # name: (seed, cause, drive frequency, laser, regime asked of the generator)
 CASES = {

@@ -45,6 +45,7 @@ def test_a_model_with_one_of_barrier_and_zero_starts_it_at_the_stop_level():
     assert level_hints(barrier, {"theta_b_rad": 0.1}) == {"theta_b_rad": 0.1}
 
 
+@pytest.mark.slow
 def test_a_second_cause_is_fitted_afresh_beside_the_first(tmp_path):
     case = draw_forced_case(7123, PAIR, frequency_hz=10.0, laser=False, duration_s=20.0)
     data = forced_data(load_record(write_forced_case(case, tmp_path)))
@@ -63,6 +64,7 @@ def test_a_second_cause_is_fitted_afresh_beside_the_first(tmp_path):
     assert afresh.rms < 1.2 * data.noise_rad
 
 
+@pytest.mark.slow
 def test_a_step_screens_against_the_current_model_continued_to_its_optimum(tmp_path):
     """A chaotic 10 Hz record without a laser and with a sensor cubic alone: on the install
     this was written on, the cubic's screening stopped at its iteration cap still moving

@@ -24,6 +24,8 @@ from analysis.record_loaders import load_record
 from reference.decays import IMPACT, draw_decay
 from tests.tolerance import Z_95, Z_999
 
+pytestmark = pytest.mark.slow  # each test analyses a whole record
+
 # name: (seed, kind of decay, the hidden causes)
 CASES = {
     "impact: drag": (3902, IMPACT, ("quadratic_drag",)),

@@ -60,6 +60,7 @@ def _band_period_of_truth(case) -> int:
     return next((m for m in range(1, 17) if np.all(close[m - 1 :: m])), 1)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("seed", CHAOTIC_SEEDS)
 def test_a_chaotic_record_is_judged_chaotic_in_its_bands(seed):
     """Chaos is judged chaotic; where the section visits a few bands in turn and is chaotic

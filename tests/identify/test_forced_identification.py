@@ -38,6 +38,7 @@ def _record(tmp_path, seed, cause, frequency, laser):
     return case, load_record(write_forced_case(case, tmp_path))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", list(RECORDS))
 def test_a_forced_record_alone_gives_the_rigs_parameters(name, tmp_path):
     case, record = _record(tmp_path, *RECORDS[name])
@@ -146,6 +147,7 @@ def test_a_record_too_short_is_refused_with_the_reason(tmp_path):
         fit_forced(record)
 
 
+@pytest.mark.slow
 def test_without_tach_and_table_the_phase_is_fitted(tmp_path):
     case, record = _record(tmp_path, 4108, "none", 10.0, False)
     blind = type(record)(record.time_s, record.angle_rad, record.experiment, rig=record.rig,

@@ -19,6 +19,7 @@ from rig.commands.map import plan_from_args
 from tests.maps.conftest import TINY, assert_same_map, map_main
 
 
+@pytest.mark.slow
 def test_a_local_cluster_of_processes_computes_the_same_maps(tmp_path, reference_maps):
     with MapRunner(workers=2) as runner:  # one LocalCluster (processes) for the three maps
         assert runner.where == "local Dask cluster" and runner.workers == 2

@@ -106,6 +106,7 @@ def test_another_map_never_overwrites_an_existing_file(tmp_path, capsys, referen
     assert out.read_bytes() == before
 
 
+@pytest.mark.slow
 def test_a_killed_run_resumes_to_the_same_map(tmp_path, capsys):
     args = [
         "bifurcation", "--f-drive-hz", "10", "--vary", "beta=0.06:0.14:80", "--ics", "4",

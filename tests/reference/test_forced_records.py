@@ -62,6 +62,7 @@ def test_same_seed_gives_the_same_bytes(tmp_path, case_23, case_24):
         (tmp_path / "a24" / "record.csv").read_bytes()
 
 
+@pytest.mark.slow
 def test_given_choices_fix_their_draws_and_leave_the_rest(case_23):
     case = case_23
     again = draw_forced_case(23, case.cause, frequency_hz=case.drive.stated_frequency_hz,

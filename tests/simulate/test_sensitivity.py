@@ -136,6 +136,7 @@ def _check_column(case: Case, t: np.ndarray, run, column: str, step: float,
     assert np.all(gap <= agreement * scale + 3.0 * estimate), (column, gap / scale)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", sorted(CASES))
 def test_sensitivities_agree_with_central_differences_of_the_reference(name):
     case = CASES[name]

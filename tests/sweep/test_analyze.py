@@ -47,6 +47,7 @@ def _remembered(ident, causes, **kwargs):
     return compare_with_measured(ident, causes, **kwargs)
 
 
+@pytest.mark.slow
 def test_one_rig_for_every_step_holds_the_truth_in_its_intervals(analysed) -> None:
     js, _, truth = analysed
     sweep = js["sweep"]
@@ -77,6 +78,7 @@ def test_the_hidden_barrier_offset_is_named_with_one_size_for_every_step(analyse
     assert all(step["explained_rms_over_noise"] < 1.2 for step in sweep["steps"])
 
 
+@pytest.mark.slow
 def test_a_clean_sweep_names_no_cause(tmp_path: Path) -> None:
     path = tmp_path / "clean.h5"
     generate_sweep(path, seed=2, betas=(0.02, 0.03, 0.04))

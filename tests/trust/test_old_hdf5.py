@@ -46,6 +46,7 @@ def old_h5py(tmp_path_factory):
     return python
 
 
+@pytest.mark.slow
 def test_h5py_3_11_on_hdf5_1_14_opens_a_fresh_recording(old_h5py, recording):
     done = subprocess.run(
         [str(old_h5py), "-c", READER, str(recording)], capture_output=True, text=True,
