@@ -3,29 +3,51 @@
 Run by ``tests/conftest.py`` before the test workers start their tests: on a fresh checkout
 each worker would otherwise compile the integrator itself at the same moment (about 45 s of
 CPU each; numba's cache does not stop two processes compiling the same function at once),
-and every later process loads what this one wrote.  Loading and compiling give the same
-numbers (``tests/maps/test_map_command.py`` checks it in a process with a cache of its own).
+and every later process loads what this one wrote.
+
+Given a folder, it also draws the tiny bifurcation map of ``tests/maps`` there
+(``compiled.h5``) and says in ``compiled.json`` whether this process compiled the integrator
+or loaded it: a map from a process that compiled it is what
+``tests/maps/test_map_command.py`` compares with one from a process that loads the cache,
+so on a fresh checkout that test need not compile the integrator a second time.
 """
 
 from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
 
 import numpy as np
 
 from analysis.dynamics.chaos01 import zero_one_test
 from analysis.model import Drive, Model, RigParameters
-from analysis.simulate import SimulationSettings, simulate
+from analysis.simulate import SimulationSettings, integrator, simulate
 from analysis.simulate.segments import integrate_segments
 
+MAP_NAME = "compiled.h5"
+VERDICT_NAME = "compiled.json"
 
-def main() -> None:
-    """One short run of each: a forced impacting run, a shooting segment, the 0-1 test."""
+
+def main(folder: Path | None = None) -> None:
+    """One short run of each: a forced impacting run, a shooting segment, the 0-1 test; and
+    with ``folder``, the tiny bifurcation map and whether the integrator was compiled here."""
     model = Model(RigParameters(), Drive(amplitude_m=0.002, frequency_hz=10.0))
     simulate(model, -0.1, 0.0, settings=SimulationSettings(duration_s=0.5, fs_hz=1000.0))
+    compiled = bool(integrator.integrate.stats.cache_misses)
     times = np.linspace(0.0, 0.2, 21)
     integrate_segments(model.pack(), np.zeros(1), np.zeros((1, 2)), times,
                        np.array([0, times.size]))
     zero_one_test(np.sin(0.7 * np.arange(400.0)))
+    if folder is None:
+        return
+    from rig.cli import main as cli
+    from tests.maps.conftest import TINY
+
+    status = cli(["map", *TINY["bifurcation"], "--workers", "1", "--quiet",
+                  "--out", str(folder / MAP_NAME)])
+    (folder / VERDICT_NAME).write_text(json.dumps({"compiled": compiled, "status": status}))
 
 
 if __name__ == "__main__":
-    main()
+    main(Path(sys.argv[1]) if len(sys.argv) > 1 else None)
