@@ -27,9 +27,11 @@ from analysis.dynamics.embedding import (
 )
 from analysis.dynamics.lyapunov import (
     LyapunovEstimate,
+    LyapunovSpectrum,
+    SpectrumSettings,
     flow_lyapunov,
     map_lyapunov,
-    model_lyapunov,
+    model_lyapunov_spectrum,
     rosenstein_lyapunov,
 )
 from analysis.dynamics.measured_regime import judge_record_regime, judge_regime
@@ -66,12 +68,14 @@ __all__ = [
     "DelayChoice",
     "DimensionChoice",
     "LyapunovEstimate",
+    "LyapunovSpectrum",
     "PoincareRuns",
     "PoincareSection",
     "PoincareSettings",
     "Regime",
     "SpectralPeak",
     "Spectrum",
+    "SpectrumSettings",
     "StrobeClock",
     "StrobeSamples",
     "ZeroOneResult",
@@ -93,7 +97,7 @@ __all__ = [
     "judge_regime",
     "map_lyapunov",
     "model_at_beta",
-    "model_lyapunov",
+    "model_lyapunov_spectrum",
     "mutual_information",
     "mutual_information_delay",
     "plot_basins",

@@ -1,11 +1,10 @@
-"""Largest Lyapunov exponent: from equations (tangent dynamics) and from a measured record.
+"""Lyapunov exponents: from equations (tangent dynamics) and from a measured record.
 
 * Maps and flows given as numba functions with their Jacobian: a tangent vector is
   carried along the orbit and renormalised (Benettin et al.); the exponent is the
   mean log growth.
-* The impact-pendulum model: same idea with fixed-step RK4 and the tangent obtained by
-  central differences of the compiled ``acceleration``; the Hertz contact force is C1,
-  so the variational equation holds through contact when the step resolves contact.
+* The impact-pendulum model: both exponents by the QR method on the exact sensitivities of
+  the compiled integrator's runs (through every contact), one interval at a time.
 * Data: Rosenstein et al. (1993) on a delay embedding, with the straight part of the
   mean log-divergence curve found automatically.
 """
@@ -20,8 +19,12 @@ import numba
 import numpy as np
 
 from analysis.dynamics.embedding import delay_embed
-from analysis.model import acceleration
 from analysis.packed import P
+from analysis.simulate.sensitivity import (
+    DEFAULT_SENSITIVITY_SETTINGS,
+    SensitivitySettings,
+    simulate_sensitivities,
+)
 
 # a numba.njit function f(t, y, p) -> array: a flow's right-hand side, a map's step (t the
 # iteration count), or either's Jacobian
@@ -165,114 +168,150 @@ def _flow_tangent(rhs, jacobian, y0, p, dt, steps, transient_steps):
 # --------------------------------------------------------------------------- the pendulum model
 
 
-def model_lyapunov(
+SPECTRUM_METHOD = "QR on the variational flow (model)"
+
+
+@dataclass(frozen=True)
+class SpectrumSettings:
+    """How :func:`model_lyapunov_spectrum` runs.
+
+    ``duration_s`` of measured flow after ``transient_s`` (during which the frame already
+    turns toward the growing directions, but nothing is counted), both in whole intervals
+    of ``interval_s`` (rounded; None: one drive period, or one small-angle natural period
+    when the model is undriven); the integrator's tolerances ``rtol`` and ``atol``.
+    Refused with ValueError, naming the setting, when not usable.
+    """
+
+    duration_s: float
+    transient_s: float = 0.0
+    interval_s: float | None = None
+    rtol: float = DEFAULT_SENSITIVITY_SETTINGS.rtol
+    atol: float = DEFAULT_SENSITIVITY_SETTINGS.atol
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.duration_s) and self.duration_s > 0):
+            raise ValueError(f"duration_s = {self.duration_s!r}: must be finite and > 0")
+        if not (math.isfinite(self.transient_s) and self.transient_s >= 0):
+            raise ValueError(f"transient_s = {self.transient_s!r}: must be finite and >= 0")
+        if self.interval_s is not None and not (
+            math.isfinite(self.interval_s) and 0 < self.interval_s <= self.duration_s
+        ):
+            raise ValueError(
+                f"interval_s = {self.interval_s!r}: must be finite, > 0 and at most "
+                f"duration_s = {self.duration_s!r}"
+            )
+        SensitivitySettings(rtol=self.rtol, atol=self.atol)  # refuses bad tolerances
+
+
+@dataclass(frozen=True)
+class LyapunovSpectrum:
+    """Both Lyapunov exponents of the impact pendulum's flow and how they settled.
+
+    ``exponents_per_s`` in the order of the QR frame (the first is the largest once the
+    frame has turned toward the fastest-growing direction); ``period_s`` the drive period
+    (the small-angle natural period when undriven); ``time`` the measured time at the end
+    of each interval [s] and ``running`` (interval, exponent) the running averages there
+    [1/s]; ``t`` and ``states`` the time [s] and state (theta, theta') at the start of the
+    measured stretch and at every interval's end (the stroboscopic section when the
+    interval is the drive period).
+    """
+
+    exponents_per_s: np.ndarray
+    period_s: float
+    interval_s: float
+    time: np.ndarray
+    running: np.ndarray
+    t: np.ndarray
+    states: np.ndarray
+    method: str = SPECTRUM_METHOD
+
+    @property
+    def exponents_per_period(self) -> np.ndarray:
+        """The exponents per drive period (per natural period when undriven)."""
+        return self.exponents_per_s * self.period_s
+
+    @property
+    def largest(self) -> LyapunovEstimate:
+        """The first exponent [1/s] with its running average, as the other estimators give."""
+        return LyapunovEstimate(
+            float(self.exponents_per_s[0]), self.method, self.time, self.running[:, 0]
+        )
+
+
+def model_lyapunov_spectrum(
     p: np.ndarray,
     theta0: float,
     theta_dot0: float,
+    settings: SpectrumSettings,
     *,
-    duration_s: float,
-    transient_s: float = 0.0,
-    steps_per_period: int | None = None,
     t0_s: float = 0.0,
-) -> LyapunovEstimate:
-    """Largest exponent [1/s] of the impact pendulum, packed parameters ``p`` (``Model.pack()``).
+) -> LyapunovSpectrum:
+    """Both Lyapunov exponents of the impact pendulum, packed parameters ``p``
+    (``Model.pack()``), from (theta0, theta_dot0) at ``t0_s``, by the QR (Benettin) method.
 
-    Fixed-step RK4 with ``steps_per_period`` steps per drive period (or per natural
-    period when undriven).  The default takes at least 2000 and enough for 100 steps
-    per contact (:func:`contact_time_s` at 1 m/s, a hard impact for this rig): the
-    tangent of a contact sequence is only right when each contact is resolved.
-    The tangent is the directional central difference of ``acceleration``.  Multiply
-    by the drive period for the exponent per period.
+    Each interval is one run of the compiled integrator with the sensitivities of its end
+    state to its start state (:func:`analysis.simulate.simulate_sensitivities`: exact through
+    every contact), restarted from the end state of the one before.  That Jacobian, in the
+    units (theta, theta' / Omega), carries an orthonormal frame, which QR factorisation
+    makes orthonormal again; the logarithms of the diagonal of R, summed and divided by the
+    time, are the exponents.  The flow is 2-D and non-autonomous (the drive phase is time,
+    not a state), so there are two exponents and their sum is the time average of the
+    divergence of (theta', theta'').  The integrator chooses its steps for the state alone:
+    a swing that decays to the size of ``atol`` is stepped coarsely, and the frame with
+    it.  RuntimeError when a run stops (over the top).
     """
-    p = np.asarray(p, dtype=float)
+    p = np.ascontiguousarray(p, dtype=float)
     if p.shape != (P.SIZE,):
         raise ValueError(f"p must be a packed parameter vector of length {P.SIZE} (Model.pack())")
-    if not duration_s > 0 or transient_s < 0:
-        raise ValueError("duration_s must be > 0 and transient_s >= 0")
-    if p[P.OMEGA_DRIVE] > 0:
-        period = 2.0 * math.pi / p[P.OMEGA_DRIVE]
-    else:
-        period = 2.0 * math.pi / math.sqrt(p[P.OMEGA2])
-    if steps_per_period is None:
-        steps_per_period = 2000
-        if p[P.BARRIER] != 0.0:
-            steps_per_period = max(2000, math.ceil(100 * period / contact_time_s(p, 1.0)))
-    dt = period / steps_per_period
-    steps = round(duration_s / dt)
-    running, final = _pendulum_tangent(
-        p, float(theta0), float(theta_dot0), float(t0_s), dt, steps, round(transient_s / dt)
-    )
-    if not np.all(np.isfinite(final)):
-        raise FloatingPointError("the pendulum trajectory diverged; reduce the step or the drive")
-    stride = max(1, steps // 500)
-    index = np.arange(stride - 1, steps, stride)
-    return LyapunovEstimate(
-        float(running[-1]), "variational RK4 (model)", (index + 1) * dt, running[index]
-    )
+    driven = p[P.OMEGA_DRIVE] > 0
+    rate = float(p[P.OMEGA_DRIVE] if driven else math.sqrt(p[P.OMEGA2]))
+    period = 2.0 * math.pi / rate
+    interval = float(settings.interval_s if settings.interval_s is not None else period)
+    n_transient = round(settings.transient_s / interval)
+    n = max(1, round(settings.duration_s / interval))
+    sensitivity = SensitivitySettings(rtol=settings.rtol, atol=settings.atol)
+    frame = np.eye(2)
+    logs = np.empty((n, 2))
+    t = np.empty(n + 1)
+    states = np.empty((n + 1, 2))
+    th, om = float(theta0), float(theta_dot0)
+    start = float(t0_s)
+    for k in range(n_transient + n):
+        if k >= n_transient:
+            t[k - n_transient], states[k - n_transient] = start, (th, om)
+        end = t0_s + (k + 1) * interval
+        run = simulate_sensitivities(p, th, om, np.array([end]), t0=start, settings=sensitivity)
+        if run.status != "ok":
+            raise RuntimeError(
+                f"the run stopped ({run.status}) in the interval from t = {start:.6g} s, "
+                f"(theta, theta') = ({th:.6g}, {om:.6g})"
+            )
+        jacobian = run.jacobian[0, :, :2]
+        # in (theta, theta' / rate): both components of a swing of comparable size
+        scaled = np.array([[jacobian[0, 0], jacobian[0, 1] * rate],
+                           [jacobian[1, 0] / rate, jacobian[1, 1]]])
+        frame, growth = _qr_2x2(scaled @ frame)
+        if k >= n_transient:
+            logs[k - n_transient] = growth
+        th, om, start = float(run.theta[0]), float(run.theta_dot[0]), end
+    t[n], states[n] = start, (th, om)
+    time = (np.arange(n) + 1.0) * interval
+    running = np.cumsum(logs, axis=0) / time[:, None]
+    return LyapunovSpectrum(running[-1].copy(), period, interval, time, running, t, states)
 
 
-def contact_time_s(p: np.ndarray, entry_speed_m_s: float) -> float:
-    """Hertz contact duration 3.2181 (m_eff^2 / (K^2 v))^(1/5) (docs/MODEL.md section 4 oracle).
+def _qr_2x2(matrix: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Q (orthonormal) and log of R's diagonal (positive) of a 2 x 2 matrix, Q R = matrix.
 
-    m_eff = m L^2 / l^2 = 1 / (contact gain * l); the law is for exponent 3/2 and no
-    damping, which is all a step-size choice needs.
+    R's second diagonal entry is det / R11, not a difference of nearly parallel columns:
+    exact however strongly the flow has turned both columns toward one direction.
     """
-    m_eff = 1.0 / (p[P.CONTACT_GAIN] * p[P.SHAFT_L])
-    return 3.2181 * (m_eff**2 / (p[P.K] ** 2 * entry_speed_m_s)) ** 0.2
-
-
-# Not cached: numba's cache tracks only this file, and these call the model's equations
-# from analysis/model.py; a cached copy would keep an old model after that file changed.
-@numba.njit
-def _pendulum_derivatives(t, th, om, v1, v2, p):
-    acc = acceleration(t, th, om, p)
-    # directional derivative of theta'' along v (|v| = O(1) after renormalisation)
-    h = 1e-7
-    plus = acceleration(t, th + h * v1, om + h * v2, p)
-    minus = acceleration(t, th - h * v1, om - h * v2, p)
-    return om, acc, v2, (plus - minus) / (2.0 * h)
-
-
-@numba.njit
-def _pendulum_tangent(p, theta0, theta_dot0, t0, dt, steps, transient_steps):
-    th, om, t = theta0, theta_dot0, t0
-    v1, v2 = 1.0 / math.sqrt(2.0), 1.0 / math.sqrt(2.0)
-    running = np.empty(steps)
-    total = 0.0
-    for k in range(transient_steps + steps):
-        a1, b1, c1, d1 = _pendulum_derivatives(t, th, om, v1, v2, p)
-        a2, b2, c2, d2 = _pendulum_derivatives(
-            t + 0.5 * dt,
-            th + 0.5 * dt * a1,
-            om + 0.5 * dt * b1,
-            v1 + 0.5 * dt * c1,
-            v2 + 0.5 * dt * d1,
-            p,
-        )
-        a3, b3, c3, d3 = _pendulum_derivatives(
-            t + 0.5 * dt,
-            th + 0.5 * dt * a2,
-            om + 0.5 * dt * b2,
-            v1 + 0.5 * dt * c2,
-            v2 + 0.5 * dt * d2,
-            p,
-        )
-        a4, b4, c4, d4 = _pendulum_derivatives(
-            t + dt, th + dt * a3, om + dt * b3, v1 + dt * c3, v2 + dt * d3, p
-        )
-        th += dt / 6.0 * (a1 + 2.0 * a2 + 2.0 * a3 + a4)
-        om += dt / 6.0 * (b1 + 2.0 * b2 + 2.0 * b3 + b4)
-        v1 += dt / 6.0 * (c1 + 2.0 * c2 + 2.0 * c3 + c4)
-        v2 += dt / 6.0 * (d1 + 2.0 * d2 + 2.0 * d3 + d4)
-        t += dt
-        norm = math.sqrt(v1 * v1 + v2 * v2)
-        v1 /= norm
-        v2 /= norm
-        if k >= transient_steps:
-            total += math.log(norm)
-            running[k - transient_steps] = total / ((k - transient_steps + 1) * dt)
-    final = np.array([th, om])
-    return running, final
+    first = matrix[:, 0]
+    r11 = math.hypot(first[0], first[1])
+    det = matrix[0, 0] * matrix[1, 1] - matrix[0, 1] * matrix[1, 0]
+    q1 = first / r11
+    q2 = math.copysign(1.0, det) * np.array([-q1[1], q1[0]])
+    return np.column_stack([q1, q2]), np.array([math.log(r11), math.log(abs(det)) - math.log(r11)])
 
 
 # --------------------------------------------------------------------------- from data
