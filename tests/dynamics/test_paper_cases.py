@@ -163,8 +163,10 @@ def test_case_i_largest_exponent_against_the_record_and_the_old_estimate():
                         mu0_s_per_m=p[P.MU0])
     table = TableMotion(amplitude_m=drive.amplitude_m, frequency_hz=drive.frequency_hz)
     fs_hz = 20 * drive.frequency_hz
-    t = 100 * period + np.arange(300 * 20) / fs_hz
-    theta = simulate_reference(pendulum, table, 0.0, 0.0, t, rtol=1e-9, atol=1e-11).theta_rad
+    # from the spectrum's first measured state, on the attractor (no transient to run again)
+    t = spectrum.t[0] + np.arange(300 * 20) / fs_hz
+    theta = simulate_reference(pendulum, table, *spectrum.states[0], t, t_start_s=spectrum.t[0],
+                               rtol=1e-9, atol=1e-11).theta_rad
     delay = mutual_information_delay(theta, max_lag=60).delay
     dimension = fnn_dimension(theta, delay, max_dimension=7).dimension
     from_data = rosenstein_lyapunov(theta, fs_hz, dimension=dimension, delay=delay).exponent
