@@ -87,7 +87,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     parser.add_argument("files", type=Path, nargs="+", metavar="FILE",
                         help="exchange CSV or HDF5 recording; a sweep's recording or "
-                        "exported CSV, or several per-step files of one sweep")
+                        "exported CSV, or several files of one rig's forced steps "
+                        "(per-step files, sweeps among them)")
     parser.add_argument("--meta", type=Path, help="JSON sidecar, if not NAME.json beside FILE")
     parser.add_argument(
         "--json", type=Path, dest="json_out", metavar="FILE",
