@@ -153,7 +153,9 @@ def figures(rows: list[dict[str, Any]], drawn: int) -> dict[str, Any]:
     looped = [r for r in rows if "before" in r and ("suggest_s" in r
                                                     or "nothing_to_suggest" in r)]
     undecided = [r for r in looped if not r["decided_at_first"]]
-    times = [r["suggest_s"] for r in looped if "suggest_s" in r]
+    # the searches run: a report with nothing to tell apart is refused before any
+    times = [r["suggest_s"] for r in looped if "suggest_s" in r
+             and "nothing_to_suggest" not in r]
     return {
         "drawn": drawn,
         "decided_at_first": sum(bool(r.get("decided_at_first")) for r in rows),
