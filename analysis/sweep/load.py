@@ -6,8 +6,10 @@ Three sources give the same value:
   its dwell with the step's setting;
 - a sweep exported as one CSV (``impact-rig export`` without ``--per-step``), whose JSON
   sidecar lists the steps under ``sweep_steps``;
-- several per-step files given together (``impact-rig export --per-step``, or one
-  record per setting taken by hand), in running order as given.
+- several files given together, in running order as given: per-step files
+  (``impact-rig export --per-step``, or one record per setting taken by hand), and sweeps
+  among them, each giving its steps (a forced record and the recording of the steps that
+  ``impact-rig suggest`` planned for it, analysed as one rig).
 
 A step that cannot be judged is set aside with the reason, not fatal: one the sweep was
 interrupted in (``complete`` 0; an interrupted sweep is analysed up to its last complete
@@ -20,6 +22,7 @@ unknown), a setting no drive has.
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -154,9 +157,21 @@ def sweep_from_exchange(path: str | Path, meta_path: str | Path | None = None) -
 
 
 def sweep_from_step_files(paths: Sequence[str | Path]) -> Sweep:
-    """One step per file, in the order given (their settle unknown, taken as 0)."""
+    """One step per file, in the order given (their settle unknown, taken as 0); a file that
+    is a sweep itself (a recording with sweep steps, such as ``impact-rig sweep --plan``
+    writes, or an exported sweep CSV) gives its steps, with their settles, in its place.
+    The steps are numbered in running order over all the files."""
     steps, aside = [], []
-    for number, path in enumerate(paths):
+    number = 0
+    for path in paths:
+        if is_sweep([path]):
+            inner = load_sweep([path])
+            last = max([s.number for s in inner.steps] + [s.number for s in inner.set_aside])
+            steps += [replace(s, number=number + s.number) for s in inner.steps]
+            aside += [SetAside(number + s.number, f"{s.reason} ({path})")
+                      for s in inner.set_aside]
+            number += last + 1
+            continue
         record = load_record(path)
         if not record.kind.driven:
             raise SweepFormatError(f"{path}: a {record.experiment} record; every file of a "
@@ -164,11 +179,12 @@ def sweep_from_step_files(paths: Sequence[str | Path]) -> Sweep:
         dwell_s = float(record.time_s[-1] - record.time_s[0]) if record.time_s.size else 0.0
         if dwell_s < MIN_DWELL_S:
             aside.append(_too_short(number, dwell_s, f" ({path})"))
-            continue
-        drive = dict(record.drive or {})
-        for key in ("frequency_hz", "amplitude_m"):
-            drive[key] = _number(path, number, drive, key)
-        steps.append(_step(Path(path), number, UNKNOWN, drive, 0.0, record))
+        else:
+            drive = dict(record.drive or {})
+            for key in ("frequency_hz", "amplitude_m"):
+                drive[key] = _number(path, number, drive, key)
+            steps.append(_step(Path(path), number, UNKNOWN, drive, 0.0, record))
+        number += 1
     source = ", ".join(str(p) for p in paths)
     return _sweep(source, steps, aside)
 

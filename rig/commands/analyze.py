@@ -35,7 +35,9 @@ of the model's own long run). Decay records, when given, only start the fit.
 
 A sweep is explained as one rig: FILE is a recording made by `impact-rig sweep` (its
 sweep steps), a sweep exported as one CSV (its JSON lists `sweep_steps`), or several
-per-step files given together in running order (`impact-rig export --per-step`). Each
+files given together in running order: per-step files (`impact-rig export --per-step`),
+and sweeps among them, each giving its steps (a forced record and the recording of the
+plan `impact-rig suggest` made for it: the new record decides with the old). Each
 step's dwell is a forced record with its own drive, measured from its own tach and table
 channel; the rig's parameters (L, zeta, K, mu0, the barrier, the sensor's zero) are fitted
 once, shared by every step, with 95 % intervals over all of them. Steps the sweep was
@@ -69,6 +71,7 @@ examples:
   impact-rig analyze decay.csv --rule bic_margin=6            # a looser information criterion
   impact-rig analyze sweep_10Hz.h5 --report out/              # a sweep: one rig, every step
   impact-rig analyze sweep_step*.csv --json sweep.json        # per-step files, in this order
+  impact-rig analyze first.h5 next.h5 --json both.json        # a record and its plan's steps
   impact-rig analyze sweep_10Hz.h5 --scheduler tcp://10.0.0.5:8786   # diagrams on a cluster
 """
 
@@ -84,7 +87,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     parser.add_argument("files", type=Path, nargs="+", metavar="FILE",
                         help="exchange CSV or HDF5 recording; a sweep's recording or "
-                        "exported CSV, or several per-step files of one sweep")
+                        "exported CSV, or several files of one rig's forced steps "
+                        "(per-step files, sweeps among them)")
     parser.add_argument("--meta", type=Path, help="JSON sidecar, if not NAME.json beside FILE")
     parser.add_argument(
         "--json", type=Path, dest="json_out", metavar="FILE",

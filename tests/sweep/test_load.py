@@ -142,3 +142,23 @@ def test_a_step_that_cannot_be_fitted_is_set_aside_with_the_reason(tmp_path: Pat
     assert len(sweep_data(kept).steps) == 3
     with pytest.raises(ValueError, match="no step to analyse"):
         kept.setting_aside({0: "a", 2: "b", 3: "c"})
+
+
+def test_a_record_and_a_sweep_given_together_are_one_sweep(tmp_path: Path) -> None:
+    """A forced record and the recording of the steps planned after it (``impact-rig
+    suggest``, ``sweep --plan``) are one sweep: the record's step, then the recording's,
+    numbered in running order over both, each with its own setting and settle."""
+    first = _recording(tmp_path, "first.h5")
+    assert main(["export", str(first), "--out", str(tmp_path / "one.csv"), "--per-step"]) == 0
+    record = sorted(tmp_path.glob("one_step*.csv"))[1]  # the 2 mm step, as a record alone
+    later = _recording(tmp_path, "later.h5", complete=[True, True, True, False])
+    sweep = load_sweep([record, later])
+    assert [s.number for s in sweep.steps] == [0, 1, 2, 3]
+    assert [s.amplitude_m for s in sweep.steps] == [2e-3, *AMPLITUDES[:3]]
+    assert [s.settle_s for s in sweep.steps] == pytest.approx([0.0, 1.0, 1.0, 1.0])
+    assert [(s.number, s.reason.split(":")[0]) for s in sweep.set_aside] == \
+        [(4, "interrupted")]
+    assert str(later) in sweep.set_aside[0].reason
+    alone = load_sweep([later])
+    np.testing.assert_array_equal(sweep.steps[1].record.angle_rad,
+                                  alone.steps[0].record.angle_rad)
