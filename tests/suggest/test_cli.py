@@ -34,6 +34,7 @@ def error_line(capsys) -> str:
     return lines[0]
 
 
+@pytest.mark.slow
 @pytest.mark.timeout(300)
 def test_the_loop_on_the_virtual_rig_first_record_plan_and_both_analysed(
         tmp_path: Path, capsys) -> None:
