@@ -61,6 +61,7 @@ from reference.simulator import (
     TableMotion,
     simulate_reference,
 )
+from reference.visibility import Stretch, Visibility, stretches_visibility
 
 if TYPE_CHECKING:
     from rig.events import StepMark
@@ -87,6 +88,11 @@ NEEDS_SCALE = ("contact_exponent", "contact_damping_law", "sensor_nonlinearity")
 PERIOD_OVER_NOISE = 0.2
 # Causes drawn from the larger part of their plausible range, so that they show.
 CAUSE_QUANTILE = 0.5
+# How much of a cause shows (:func:`sweep_visibility`): windows of each dwell (of 0.4 s,
+# the analysis's segment length), 22 over a sweep of 11 steps: enough that the refit's
+# shared parameters are pinned by several settings, few enough that the refit's
+# finite-difference Jacobian (six runs a window) takes a minute, not the sweep's draw time.
+VISIBILITY_WINDOWS = 2
 
 
 @dataclass(frozen=True)
@@ -111,6 +117,7 @@ class SweepTruth:
     dwell_s: float
     sample_rate_hz: float
     periods: tuple[int | None, ...]
+    start_phase_rad: float = 0.0  # the drive's phase at the first settle's start
 
     @property
     def settings(self) -> tuple[float, ...]:
@@ -148,6 +155,10 @@ class RunChannels:
     settle_start: tuple[int, ...]
     dwell_start: tuple[int, ...]
     dwell_end: tuple[int, ...]
+    # the true rate and the sensor's noiseless output, for how much of the cause shows
+    # (:func:`sweep_visibility`)
+    true_rate_rad_s: np.ndarray | None = None
+    true_reading_rad: np.ndarray | None = None
 
 
 def draw_sweep(
@@ -279,7 +290,7 @@ def _draw_once(
         directions=directions, drives=drives, measurement=measurement, theta0_rad=theta0,
         theta_dot0_rad_s=theta_dot0, settle_s=float(settle_s), dwell_s=float(dwell_s),
         sample_rate_hz=float(sample_rate_hz),
-        periods=periods,
+        periods=periods, start_phase_rad=float(start_phase),
     )
     return GeneratedSweep(sweep_of(truth, channels), truth, channels)
 
@@ -304,6 +315,26 @@ def _pilot_scale(rig: RigTruth, drive: DriveTruth, theta0: float,
                          float(np.mean(speed**3)), impact)
 
 
+def sweep_visibility(truth: SweepTruth, run: RunChannels,
+                     windows_each: int = VISIBILITY_WINDOWS) -> Visibility:
+    """How much of the sweep's cause shows in its noiseless readings
+    (:func:`reference.visibility.stretches_visibility`): what the baseline (the rig's
+    values, each step's stated table as a pure sine) leaves of every dwell's reading after
+    refitting omega, zeta, K and mu0 once for every step and each window's state, in noise
+    units; ``windows_each`` windows in each dwell.  A run drawn without its true rate and
+    noiseless reading (an older pickle) cannot be judged: ValueError."""
+    if run.true_rate_rad_s is None or run.true_reading_rad is None:
+        raise ValueError("run: drawn without its true rate and noiseless reading")
+    tables = _step_tables(truth.drives, {}, truth.start_phase_rad, truth.settle_s,
+                          truth.dwell_s)
+    stretches = [Stretch(table, run.time_s[start:end], run.true_angle_rad[start:end],
+                         run.true_rate_rad_s[start:end], run.true_reading_rad[start:end])
+                 for table, start, end in zip(tables, run.dwell_start, run.dwell_end,
+                                              strict=True)]
+    return stretches_visibility(true_pendulum(truth.rig, {}), stretches,
+                                truth.measurement.angle_noise_rad, windows=windows_each)
+
+
 def _step_tables(drives: tuple[DriveTruth, ...], causes: dict[str, dict[str, float]],
                  start_phase: float, settle_s: float, dwell_s: float) -> list[TableMotion]:
     """Each step's true table motion on the run's clock (0 at the first settle's start),
@@ -324,6 +355,7 @@ def _step_tables(drives: tuple[DriveTruth, ...], causes: dict[str, dict[str, flo
 class _TrueRun:
     time_s: np.ndarray
     theta_rad: np.ndarray
+    theta_dot_rad_s: np.ndarray
     reading_angle_rad: np.ndarray  # theta, or its low pass under a sensor lag
     settle_start: tuple[int, ...]
     dwell_start: tuple[int, ...]
@@ -340,7 +372,7 @@ def _run(rig: RigTruth, causes: dict[str, dict[str, float]], tables: list[TableM
     per_step = round((settle_s + dwell_s) * sample_rate_hz)
     settle_samples = round(settle_s * sample_rate_hz)
     state = np.array([theta0, theta_dot0] + ([theta0] if lag else []))
-    thetas, readings, periods = [], [], []
+    thetas, rates, readings, periods = [], [], [], []
     starts, dwells, ends = [], [], []
     for number, table in enumerate(tables):
         first = number * per_step
@@ -355,6 +387,7 @@ def _run(rig: RigTruth, causes: dict[str, dict[str, float]], tables: list[TableM
         at_samples = np.searchsorted(wanted, times)
         at_strobe = np.searchsorted(wanted, strobe_s)
         thetas.append(run.theta_rad[at_samples])
+        rates.append(run.theta_dot_rad_s[at_samples])
         readings.append(run.theta_rad[at_samples] if lag is None
                         else run.lowpass_rad[at_samples])
         periods.append(shown_period(run.theta_rad[at_strobe], noise_rad))
@@ -364,7 +397,8 @@ def _run(rig: RigTruth, causes: dict[str, dict[str, float]], tables: list[TableM
         ends.append(first + per_step)
     count = len(tables) * per_step
     true_run = _TrueRun(np.arange(count) / sample_rate_hz, np.concatenate(thetas),
-                        np.concatenate(readings), tuple(starts), tuple(dwells), tuple(ends))
+                        np.concatenate(rates), np.concatenate(readings), tuple(starts),
+                        tuple(dwells), tuple(ends))
     return true_run, tuple(periods)
 
 
@@ -389,9 +423,7 @@ def _measure(run: _TrueRun, causes: dict[str, dict[str, float]], tables: list[Ta
     n = run.time_s.size
     angle_noise = rng.normal(0.0, chain.angle_noise_rad, n)
     table_noise = rng.normal(0.0, chain.table_noise_m, n)
-    k3 = causes.get("sensor_nonlinearity", {}).get("k3", 0.0)
-    offset = causes.get("sensor_offset", {}).get("offset_rad", 0.0)
-    reading = run.reading_angle_rad + k3 * run.reading_angle_rad**3 + offset
+    reading = sensor_output(run.reading_angle_rad, causes)
     angle = quantise(reading + angle_noise, chain.angle_step_rad)
     displacement = np.empty(n)
     tach = np.zeros(n, dtype=np.int64)
@@ -404,7 +436,16 @@ def _measure(run: _TrueRun, causes: dict[str, dict[str, float]], tables: list[Ta
     table_m = (quantise(displacement + table_noise, chain.table_step_m) if chain.laser
                else None)
     return RunChannels(run.time_s, angle, table_m, tach, run.theta_rad, run.settle_start,
-                       run.dwell_start, run.dwell_end)
+                       run.dwell_start, run.dwell_end, run.theta_dot_rad_s, reading)
+
+
+def sensor_output(reading_angle_rad: np.ndarray, causes: dict[str, dict[str, float]]
+                  ) -> np.ndarray:
+    """The sensor's noiseless output of the angle it reads (theta, or its low pass under a
+    lag): its linearity error and its zero."""
+    k3 = causes.get("sensor_nonlinearity", {}).get("k3", 0.0)
+    offset = causes.get("sensor_offset", {}).get("offset_rad", 0.0)
+    return reading_angle_rad + k3 * reading_angle_rad**3 + offset
 
 
 RIG_STATED = ("m_kg", "l_m", "R_m", "g")

@@ -16,6 +16,7 @@ here shows there.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -81,11 +82,25 @@ class Visibility:
 @dataclass(frozen=True)
 class _Window:
     """One stretch of the record: its sample times, the reading there, the true state at
-    its start."""
+    its start, and the baseline's table motion there."""
 
     times: np.ndarray
     reading: np.ndarray
     state: np.ndarray
+    table: TableMotion
+
+
+@dataclass(frozen=True)
+class Stretch:
+    """A run of samples of one table motion (a record, or a sweep's step): the baseline's
+    ``table`` there, the true motion ``theta_rad``, ``theta_dot_rad_s`` at ``time_s``, and the
+    noiseless sensor output ``reading_rad``."""
+
+    table: TableMotion
+    time_s: np.ndarray
+    theta_rad: np.ndarray
+    theta_dot_rad_s: np.ndarray
+    reading_rad: np.ndarray
 
 
 def window_starts(theta_rad: np.ndarray, time_s: np.ndarray, window_s: float = WINDOW_S,
@@ -124,27 +139,49 @@ def cause_visibility(
     ``theta_dot_rad_s`` at ``time_s``) the ``baseline`` pendulum driven by ``table`` cannot
     reproduce after refitting omega, zeta, K, mu0 and each window's initial state; RMS over
     the windows in units of ``noise_rad``."""
-    arrays = [np.asarray(a, dtype=float) for a in (time_s, theta_rad, theta_dot_rad_s,
-                                                   reading_rad)]
-    time_s, theta_rad, theta_dot_rad_s, reading_rad = arrays
-    if any(a.ndim != 1 or a.shape != time_s.shape for a in arrays) or time_s.size < 2:
-        raise ValueError("time_s, theta_rad, theta_dot_rad_s and reading_rad must be 1-d "
-                         f"arrays of one length >= 2; got shapes {[a.shape for a in arrays]}")
+    return stretches_visibility(
+        baseline, [Stretch(table, time_s, theta_rad, theta_dot_rad_s, reading_rad)],
+        noise_rad, window_s=window_s, windows=windows)
+
+
+def stretches_visibility(
+    baseline: Pendulum,
+    stretches: Sequence[Stretch],
+    noise_rad: float,
+    *,
+    window_s: float = WINDOW_S,
+    windows: int = WINDOWS,
+) -> Visibility:
+    """:func:`cause_visibility` over several stretches of one rig (a sweep's steps, each
+    with its own table motion): ``windows`` windows in each, omega, zeta, K and mu0 refitted
+    once for all of them (as the sweep's shared fit does), each window's initial state its
+    own."""
     if not (math.isfinite(noise_rad) and noise_rad > 0):
         raise ValueError(f"noise_rad = {noise_rad!r}: expected a positive number")
+    if not stretches:
+        raise ValueError("stretches: expected at least one")
     chosen = []
-    for index in window_starts(theta_rad, time_s, window_s, windows):
-        stop = int(np.searchsorted(time_s, time_s[index] + window_s, side="right"))
-        chosen.append(_Window(time_s[index:stop], reading_rad[index:stop],
-                              np.array([theta_rad[index], theta_dot_rad_s[index]])))
+    for stretch in stretches:
+        arrays = [np.asarray(a, dtype=float) for a in (stretch.time_s, stretch.theta_rad,
+                                                       stretch.theta_dot_rad_s,
+                                                       stretch.reading_rad)]
+        time_s, theta_rad, theta_dot_rad_s, reading_rad = arrays
+        if any(a.ndim != 1 or a.shape != time_s.shape for a in arrays) or time_s.size < 2:
+            raise ValueError("time_s, theta_rad, theta_dot_rad_s and reading_rad must be 1-d "
+                             f"arrays of one length >= 2; got shapes {[a.shape for a in arrays]}")
+        for index in window_starts(theta_rad, time_s, window_s, windows):
+            stop = int(np.searchsorted(time_s, time_s[index] + window_s, side="right"))
+            chosen.append(_Window(time_s[index:stop], reading_rad[index:stop],
+                                  np.array([theta_rad[index], theta_dot_rad_s[index]]),
+                                  stretch.table))
     shift = np.zeros(len(REFITTED))
-    residual = _residual(baseline, shift, table, chosen, [w.state for w in chosen])
-    left = _refit(baseline, table, chosen, residual, SHOWS_OVER_NOISE * noise_rad)
+    residual = _residual(baseline, shift, chosen, [w.state for w in chosen])
+    left = _refit(baseline, chosen, residual, SHOWS_OVER_NOISE * noise_rad)
     return Visibility(effect_over_noise=_rms(residual) / noise_rad,
                       visible_over_noise=left / noise_rad, windows=len(chosen))
 
 
-def _refit(baseline: Pendulum, table: TableMotion, windows: list[_Window],
+def _refit(baseline: Pendulum, windows: list[_Window],
            residual: np.ndarray, threshold_rad: float) -> float:
     """The RMS of the reading minus the best refit found of the baseline's parameters and
     the windows' states (Levenberg-Marquardt; the Jacobian kept up to date by Broyden's
@@ -153,7 +190,7 @@ def _refit(baseline: Pendulum, table: TableMotion, windows: list[_Window],
     states = [w.state for w in windows]
     best = _rms(residual)
     rows = np.repeat(np.arange(len(windows)), [w.times.size for w in windows])
-    design, fresh = _design(baseline, shift, table, windows, states, residual), True
+    design, fresh = _design(baseline, shift, windows, states, residual), True
     jacobians = 1
     damping = DAMPING_START
     for _ in range(MAX_STEPS):
@@ -169,7 +206,7 @@ def _refit(baseline: Pendulum, table: TableMotion, windows: list[_Window],
             trial_states = [s + step[shift.size + 2 * k: shift.size + 2 * k + 2]
                             for k, s in enumerate(states)]
             try:
-                trial = _residual(baseline, trial_shift, table, windows, trial_states)
+                trial = _residual(baseline, trial_shift, windows, trial_states)
             except ValueError:  # a step that drives the pendulum over the top
                 trial = None
             if trial is not None and _rms(trial) < best:
@@ -189,7 +226,7 @@ def _refit(baseline: Pendulum, table: TableMotion, windows: list[_Window],
             if fresh or jacobians == MAX_JACOBIANS:
                 break
             # a stale Jacobian may be what stalls: a fresh one before giving up
-            design, fresh = _design(baseline, shift, table, windows, states, residual), True
+            design, fresh = _design(baseline, shift, windows, states, residual), True
             jacobians += 1
     return best
 
@@ -208,16 +245,16 @@ def _shifted(baseline: Pendulum, shift: np.ndarray) -> Pendulum:
     )
 
 
-def _residual(baseline: Pendulum, shift: np.ndarray, table: TableMotion,
-              windows: list[_Window], states: list[np.ndarray]) -> np.ndarray:
+def _residual(baseline: Pendulum, shift: np.ndarray, windows: list[_Window],
+              states: list[np.ndarray]) -> np.ndarray:
     """The reading minus the refitted baseline, window after window."""
     pendulum = _shifted(baseline, shift)
-    return np.concatenate([w.reading - _run(pendulum, table, s, w.times)
+    return np.concatenate([w.reading - _run(pendulum, w.table, s, w.times)
                            for w, s in zip(windows, states, strict=True)])
 
 
-def _design(baseline: Pendulum, shift: np.ndarray, table: TableMotion,
-            windows: list[_Window], states: list[np.ndarray], residual: np.ndarray
+def _design(baseline: Pendulum, shift: np.ndarray, windows: list[_Window],
+            states: list[np.ndarray], residual: np.ndarray
             ) -> np.ndarray:
     """Forward-difference sensitivities of the baseline's runs: shared parameters in the
     first columns, then each window's (angle, rate) in a block of its own."""
@@ -227,7 +264,7 @@ def _design(baseline: Pendulum, shift: np.ndarray, table: TableMotion,
         nudged = shift.copy()
         nudged[k] += RELATIVE_STEP
         pendulum = _shifted(baseline, nudged)
-        run = np.concatenate([_run(pendulum, table, s, w.times)
+        run = np.concatenate([_run(pendulum, w.table, s, w.times)
                               for w, s in zip(windows, states, strict=True)])
         columns.append((run - base) / RELATIVE_STEP)
     design = np.zeros((base.size, shift.size + 2 * len(windows)))
@@ -240,7 +277,7 @@ def _design(baseline: Pendulum, shift: np.ndarray, table: TableMotion,
             nudged = state.copy()
             nudged[j] += size
             design[rows, shift.size + 2 * k + j] = (
-                _run(pendulum, table, nudged, window.times) - base[rows]) / size
+                _run(pendulum, window.table, nudged, window.times) - base[rows]) / size
         row += window.times.size
     return design
 

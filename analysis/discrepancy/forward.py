@@ -21,6 +21,11 @@ for every kind and read from the :class:`~analysis.discrepancy.policy.SelectionP
 5. a backward check drops an earlier cause when the model of the others alone, fitted
    already, explains the record as well (within ``bic_margin``).
 
+A selection that starts from the baseline itself (a sweep's) takes its first cause as a
+single record does (:func:`analysis.discrepancy.forced.analyze_forced_fits`): the
+policy's ``refined`` best screened are fitted over the record, and judged best first until
+one earns its keep, not only the best; the further steps go as above.
+
 Causes the record cannot tell apart (:func:`indistinct`) are read from the fits' residuals
 the same way for every kind.
 """
@@ -102,8 +107,9 @@ def forward_selection(
         gains = steps.screen(current)
         say(f"  screened beside {current.model}: " + ", ".join(
             f"{n} {g:.3g}" for n, g in sorted(gains.items(), key=lambda kv: -kv[1])))
+        first = not current.model.causes
         pool = sorted((n for n in gains if gains[n] > policy.bic_margin),
-                      key=lambda n: -gains[n])[:policy.step_added]
+                      key=lambda n: -gains[n])[:policy.refined if first else policy.step_added]
         refused = {n: why for n in pool if (why := steps.refused(current, n))}
         for name, why in refused.items():
             say(f"  {name} not fitted over the record: its screening gives {why}")
@@ -121,18 +127,23 @@ def forward_selection(
                 + (f", but {why}" if why else ""))
             if gain > policy.bic_margin and not why:
                 tried.append((gain, name))
-        if not tried:
+        taking = None
+        for _, name in sorted(tried, key=lambda t: -t[0])[:None if first else 1]:
+            candidate, verdict = steps.judge(current, parent, current.model.plus(name),
+                                             fits[name])
+            say(f"  adding {name}: {verdict.why}")
+            if not verdict.earns_keep:
+                continue
+            if verdict.heldout_excess_ratio >= policy.heldout_excess_ratio:
+                say(f"  {name} not added: the held-out error above the noise shrinks only "
+                    f"x{verdict.heldout_excess_ratio:.3g} (a step needs "
+                    f"x{policy.heldout_excess_ratio:g})")
+                continue
+            taking = name
             break
-        _, name = max(tried, key=lambda t: t[0])
-        candidate, verdict = steps.judge(current, parent, current.model.plus(name), fits[name])
-        say(f"  adding {name}: {verdict.why}")
-        if not verdict.earns_keep:
+        if taking is None:
             break
-        if verdict.heldout_excess_ratio >= policy.heldout_excess_ratio:
-            say(f"  {name} not added: the held-out error above the noise shrinks only "
-                f"x{verdict.heldout_excess_ratio:.3g} (a step needs "
-                f"x{policy.heldout_excess_ratio:g})")
-            break
+        name = taking
         current = candidate
         steps.adopted(candidate, name)
         taken.append((name, verdict))

@@ -69,7 +69,8 @@ class SelectionPolicy:
         "a little, not more)")
     # -- which candidates a forced record fits over the whole record, and how a step goes
     refined: int = _rule(
-        4, "candidates that gained in the screening fitted over the record, best first")
+        4, "candidates that gained in the screening fitted over the record, best first (a "
+        "forced record's, and a sweep's first step)")
     rival_screened: float = _rule(
         0.1, "once a refined cause leaves white noise, a candidate that screened this "
         "share of its gain or less is not refined (it can neither rival it nor be told "

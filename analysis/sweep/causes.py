@@ -6,10 +6,14 @@ The baseline (docs/MODEL.md section 2: the barrier at its nominal place, the sen
 at 0) is fitted over every step from the rig's identification; a step of the selection
 (:class:`SweepSteps`) screens every cause not yet in beside the current model over the
 steps' linked segments (the cause's parameters starting where the identification put
-them: its barrier, its sensor zero, its table amplitude), fits the best further, and
+them: its barrier, its sensor zero, its table amplitude; a screening that ends worse than
+the current model is screened again from that model's own solution, and the closer kept),
+fits the best further, and
 judges the best by the information criterion and by forecasts of the stretch after each
 fitted one, over every step (the training layout of a single forced record, step by
-step).  The policy's rules decide, as for a single record.
+step).  The policy's rules decide, as for a single record.  The final model is fitted on
+until it converges (:func:`fitted_on`), so that its causes' parameters and intervals are
+read at its optimum.
 
 A cause named so must hold one size for the whole sweep.  Each named cause's parameters
 are then fitted once more with a size of each step's own (``name@N``, the other
@@ -223,9 +227,22 @@ class SweepSteps:
                                      origin_layout=self.ident.segments,
                                      start=self._from_identification(current, name))
                      for name in self.names if name not in model.causes}
+        parent = continued.result
         self.beside = {name: fit.result for name, fit in added.items()}
-        return {name: gain_over(self.data, continued.result, fit)
-                for name, fit in self.beside.items()}
+        # a screening that ends worse than the model it extends found a worse basin from
+        # the identification's start (a model that holds the current one cannot explain
+        # less): it is screened again from the current model's own solution, the cause at
+        # its start, and the closer kept, as a single record's screenings are
+        # (analysis.discrepancy.forced.rescreened_from_baseline); a chaotic sweep's lag
+        # screened -112 from the identification, below the baseline it extends
+        worse = [name for name, fit in self.beside.items() if fit.rms > parent.rms]
+        with SideBySide(self.threads) as batch:
+            again = {name: batch.add(self._fit, model.plus(name), parent,
+                                     policy.step_screen_iterations) for name in worse}
+        for name, fit in again.items():
+            if fit.result.rms < self.beside[name].rms:
+                self.beside[name] = fit.result
+        return {name: gain_over(self.data, parent, fit) for name, fit in self.beside.items()}
 
     def refused(self, current: SweepModelFits, name: str) -> str | None:
         return table_gaps(self.table, current.model.plus(name), self.beside[name].estimates,
@@ -321,6 +338,7 @@ def select_causes(
              if causes is None or c.name in causes]
     steps = SweepSteps(ident, lay, hints, names, threads, policy)
     final, taken = forward_selection(steps, base, None, policy, say)
+    final = fitted_on(data, final, lay, threads, policy, say)
     dropped, findings, per_step = [], [], {}
     for name in [n for n, _ in taken]:
         fit, finding = size_per_step(data, final, name, lay, threads, say)
@@ -329,6 +347,36 @@ def select_causes(
             dropped.append(name)
             findings.append(finding)
     return SweepCauses(base, final, taken, dropped, findings, per_step)
+
+
+def fitted_on(data: SweepData, fitted: SweepModelFits, lay: SweepLayouts,
+              threads: int | None, policy: SelectionPolicy, say: ProgressText
+              ) -> SweepModelFits:
+    """The final model with causes fitted on from where its step's iteration cap stopped
+    it until it converges (at most the policy's ``rival_rounds`` more caps, as a single
+    record's rivals): its parameters and their intervals are read at its optimum, which a
+    step's cap (enough to judge a cause) need not reach."""
+    fit = fitted.full
+    if not fitted.model.causes:
+        return fitted
+    for _ in range(policy.rival_rounds):
+        if fit.success:
+            break
+        fit = fit_on(data, fitted.model, fit.values, fit.values, lay.full, fit, lay.full,
+                     threads, REFINE_ITERATIONS)
+        say(f"  {fitted.model} fitted on (it had not converged): rms "
+            f"{fit.rms / data.noise_rad:.4g} x noise, " + ", ".join(
+                f"{spec.name} {_shown(fit.estimates[spec.name])}"
+                for name in fitted.model.causes for spec in cause(name).parameters
+                if spec.name in fit.estimates))
+    return fitted if fit.rms > fitted.full.rms else replace(fitted, full=fit)
+
+
+def _shown(estimate: Estimate) -> str:
+    """'0.0685 [0.0671, 0.0699]'."""
+    if estimate.ci95 is None:
+        return f"{estimate.value:.4g}"
+    return f"{estimate.value:.4g} [{estimate.ci95[0]:.4g}, {estimate.ci95[1]:.4g}]"
 
 
 def size_per_step(

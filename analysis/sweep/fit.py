@@ -18,7 +18,8 @@ stage first:
 1. each step identified alone over its short segments (equation error, then short
    multiple shooting): its own values of every parameter, side by side;
 2. the steps' short segments fitted together, from the steps' median values and their
-   own phases and states;
+   own phases and states (a step whose omega alone strays from the median, STRAY_OMEGA,
+   from its record's smoothed states and measured drive);
 3. the whole of every step in linked segments, half-length first, then full length.
 """
 
@@ -60,6 +61,14 @@ from analysis.sweep.steps import Sweep
 # The parameters a step has of its own when they are fitted: its drive's phase (and its
 # frequency when neither tach nor table channel timed the drive).
 PER_STEP = ("drive_phase_rad", "drive_frequency_hz")
+# A step identified alone whose omega lies further than this share from the steps' median
+# found another basin, not another pendulum (every step swings the one pendulum, whose
+# omega a sound step's fit pins to a fraction of a per cent): a period-1 step of a
+# frequency sweep that hardly strikes the barrier put omega at 2x and the barrier at 0.3
+# rad, and its phase and states, taken as the joint fit's start, left it at 34 x the noise.
+# Such a step starts the joint fit from its record instead (its smoothed states, its
+# measured drive).
+STRAY_OMEGA = 0.1
 STEP_MARK = "@"  # drive_phase_rad@3: step 3's own drive phase
 
 
@@ -308,23 +317,43 @@ def identify_sweep(
     shared_names = [name for name in alone[0].short_fit.values if name not in PER_STEP]
     for name in shared_names:
         start[name] = float(np.median([a.short_fit.values[name] for a in alone]))
-    for number, a in zip(data.numbers, alone, strict=True):
+    stray = _strays(data, alone, start["omega_rad_s"], say)
+    for k, (number, a) in enumerate(zip(data.numbers, alone, strict=True)):
+        measured = {"drive_phase_rad": data.steps[k].drive.phase0_rad,
+                    "drive_frequency_hz": data.steps[k].drive.frequency_hz}
         for name in PER_STEP:
             if name in a.short_fit.values:
-                start[step_name(name, number)] = a.short_fit.values[name]
+                start[step_name(name, number)] = (measured[name] if k in stray
+                                                  else a.short_fit.values[name])
     free = sweep_parameters(data, ModelSpec(causes), start, start, phase_free=True)
     hs = sweep_state_steps(data)
     short = joined(data, [a.short for a in alone])
     say(f"the steps' short segments fitted together ({short.segments.count} segments, "
         f"{len(free)} parameters)")
     problem = model.problem(short, free, {}, threads=threads)
-    fit_short = problem.fit(np.concatenate([a.short_fit.states for a in alone]),
-                            state_steps=hs)
+    offset = start.get("offset_rad", 0.0)
+    states = [smoothed_states(d, a.short.start, offset) if k in stray else a.short_fit.states
+              for k, (d, a) in enumerate(zip(data.steps, alone, strict=True))]
+    fit_short = problem.fit(np.concatenate(states), state_steps=hs)
     say(f"  rms {fit_short.rms / data.noise_rad:.3g} x noise after {fit_short.iterations} "
         "iterations")
     fit, segments = fit_sweep_over_record(model, _restarted(free, fit_short.values), {},
                                           threads=threads, progress=say)
     return SweepIdentification(data, model, fit, segments, tuple(alone), start)
+
+
+def _strays(data: SweepData, alone: Sequence[ForcedIdentification], omega: float,
+            say: ProgressText) -> set[int]:
+    """The steps (counted from 0) whose fit alone put omega further than STRAY_OMEGA from
+    the steps' median ``omega``."""
+    out = set()
+    for k, a in enumerate(alone):
+        own = a.short_fit.values["omega_rad_s"]
+        if abs(own / omega - 1.0) > STRAY_OMEGA:
+            out.add(k)
+            say(f"  step {data.numbers[k]} alone put omega at {own:.4g} rad/s against the "
+                f"steps' {omega:.4g}: it starts the joint fit from its record")
+    return out
 
 
 def fit_sweep_over_record(

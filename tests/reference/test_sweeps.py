@@ -10,7 +10,12 @@ import pytest
 
 from analysis.hdf5_records import load_hdf5_steps
 from analysis.sweep.steps import DOWN, UP
-from reference.sweeps import GeneratedSweep, draw_sweep, write_sweep_recording
+from reference.sweeps import (
+    GeneratedSweep,
+    draw_sweep,
+    sweep_visibility,
+    write_sweep_recording,
+)
 
 TINY = {"up_steps": 2, "settle_s": 0.5, "dwell_s": 1.5, "sample_rate_hz": 500.0}
 
@@ -109,3 +114,17 @@ def test_bad_requests_are_named():
         draw_sweep(1, parameter="phase")
     with pytest.raises(ValueError, match="up_steps"):
         draw_sweep(1, up_steps=1)
+
+
+def test_how_much_of_the_cause_shows_over_the_sweep(offset_sweep):
+    # a zero offset is the reading minus the true angle on every sample: what the baseline
+    # run from the true states misses is the offset itself, and no refit of the rig's
+    # omega, zeta, K and mu0, shared by the steps, absorbs a constant
+    truth, run = offset_sweep.truth, offset_sweep.run
+    offset = truth.causes["sensor_offset"]["offset_rad"]
+    assert np.allclose(run.true_reading_rad - run.true_angle_rad, offset)
+    seen = sweep_visibility(truth, run, windows_each=1)
+    noise = truth.measurement.angle_noise_rad
+    assert seen.windows == len(truth.drives)
+    assert seen.effect_over_noise == pytest.approx(abs(offset) / noise, rel=1e-3)
+    assert seen.shows and seen.visible_over_noise <= seen.effect_over_noise + 1e-9

@@ -88,3 +88,43 @@ def test_bad_input_is_named(clean_case):
         cause_visibility(*args, motion.theta_rad[:-1], 1e-3)
     with pytest.raises(ValueError, match="noise_rad"):
         cause_visibility(*args, motion.theta_rad, 0.0)
+
+
+def _stretch(case: ForcedCase, causes: dict[str, dict[str, float]], part: slice
+             ) -> visibility.Stretch:
+    """The clean case's record under ``causes``, cut to ``part``, as one stretch."""
+    caused = replace(case, causes=causes)
+    motion = simulate_true_motion(caused)
+    return visibility.Stretch(forced_records.true_table(case.drive, {}), motion.time_s[part],
+                              motion.theta_rad[part], motion.theta_dot_rad_s[part],
+                              forced_records.sensor_reading(motion, causes)[part])
+
+
+def test_stretches_share_the_refit_of_the_rig(clean_case):
+    # One stiffer barrier under both halves of the record is the baseline at another K; a
+    # barrier stiffer under one half and softer under the other is no rig: each half alone
+    # is absorbed, the two together are not (a sweep's steps share omega, zeta, K and mu0)
+    k = clean_case.rig.K_N_per_m1_5
+    half = clean_case.time_s().size // 2
+    first, second = slice(0, half), slice(half, None)
+    stiff = {"contact_exponent": {"n": 1.5, "K_n": 2.0 * k}}
+    soft = {"contact_exponent": {"n": 1.5, "K_n": 0.5 * k}}
+    baseline = forced_records.true_pendulum(clean_case.rig, {})
+    noise = clean_case.measurement.angle_noise_rad
+    one_rig = visibility.stretches_visibility(
+        baseline, [_stretch(clean_case, stiff, first), _stretch(clean_case, stiff, second)],
+        noise, windows=2)
+    two_rigs = [_stretch(clean_case, stiff, first), _stretch(clean_case, soft, second)]
+    alone = [visibility.stretches_visibility(baseline, [s], noise, windows=2)
+             for s in two_rigs]
+    together = visibility.stretches_visibility(baseline, two_rigs, noise, windows=2)
+    assert one_rig.windows == together.windows == 4
+    assert one_rig.effect_over_noise > 2.0 and not one_rig.shows
+    assert not any(a.shows for a in alone)
+    assert together.shows
+
+
+def test_stretches_are_required(clean_case):
+    with pytest.raises(ValueError, match="stretches"):
+        visibility.stretches_visibility(
+            forced_records.true_pendulum(clean_case.rig, {}), [], 1e-3)

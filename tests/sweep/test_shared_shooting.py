@@ -73,3 +73,23 @@ def test_parts_out_of_order_or_linked_across_are_refused(two_steps) -> None:
     with pytest.raises(ValueError, match="in order"):
         ShootingProblem(data.t, data.y, data.valid, 1e-3, segments.segments, model.packs(),
                         free, {}, part_of_segment=segments.part[::-1])
+
+
+def test_a_step_whose_own_omega_strays_is_named_and_started_from_its_record(two_steps) -> None:
+    # one pendulum swings in every step: a step whose fit alone put omega far from the
+    # steps' median found another basin, and its own phase and states are no start
+    from types import SimpleNamespace
+
+    from analysis.sweep.fit import STRAY_OMEGA, _strays
+
+    data, _ = two_steps
+    said: list[str] = []
+
+    def alone(omega: float) -> SimpleNamespace:
+        return SimpleNamespace(short_fit=SimpleNamespace(values={"omega_rad_s": omega}))
+
+    median = 13.7
+    near, far = median * (1 + 0.5 * STRAY_OMEGA), median * (1 + 2 * STRAY_OMEGA)
+    assert _strays(data, [alone(near), alone(far)], median, said.append) == {1}
+    assert len(said) == 1 and f"step {data.numbers[1]} alone put omega" in said[0]
+    assert _strays(data, [alone(median), alone(near)], median, said.append) == set()
