@@ -1296,7 +1296,7 @@ def integrate_segments(p, t0, theta0, theta_dot0, out_t, bounds, rtol, atol, max
 # (13-19 % of a Stepper's 10 ms chunk at 200 kHz).  Python callers hold a run's arguments in
 # a ``Run`` instead, whose ``advance`` alone spells the kernel's 19 positions.  A method of
 # an object the streaming caller keeps adds ~1.5 % to that chunk (the old 19-argument call
-# against this one in one process); named groups built anew on each call added ~5 %.
+# against this one in one process); named groups built anew on each call added 5-7 %.
 
 DEFAULT_MAX_STEPS = 200_000_000
 
