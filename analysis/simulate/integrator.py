@@ -1,6 +1,6 @@
 """Compiled Dormand-Prince 8(5,3) integrator of the impact pendulum with exact event location.
 
-The whole integration loop is one numba function (``_integrate``) working on plain
+The whole integration loop is one numba function (``integrate``) working on plain
 arrays, so a call costs no Python per step; Python callers reach it through a
 :class:`Run`, which holds its arguments in named groups (:class:`StepControl`,
 :class:`PoincareSamples`, the event buffers).  The non-smooth parts of the model are
@@ -713,7 +713,7 @@ def _initial_step(t, th, om, a, pr, slide, tc, rtol, atol):
 
 
 # ------------------------------------------------------------------------- the integration loop
-# ``_integrate`` reads as the loop over segments; its regions are the helpers below, which
+# ``integrate`` reads as the loop over segments; its regions are the helpers below, which
 # numba inlines (inline="always": compiled as if written out in the loop; called instead,
 # the rarer ones cost 3 % of the run).  An array passed to an inlined helper is a new
 # reference that numba counts (two atomic operations per array and pass, about 1 % of a
@@ -1099,7 +1099,7 @@ def _event_step(S, p, step, a1, h_next, s_event, kind, grazing, contact, pr, sli
 # record): moved into helpers they would cost a few % of the run (see above).  Each branch
 # is a line or two that names its helper.
 @kernel(nogil=True)  # nogil: ensembles run members in threads
-def _integrate(
+def integrate(
     p,
     S,
     out_t,
@@ -1269,10 +1269,10 @@ def integrate_segments(p, t0, theta0, theta_dot0, out_t, bounds, rtol, atol, max
                         out_th, out_om, status):
     """Run segment k from (t0[k], theta0[k], theta_dot0[k]) and write theta, theta' at
     out_t[bounds[k]:bounds[k+1]] (its last time is where it ends) and its status code.
-    It lives beside ``_integrate`` so that numba's cache, which tracks only a kernel's own
+    It lives beside ``integrate`` so that numba's cache, which tracks only a kernel's own
     file, is renewed whenever the integrator changes."""
     no_dense = np.empty((0, 3))
-    # typed, not literal, so that this call shares the compiled ``_integrate`` that
+    # typed, not literal, so that this call shares the compiled ``integrate`` that
     # ``Run.advance`` calls (literal 0 and False arguments compile a second copy: 28 s cold);
     # the one call besides it that spells the kernel's arguments (compiled code cannot
     # call a Python method)
@@ -1282,7 +1282,7 @@ def integrate_segments(p, t0, theta0, theta_dot0, out_t, bounds, rtol, atol, max
         a = bounds[k]
         b = bounds[k + 1]
         state = new_state(t0[k], theta0[k], theta_dot0[k], p)
-        _integrate(
+        integrate(
             p, state, out_t[a:b], out_th[a:b], out_om[a:b], 0.0, 1.0,
             np.empty(0), np.empty(0), out_t[b - 1], rtol, atol, np.inf, max_steps,
             np.empty((16, EV_SIZE)), none_yet, no_dense_wanted, no_dense, none_yet,
@@ -1377,7 +1377,7 @@ class Run:
         pc = self.poincare
         dense = self.dense
         want_dense = dense is not None
-        self.events, self.n_events, dense, n_dense, written, self.poincare_written = _integrate(
+        self.events, self.n_events, dense, n_dense, written, self.poincare_written = integrate(
             self.p, self.state, t, theta, theta_dot, pc.t0, pc.dt, pc.theta, pc.theta_dot,
             t_end, c.rtol, c.atol, c.max_step, c.max_steps, self.events, self.n_events,
             want_dense, dense if want_dense else _NO_DENSE, self.n_dense,
