@@ -20,7 +20,6 @@ import numpy as np
 from analysis.packed import P
 from analysis.simulate import integrator as ig
 from analysis.simulate.simulation import (
-    DEFAULT_MAX_STEPS,
     check_record_settings,
     check_step_settings,
     poincare_times,
@@ -104,7 +103,7 @@ def simulate_ensemble(
     contacts = np.zeros(n, dtype=np.int64)
     n_steps = np.zeros(n, dtype=np.int64)
     status = np.zeros(n, dtype=np.int64)
-    no_dense = np.empty((0, 3))
+    control = ig.StepControl(rtol, atol, max_step_s)
 
     def run_member(i: int) -> None:
         p = packed[i]
@@ -116,27 +115,9 @@ def simulate_ensemble(
         pc_th = np.empty(count)
         pc_om = np.empty(count)
         state = ig.new_state(0.0, initial[i, 0], initial[i, 1], p)
-        events, n_events, _, _, _, pc_written = ig.integrate(
-            p,
-            state,
-            out_t,
-            out_th,
-            out_om,
-            first,
-            period,
-            pc_th,
-            pc_om,
-            t_final,
-            rtol,
-            atol,
-            float(max_step_s),
-            DEFAULT_MAX_STEPS,
-            np.empty((16, ig.EV_SIZE)),
-            0,
-            False,
-            no_dense,
-            0,
-        )
+        run = ig.Run(p, state, control, ig.PoincareSamples(first, period, pc_th, pc_om))
+        run.advance(out_t, out_th, out_om, t_final)
+        pc_written = run.poincare_written
         poincare[i, :count, 0] = pc_th
         poincare[i, :count, 1] = pc_om
         # (the integrator NaN-fills what a stopped member did not reach; times likewise)
@@ -144,7 +125,7 @@ def simulate_ensemble(
         if samples is not None:
             samples[i, :, 0] = out_th
             samples[i, :, 1] = out_om
-        rows = events[:n_events]
+        rows = run.events[: run.n_events]
         ended = rows[:, ig.EV_T_OUT]
         contacts[i] = np.count_nonzero(
             (rows[:, ig.EV_KIND] == ig.KIND_CONTACT) & (ended >= t_record[i]) & (ended <= t_final)

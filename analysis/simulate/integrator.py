@@ -1,9 +1,11 @@
 """Compiled Dormand-Prince 8(5,3) integrator of the impact pendulum with exact event location.
 
 The whole integration loop is one numba function (``integrate``) working on plain
-arrays, so a call costs no Python per step.  The non-smooth parts of the model are
-handled by splitting the motion into regions, each integrated with a smooth
-right-hand side, and by landing exactly on the surfaces between them:
+arrays, so a call costs no Python per step; Python callers reach it through a
+:class:`Run`, which holds its arguments in named groups (:class:`StepControl`,
+:class:`PoincareSamples`, the event buffers).  The non-smooth parts of the model are
+handled by splitting the motion into regions, each integrated with a smooth right-hand
+side, and by landing exactly on the surfaces between them:
 
 * free flight / contact: the contact surface theta = theta_b.  A step that crosses
   it (sign change of theta - theta_b at its end) or grazes it (an extremum of the
@@ -25,6 +27,8 @@ from __future__ import annotations
 
 import functools
 import math
+from dataclasses import dataclass
+from typing import NamedTuple
 
 import numba
 import numpy as np
@@ -1117,6 +1121,7 @@ def integrate(
     n_dense,
 ):
     """Integrate from the state S until TB >= t_final and every requested output is written.
+    Python calls it through :meth:`Run.advance`, which names these arguments' groups.
 
     ``out_t`` (increasing, >= current time) receives theta, theta' in ``out_th``,
     ``out_om``; Poincare samples are taken at pc_t0 + k pc_dt, k < len(pc_th).
@@ -1267,8 +1272,10 @@ def integrate_segments(p, t0, theta0, theta_dot0, out_t, bounds, rtol, atol, max
     It lives beside ``integrate`` so that numba's cache, which tracks only a kernel's own
     file, is renewed whenever the integrator changes."""
     no_dense = np.empty((0, 3))
-    # typed, not literal, so that this call shares the compiled ``integrate`` the Python
-    # callers use (literal 0 and False arguments compile a second copy: 28 s cold)
+    # typed, not literal, so that this call shares the compiled ``integrate`` that
+    # ``Run.advance`` calls (literal 0 and False arguments compile a second copy: 28 s cold);
+    # the one call besides it that spells the kernel's arguments (compiled code cannot
+    # call a Python method)
     none_yet = np.int64(0)
     no_dense_wanted = np.bool_(False)
     for k in range(t0.shape[0]):
@@ -1281,3 +1288,101 @@ def integrate_segments(p, t0, theta0, theta_dot0, out_t, bounds, rtol, atol, max
             np.empty((16, EV_SIZE)), none_yet, no_dense_wanted, no_dense, none_yet,
         )
         status[k] = state[S_STATUS]
+
+
+# ----------------------------------------------------------------------------- the Python entry
+# The kernel takes its arguments as plain arrays and numbers: numba passes those at a fraction
+# of a microsecond each, while a tuple or a structure is boxed field by field on every call
+# (13-19 % of a Stepper's 10 ms chunk at 200 kHz).  Python callers hold a run's arguments in
+# a ``Run`` instead, whose ``advance`` alone spells the kernel's 19 positions.  A method of
+# an object the streaming caller keeps adds ~1.5 % to that chunk (the old 19-argument call
+# against this one in one process); named groups built anew on each call added 5-7 %.
+
+DEFAULT_MAX_STEPS = 200_000_000
+
+
+@dataclass(frozen=True, slots=True)
+class StepControl:
+    """How a run steps: the error tolerances ``rtol``, ``atol``, the longest step
+    ``max_step`` [s] (inf: no cap) and the most steps one call may take (then the run stops
+    with status max_steps).  Kept as float and int: other types would compile another copy
+    of the kernel."""
+
+    rtol: float
+    atol: float
+    max_step: float = math.inf
+    max_steps: int = DEFAULT_MAX_STEPS
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "rtol", float(self.rtol))
+        object.__setattr__(self, "atol", float(self.atol))
+        object.__setattr__(self, "max_step", float(self.max_step))
+        object.__setattr__(self, "max_steps", int(self.max_steps))
+
+
+class PoincareSamples(NamedTuple):
+    """Samples at t0 + k dt, k < len(theta), into ``theta``, ``theta_dot``."""
+
+    t0: float
+    dt: float
+    theta: np.ndarray
+    theta_dot: np.ndarray
+
+
+NO_POINCARE = PoincareSamples(0.0, 1.0, np.empty(0), np.empty(0))
+_NO_DENSE = np.empty((0, 3))
+
+
+class Run:
+    """A run of the integrator: the packed vector ``p``, the state it advances in place
+    (``new_state``; ``restart`` or a new one between calls is the caller's), how it steps,
+    where its Poincare samples go, and the rows it appends, grown as needed: contact and
+    stick events (``events[:n_events]``, columns ``EV_*``) and, with ``dense_columns``
+    (3: t, theta, theta'; 5 with the region it leads into, for the sensitivities), every
+    segment end (``dense[:n_dense]``).  A caller reusing it for a new start sets ``state``
+    and the counts back; ``poincare_written`` counts the Poincare samples of the last call.
+    """
+
+    __slots__ = (
+        "control", "dense", "events", "n_dense", "n_events", "p", "poincare",
+        "poincare_written", "state",
+    )
+
+    def __init__(
+        self,
+        p: np.ndarray,
+        state: np.ndarray,
+        control: StepControl,
+        poincare: PoincareSamples = NO_POINCARE,
+        dense_columns: int = 0,
+    ) -> None:
+        self.p = p
+        self.state = state
+        self.control = control
+        self.poincare = poincare
+        self.events = np.empty((16, EV_SIZE))
+        self.n_events = 0
+        self.dense = np.empty((1024, dense_columns)) if dense_columns else None
+        self.n_dense = 0
+        self.poincare_written = 0
+
+    def advance(
+        self, t: np.ndarray, theta: np.ndarray, theta_dot: np.ndarray, t_end: float
+    ) -> int:
+        """Integrate until ``t_end`` and every sample asked for is reached: theta, theta'
+        at the increasing times ``t`` (not before the state's time) into ``theta``,
+        ``theta_dot``, and the Poincare samples; NaN where the run stopped early (the
+        state's S_STATUS says why).  Returns how many samples were written."""
+        c = self.control
+        pc = self.poincare
+        dense = self.dense
+        want_dense = dense is not None
+        self.events, self.n_events, dense, n_dense, written, self.poincare_written = integrate(
+            self.p, self.state, t, theta, theta_dot, pc.t0, pc.dt, pc.theta, pc.theta_dot,
+            t_end, c.rtol, c.atol, c.max_step, c.max_steps, self.events, self.n_events,
+            want_dense, dense if want_dense else _NO_DENSE, self.n_dense,
+        )
+        if want_dense:
+            self.dense = dense
+            self.n_dense = n_dense
+        return written

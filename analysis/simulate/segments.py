@@ -13,7 +13,7 @@ import numpy as np
 
 from analysis.packed import P
 from analysis.simulate import integrator as ig
-from analysis.simulate.simulation import DEFAULT_MAX_STEPS, check_step_settings
+from analysis.simulate.simulation import check_step_settings
 
 
 def checked_segments(
@@ -51,7 +51,7 @@ def integrate_segments(
     *,
     rtol: float = 1e-8,
     atol: float = 1e-10,
-    max_steps: int = DEFAULT_MAX_STEPS,
+    max_steps: int = ig.DEFAULT_MAX_STEPS,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Run segment k from (t0[k], state0[k]) and sample it at out_t[bounds[k]:bounds[k+1]].
 

@@ -33,7 +33,7 @@ from analysis.packed import P
 from analysis.simulate import integrator as ig
 from analysis.simulate import variational as va
 from analysis.simulate.segments import checked_segments
-from analysis.simulate.simulation import DEFAULT_MAX_STEPS, check_step_settings
+from analysis.simulate.simulation import check_step_settings
 
 STATE_COLUMNS = ("theta0", "theta_dot0")
 # entries that are flags or follow another entry: no derivative of their own
@@ -50,7 +50,7 @@ class SensitivitySettings:
     parameters: tuple[str, ...] = ()
     rtol: float = 1e-9
     atol: float = 1e-11
-    max_steps: int = DEFAULT_MAX_STEPS
+    max_steps: int = ig.DEFAULT_MAX_STEPS
 
     def __post_init__(self) -> None:
         check_step_settings(self.rtol, self.atol)
@@ -127,16 +127,13 @@ def simulate_sensitivities(
     slide0 = float(state[ig.S_SLIDE])
     theta = np.empty(out_t.size)
     theta_dot = np.empty(out_t.size)
-    events, n_events, record, n_record, written, _ = ig.integrate(
-        p, state, out_t, theta, theta_dot, 0.0, 1.0, np.empty(0), np.empty(0),
-        float(out_t[-1]), settings.rtol, settings.atol, math.inf, int(settings.max_steps),
-        np.empty((16, ig.EV_SIZE)), np.int64(0), np.bool_(True),
-        np.empty((1024, va.REC_SIZE)), np.int64(0),
-    )
+    control = ig.StepControl(settings.rtol, settings.atol, max_steps=settings.max_steps)
+    run = ig.Run(p, state, control, dense_columns=va.REC_SIZE)
+    written = run.advance(out_t, theta, theta_dot, float(out_t[-1]))
     jacobian = np.full((out_t.size, 2, 2 + columns.size), math.nan)
     va.propagate(p, columns, float(t0), float(theta0), float(theta_dot0), contact0, slide0,
-                 record, n_record, out_t, written, jacobian)
-    contacts = events[:n_events]
+                 run.dense, run.n_dense, out_t, written, jacobian)
+    contacts = run.events[: run.n_events]
     return Sensitivities(
         t=out_t,
         theta=theta,
@@ -171,20 +168,18 @@ def segment_sensitivities(
     theta_dot = np.empty(out_t.size)
     jacobian = np.full((out_t.size, 2, 2 + columns.size), math.nan)
     status = np.zeros(t0.size, dtype=np.int64)
-    events = np.empty((16, ig.EV_SIZE))
-    record = np.empty((1024, va.REC_SIZE))
+    control = ig.StepControl(settings.rtol, settings.atol, max_steps=settings.max_steps)
+    run = ig.Run(p, np.empty(0), control, dense_columns=va.REC_SIZE)
     for k in range(t0.size):
         a, b = int(bounds[k]), int(bounds[k + 1])
         start, th0, om0 = float(t0[k]), float(state0[k, 0]), float(state0[k, 1])
-        state = ig.new_state(start, th0, om0, p)
+        # each segment from its own start, its rows from the (reused) buffers' start
+        run.state = state = ig.new_state(start, th0, om0, p)
+        run.n_events = run.n_dense = 0
         contact0 = bool(state[ig.S_CONTACT] != 0.0)
         slide0 = float(state[ig.S_SLIDE])
-        events, _, record, n_record, written, _ = ig.integrate(
-            p, state, out_t[a:b], theta[a:b], theta_dot[a:b], 0.0, 1.0, np.empty(0),
-            np.empty(0), float(out_t[b - 1]), settings.rtol, settings.atol, math.inf,
-            int(settings.max_steps), events, np.int64(0), np.bool_(True), record, np.int64(0),
-        )
-        va.propagate(p, columns, start, th0, om0, contact0, slide0, record, n_record,
+        written = run.advance(out_t[a:b], theta[a:b], theta_dot[a:b], float(out_t[b - 1]))
+        va.propagate(p, columns, start, th0, om0, contact0, slide0, run.dense, run.n_dense,
                      out_t[a:b], written, jacobian[a:b])
         status[k] = int(state[ig.S_STATUS])
     return theta, theta_dot, jacobian, status

@@ -12,8 +12,6 @@ from analysis.packed import P
 from analysis.simulate import integrator as ig
 from analysis.simulate.result import ContactEvents, SimulationResult, StickEvents, Trajectory
 
-DEFAULT_MAX_STEPS = 200_000_000
-
 
 def drive_period_s(p: np.ndarray) -> float:
     """Drive period 2 pi / Omega of a packed vector; inf when the table does not move."""
@@ -136,20 +134,20 @@ def simulate_packed(
     pc_th = np.empty(n_pc)
     pc_om = np.empty(n_pc)
     state = ig.new_state(0.0, float(theta0), float(theta_dot0), p)
-    events, n_events, dense_buf, n_dense, written, pc_written = ig.integrate(
-        p, state, out_t, out_th, out_om, pc_t0, pc_dt, pc_th, pc_om, t_final,
-        settings.rtol, settings.atol, float(settings.max_step_s), DEFAULT_MAX_STEPS,
-        np.empty((16, ig.EV_SIZE)), 0, settings.dense,
-        np.empty((1024 if settings.dense else 0, 3)), 0,
+    run = ig.Run(
+        p, state, ig.StepControl(settings.rtol, settings.atol, settings.max_step_s),
+        ig.PoincareSamples(pc_t0, pc_dt, pc_th, pc_om), dense_columns=3 if settings.dense else 0,
     )
+    written = run.advance(out_t, out_th, out_om, t_final)
+    pc_written = run.poincare_written
     # contacts and stick intervals that ended during the record (not in the transient, nor
     # in the part of the last step beyond its end)
-    rows = events[:n_events]
+    rows = run.events[: run.n_events]
     rows = rows[(rows[:, ig.EV_T_OUT] >= t_rec) & (rows[:, ig.EV_T_OUT] <= t_final)]
     pc_t = pc_t0 + np.arange(pc_written) * pc_dt
     trajectory = None
     if settings.dense:
-        d = dense_buf[:n_dense]
+        d = run.dense[: run.n_dense]
         trajectory = Trajectory(d[:, 0].copy(), d[:, 1].copy(), d[:, 2].copy())
     return SimulationResult(
         t=out_t[:written],

@@ -17,9 +17,7 @@ from analysis.model import Model
 from analysis.packed import P
 from analysis.simulate import integrator as ig
 from analysis.simulate.result import ContactEvents, StickEvents
-from analysis.simulate.simulation import DEFAULT_MAX_STEPS, check_step_settings
-
-_NO_POINCARE = np.empty(0)
+from analysis.simulate.simulation import check_step_settings
 
 
 class SimulationStoppedError(RuntimeError):
@@ -45,15 +43,10 @@ class Stepper:
                 f"theta_dot0={theta_dot0!r} must be finite"
             )
         check_step_settings(rtol, atol, max_step_s)
-        self._p = np.ascontiguousarray(model.pack(), dtype=float)
-        self._state = ig.new_state(float(t0), float(theta0), float(theta_dot0), self._p)
+        p = np.ascontiguousarray(model.pack(), dtype=float)
+        state = ig.new_state(float(t0), float(theta0), float(theta_dot0), p)
+        self._run = ig.Run(p, state, ig.StepControl(rtol, atol, max_step_s))
         self._t = float(t0)
-        self._rtol = float(rtol)
-        self._atol = float(atol)
-        self._max_step = float(max_step_s)
-        self._events = np.empty((16, ig.EV_SIZE))
-        self._n_events = 0
-        self._empty_dense = np.empty((0, 3))
 
     # ------------------------------------------------------------------ state
     @property
@@ -64,32 +57,32 @@ class Stepper:
     @property
     def theta(self) -> float:
         """Current angle [rad]."""
-        return float(ig.state_at(self._state, self._t)[0])
+        return float(ig.state_at(self._run.state, self._t)[0])
 
     @property
     def theta_dot(self) -> float:
         """Current angular velocity [rad/s]."""
-        return float(ig.state_at(self._state, self._t)[1])
+        return float(ig.state_at(self._run.state, self._t)[1])
 
     @property
     def in_contact(self) -> bool:
         """True while the pendulum presses into the barrier."""
-        return self._state[ig.S_CONTACT] != 0.0
+        return self._run.state[ig.S_CONTACT] != 0.0
 
     @property
     def drive_phase(self) -> float:
         """Current drive phase (Omega t + phase0) mod 2 pi [rad]."""
-        return (self._p[P.OMEGA_DRIVE] * self._t + self._p[P.PHASE0]) % (2.0 * math.pi)
+        return (self._run.p[P.OMEGA_DRIVE] * self._t + self._run.p[P.PHASE0]) % (2.0 * math.pi)
 
     @property
     def packed(self) -> np.ndarray:
         """A copy of the packed parameter vector in use (PHASE0 included)."""
-        return self._p.copy()
+        return self._run.p.copy()
 
     @property
     def status(self) -> str:
         """ "ok" while running; why it stopped otherwise."""
-        return ig.STATUS_NAMES[int(self._state[ig.S_STATUS])]
+        return ig.STATUS_NAMES[int(self._run.state[ig.S_STATUS])]
 
     # ------------------------------------------------------------------ changes
     def set_model(self, model: Model, phase0: float | None = None) -> None:
@@ -106,20 +99,20 @@ class Stepper:
         if p.shape != (P.SIZE,):
             raise ValueError(f"packed vector has shape {p.shape}; expected ({int(P.SIZE)},)")
         if phase0 is None:
-            phase_now = self._p[P.OMEGA_DRIVE] * self._t + self._p[P.PHASE0]
+            phase_now = self._run.p[P.OMEGA_DRIVE] * self._t + self._run.p[P.PHASE0]
             phase0 = phase_now - p[P.OMEGA_DRIVE] * self._t
         p[P.PHASE0] = math.remainder(phase0, 2.0 * math.pi)
-        theta, theta_dot = ig.state_at(self._state, self._t)
-        self._p = p
-        ig.restart(self._state, self._t, theta, theta_dot, p)
+        theta, theta_dot = ig.state_at(self._run.state, self._t)
+        self._run.p = p
+        ig.restart(self._run.state, self._t, theta, theta_dot, p)
 
     def set_state(self, theta: float, theta_dot: float = 0.0) -> None:
         """Put the pendulum at (theta, theta_dot) now, e.g. the operator releases it."""
         if not (math.isfinite(theta) and math.isfinite(theta_dot)):
             raise ValueError(f"state ({theta!r}, {theta_dot!r}) must be finite")
-        self._state[ig.S_CONTACT] = 0.0  # a contact in progress is abandoned, not reported
-        self._state[ig.S_STATUS] = ig.STATUS_OK
-        ig.restart(self._state, self._t, float(theta), float(theta_dot), self._p)
+        self._run.state[ig.S_CONTACT] = 0.0  # a contact in progress is abandoned, not reported
+        self._run.state[ig.S_STATUS] = ig.STATUS_OK
+        ig.restart(self._run.state, self._t, float(theta), float(theta_dot), self._run.p)
 
     # ------------------------------------------------------------------ stepping
     def advance(self, times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -142,31 +135,11 @@ class Stepper:
             )
         if self.status != "ok":
             raise SimulationStoppedError(f"the simulation has stopped: {self.status}")
-        self._events, self._n_events, _, _, written, _ = ig.integrate(
-            self._p,
-            self._state,
-            times,
-            theta,
-            theta_dot,
-            0.0,
-            1.0,
-            _NO_POINCARE,
-            _NO_POINCARE,
-            float(times[-1]),
-            self._rtol,
-            self._atol,
-            self._max_step,
-            DEFAULT_MAX_STEPS,
-            self._events,
-            self._n_events,
-            False,
-            self._empty_dense,
-            0,
-        )
+        written = self._run.advance(times, theta, theta_dot, float(times[-1]))
         if written < times.size:
             self._t = float(times[written - 1]) if written else self._t
             raise SimulationStoppedError(
-                f"the simulation stopped at t = {self._state[ig.S_TB]:.6g} s: {self.status}"
+                f"the simulation stopped at t = {self._run.state[ig.S_TB]:.6g} s: {self.status}"
             )
         self._t = float(times[-1])
         return theta, theta_dot
@@ -174,11 +147,12 @@ class Stepper:
     def _pop_rows(self) -> np.ndarray:
         """Event rows that ended by the current time; later ones (the integrator may have
         stepped past ``t``) stay for the next pop."""
-        rows = self._events[: self._n_events].copy()
+        run = self._run
+        rows = run.events[: run.n_events].copy()
         done = rows[:, ig.EV_T_OUT] <= self._t
         pending = rows[~done]
-        self._events[: pending.shape[0]] = pending
-        self._n_events = pending.shape[0]
+        run.events[: pending.shape[0]] = pending
+        run.n_events = pending.shape[0]
         return rows[done]
 
     def pop_contacts(self) -> ContactEvents:

@@ -1,14 +1,14 @@
 """Compiled forward sensitivities: the variational equations along a run's own steps.
 
-A plain run of ``integrator.integrate`` with its segment record (``want_dense``: every
-segment's end, and the region it leads into) is replayed segment by segment: each
-segment is one Dormand-Prince 8(5,3) step from its start over its length, and the
-derivatives of the state with respect to the initial state and to chosen entries of the
-packed vector are carried through it by the same step applied to the variational
-equations, with each stage's Jacobian taken at that stage (the exact derivative of the
-step, whose stages these are: the same arithmetic as the run's own step, not a second
-integration with steps of its own).  Outputs inside a segment come from the step's dense
-output, differentiated the same way.
+A plain run of the integrator with its segment record (an ``integrator.Run`` with
+``dense_columns=REC_SIZE``: every segment's end, and the region it leads into) is
+replayed segment by segment: each segment is one Dormand-Prince 8(5,3) step from its
+start over its length, and the derivatives of the state with respect to the initial
+state and to chosen entries of the packed vector are carried through it by the same step
+applied to the variational equations, with each stage's Jacobian taken at that stage
+(the exact derivative of the step, whose stages these are: the same arithmetic as the
+run's own step, not a second integration with steps of its own). Outputs inside a
+segment come from the step's dense output, differentiated the same way.
 
 At a contact event the derivatives pass the saltation (jump) matrix of the surface
 g = theta - theta_b = 0::
@@ -59,7 +59,7 @@ from analysis.simulate.integrator import (
     rhs,
 )
 
-# columns of the segment record (``integrate`` with want_dense writes them)
+# columns of the segment record (an ``integrator.Run`` with dense_columns=REC_SIZE writes them)
 REC_T = 0
 REC_THETA = 1
 REC_THETA_DOT = 2
