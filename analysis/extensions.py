@@ -15,7 +15,9 @@ from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 
+from analysis import quantities as q
 from analysis.packed import P, ParameterError
+from analysis.quantities import quantity
 
 if TYPE_CHECKING:  # types only: analysis.model imports this module to pack its causes
     from analysis.model import Model, RigParameters
@@ -28,15 +30,23 @@ AT_BOUND = 1e-6  # an estimate this close to a bound (relative to it and the ran
 
 @dataclass(frozen=True)
 class ParameterSpec:
-    """One parameter of a cause: its JSON key (SI unit in the name), default, the bounds a
-    fit may explore, and the range a real rig can have (None: the bounds)."""
+    """One parameter of a cause: its JSON key (a quantity of :mod:`analysis.quantities`,
+    which holds its unit and meaning), default, the bounds a fit may explore, and the range
+    a real rig can have (None: the bounds)."""
 
     name: str
     default: float
     lower: float
     upper: float
-    doc: str
     plausible: tuple[float, float] | None = None
+
+    def __post_init__(self) -> None:
+        quantity(self.name)  # a cause's parameter is a registered quantity
+
+    @property
+    def doc(self) -> str:
+        """The parameter's meaning and unit, from the registry."""
+        return quantity(self.name).doc
 
     def implausibility(self, value: float) -> str | None:
         """Why ``value`` cannot be a real rig's (outside the plausible range, or on a bound
@@ -78,14 +88,14 @@ class RecordScale:
         """The scale of a record (uniform times ``t``, angle ``angle``, NaN where excluded)
         under a model's ``values`` (its omega and zeta; K and mu0 when it has them, else
         the rig's), with its contacts' typical largest ``penetration_m``."""
-        omega = values["omega_rad_s"]
+        omega = values[q.omega_rad_s]
         length = rig.g_m_s2 / omega**2  # the pendulum's equivalent length
         return cls(
             amplitude_rad=float(np.nanmax(np.abs(angle))), omega_rad_s=omega,
-            zeta=values["zeta"], duration_s=float(t[-1]), dt_s=float(t[1] - t[0]),
+            zeta=values[q.zeta], duration_s=float(t[-1]), dt_s=float(t[1] - t[0]),
             inertia_kg_m2=rig.m_kg * length**2,
-            stiffness=values.get("K_N_per_m1.5", rig.K_N_per_m1_5),
-            mu0_s_per_m=values.get("mu0_s_per_m", rig.mu0_s_per_m),
+            stiffness=values.get(q.K_N_per_m1_5, rig.K_N_per_m1_5),
+            mu0_s_per_m=values.get(q.mu0_s_per_m, rig.mu0_s_per_m),
             penetration_m=penetration_m,
         )
 
@@ -272,35 +282,35 @@ def apply_measurement(model: Model, t: np.ndarray, theta: np.ndarray) -> np.ndar
 
 
 def _coulomb(model: Model, v: Mapping[str, float], p: np.ndarray) -> None:
-    p[P.COULOMB_ACC] = v["Tc_N_m"] / (model.rig.m_kg * model.rig.L_m**2)
+    p[P.COULOMB_ACC] = v[q.Tc_N_m] / (model.rig.m_kg * model.rig.L_m**2)
 
 
 def _drag(model: Model, v: Mapping[str, float], p: np.ndarray) -> None:
-    p[P.C2] = v["c2_per_rad"]
+    p[P.C2] = v[q.c2_per_rad]
 
 
 def _barrier_offset(model: Model, v: Mapping[str, float], p: np.ndarray) -> None:
-    p[P.THETA_B] = v["theta_b_rad"]
+    p[P.THETA_B] = v[q.theta_b_rad]
 
 
 def _contact_exponent(model: Model, v: Mapping[str, float], p: np.ndarray) -> None:
-    p[P.EXPONENT] = v["n"]
-    p[P.K] = v["K_n"]
+    p[P.EXPONENT] = v[q.n]
+    p[P.K] = v[q.K_n]
 
 
 def _kelvin_voigt(model: Model, v: Mapping[str, float], p: np.ndarray) -> None:
     p[P.MU0] = 0.0
-    p[P.C_VISCOUS] = v["c_N_s_per_m"]
+    p[P.C_VISCOUS] = v[q.c_N_s_per_m]
 
 
 def _distortion(model: Model, v: Mapping[str, float], p: np.ndarray) -> None:
-    p[P.A2] = model.drive.amplitude_m * v["h2"]
-    p[P.PHI2] = v["phi2_rad"]
+    p[P.A2] = model.drive.amplitude_m * v[q.h2]
+    p[P.PHI2] = v[q.phi2_rad]
 
 
 def _amplitude(model: Model, v: Mapping[str, float], p: np.ndarray) -> None:
-    p[P.A1] *= 1.0 + v["eps"]
-    p[P.A2] *= 1.0 + v["eps"]
+    p[P.A1] *= 1.0 + v[q.eps]
+    p[P.A2] *= 1.0 + v[q.eps]
 
 
 # --------------------------------------------------------------------------- measurement causes
@@ -309,14 +319,14 @@ def _amplitude(model: Model, v: Mapping[str, float], p: np.ndarray) -> None:
 def _offset(t: np.ndarray, theta: np.ndarray, v: Mapping[str, float],
             theta_dot0: float | None = None, carry: dict[str, float] | None = None,
             ) -> np.ndarray:
-    return theta + v["offset_rad"]
+    return theta + v[q.offset_rad]
 
 
 def _nonlinearity(t: np.ndarray, theta: np.ndarray, v: Mapping[str, float],
                   theta_dot0: float | None = None, carry: dict[str, float] | None = None,
                   ) -> np.ndarray:
     # (theta**3 takes numpy's general power, 40 times slower for a negative base)
-    return theta + v["k3"] * (theta * theta * theta)
+    return theta + v[q.k3] * (theta * theta * theta)
 
 
 def _lag(t: np.ndarray, theta: np.ndarray, v: Mapping[str, float],
@@ -331,18 +341,18 @@ def _lag(t: np.ndarray, theta: np.ndarray, v: Mapping[str, float],
     out of a moving signal, as a fit's segments are).  With ``carry`` it starts where the
     previous block ended (a live stream).
     """
-    if theta.size == 0 or v["tau_s"] == 0.0:
+    if theta.size == 0 or v[q.tau_s] == 0.0:
         return theta
     dt = float(t[1] - t[0]) if t.size >= 2 else (carry or {}).get("dt_s")
     if dt is None:
         return theta
-    a = math.exp(-dt / v["tau_s"])
-    ramp = v["tau_s"] / dt * -math.expm1(-dt / v["tau_s"])  # tau (1 - a) / dt
+    a = math.exp(-dt / v[q.tau_s])
+    ramp = v[q.tau_s] / dt * -math.expm1(-dt / v[q.tau_s])  # tau (1 - a) / dt
     b = [1.0 - ramp, ramp - a]  # y[n] = a y[n-1] + b0 x[n] + b1 x[n-1]
     if carry is not None and "output" in carry:
         state = b[1] * carry["input"] + a * carry["output"]
     else:
-        first = theta[0] - (v["tau_s"] * theta_dot0 if theta_dot0 is not None else 0.0)
+        first = theta[0] - (v[q.tau_s] * theta_dot0 if theta_dot0 is not None else 0.0)
         state = first - b[0] * theta[0]
     from scipy.signal import lfilter  # here: scipy.signal takes a second to import
 
@@ -355,56 +365,55 @@ def _lag(t: np.ndarray, theta: np.ndarray, v: Mapping[str, float],
 def _plan_coulomb(s: RecordScale) -> dict[str, ParameterPlan]:
     # A friction torque of 1e-4 of the largest gravity torque is already a small effect.
     torque = s.inertia_kg_m2 * s.omega_rad_s**2 * max(s.amplitude_rad, 1e-3)
-    return {"Tc_N_m": ParameterPlan(0.0, 1e-4 * torque)}
+    return {q.Tc_N_m: ParameterPlan(0.0, 1e-4 * torque)}
 
 
 def _plan_drag(s: RecordScale) -> dict[str, ParameterPlan]:
     # c2 theta'|theta'| equals the viscous term 2 zeta omega theta' at c2 ~ 2 zeta / amplitude.
-    return {"c2_per_rad": ParameterPlan(0.0, 1e-3 * max(s.zeta, 1e-3) / max(s.amplitude_rad, 1e-3))}
+    return {q.c2_per_rad: ParameterPlan(0.0, 1e-3 * max(s.zeta, 1e-3) / max(s.amplitude_rad, 1e-3))}
 
 
 def _plan_barrier(s: RecordScale) -> dict[str, ParameterPlan]:
-    return {"theta_b_rad": ParameterPlan(0.0, 1e-5 * max(s.amplitude_rad, 1e-2))}
+    return {q.theta_b_rad: ParameterPlan(0.0, 1e-5 * max(s.amplitude_rad, 1e-2))}
 
 
 def _plan_exponent(s: RecordScale) -> dict[str, ParameterPlan]:
-    return {"n": ParameterPlan(1.5, 1e-3), "K_n": ParameterPlan(s.stiffness, 1e-3, log=True)}
+    return {q.n: ParameterPlan(1.5, 1e-3), q.K_n: ParameterPlan(s.stiffness, 1e-3, log=True)}
 
 
 def _plan_kelvin_voigt(s: RecordScale) -> dict[str, ParameterPlan]:
     # Same dissipation per impact as the Hunt-Crossley term at half the largest penetration.
     c = s.stiffness * s.mu0_s_per_m * (0.5 * max(s.penetration_m, 1e-7)) ** 1.5
-    return {"c_N_s_per_m": ParameterPlan(max(c, 1e-6), 1e-3, log=True)}
+    return {q.c_N_s_per_m: ParameterPlan(max(c, 1e-6), 1e-3, log=True)}
 
 
 def _plan_offset(s: RecordScale) -> dict[str, ParameterPlan]:
-    return {"offset_rad": ParameterPlan(0.0, 1e-6 * max(s.amplitude_rad, 1e-2))}
+    return {q.offset_rad: ParameterPlan(0.0, 1e-6 * max(s.amplitude_rad, 1e-2))}
 
 
 def _plan_nonlinearity(s: RecordScale) -> dict[str, ParameterPlan]:
-    return {"k3": ParameterPlan(0.0, 1e-4)}
+    return {q.k3: ParameterPlan(0.0, 1e-4)}
 
 
 def _plan_lag(s: RecordScale) -> dict[str, ParameterPlan]:
     # A sampled first-order lag with tau << dt is the identity to exp(-dt/tau): no gradient
     # there. Start at half a sample period, where the fit can move either way.
-    return {"tau_s": ParameterPlan(0.5 * s.dt_s, 1e-2 * s.dt_s)}
+    return {q.tau_s: ParameterPlan(0.5 * s.dt_s, 1e-2 * s.dt_s)}
 
 
 def _plan_distortion(s: RecordScale) -> dict[str, ParameterPlan]:
-    return {"h2": ParameterPlan(0.02, 1e-4), "phi2_rad": ParameterPlan(0.0, 1e-3)}
+    return {q.h2: ParameterPlan(0.02, 1e-4), q.phi2_rad: ParameterPlan(0.0, 1e-3)}
 
 
 def _plan_amplitude(s: RecordScale) -> dict[str, ParameterPlan]:
-    return {"eps": ParameterPlan(0.0, 1e-4)}
+    return {q.eps: ParameterPlan(0.0, 1e-4)}
 
 
 register(
     Cause(
         "coulomb_friction",
         "dynamics",
-        (ParameterSpec("Tc_N_m", 0.0, 0.0, 1.0, "pivot dry-friction torque, N m",
-                       (0.0, 0.05)),),
+        (ParameterSpec(q.Tc_N_m, 0.0, 0.0, 1.0, (0.0, 0.05)),),
         "Dry friction at the pivot with stiction: + Tc/(m L^2) sign(theta').",
         dynamics=_coulomb,
         plan=_plan_coulomb,
@@ -414,8 +423,7 @@ register(
     Cause(
         "quadratic_drag",
         "dynamics",
-        (ParameterSpec("c2_per_rad", 0.0, 0.0, 100.0, "aerodynamic drag coefficient, 1/rad",
-                       (0.0, 50.0)),),
+        (ParameterSpec(q.c2_per_rad, 0.0, 0.0, 100.0, (0.0, 50.0)),),
         "Aerodynamic drag: + c2 theta' |theta'|.",
         dynamics=_drag,
         plan=_plan_drag,
@@ -425,8 +433,7 @@ register(
     Cause(
         "barrier_offset",
         "dynamics",
-        (ParameterSpec("theta_b_rad", 0.0, -0.5, 0.5, "barrier surface angle, rad",
-                       (-0.2, 0.2)),),
+        (ParameterSpec(q.theta_b_rad, 0.0, -0.5, 0.5, (-0.2, 0.2)),),
         "Barrier surface not at theta = 0: contact while theta > theta_b.",
         dynamics=_barrier_offset,
         needs=frozenset({"barrier"}),
@@ -438,27 +445,26 @@ register(
         "contact_exponent",
         "dynamics",
         (
-            ParameterSpec("n", 1.5, 0.5, 3.0, "force-penetration exponent", (0.9, 2.6)),
-            ParameterSpec("K_n", 1.0e5, 1.0e-3, 1.0e12, "contact stiffness, N/m^n"),
+            ParameterSpec(q.n, 1.5, 0.5, 3.0, (0.9, 2.6)),
+            ParameterSpec(q.K_n, 1.0e5, 1.0e-3, 1.0e12),
         ),
         "Force-penetration law K_n delta^n instead of Hertz's delta^(3/2).",
         dynamics=_contact_exponent,
         needs=frozenset({"barrier"}),
         plan=_plan_exponent,
-        replaces=("K_N_per_m1.5",),
+        replaces=(q.K_N_per_m1_5,),
     )
 )
 register(
     Cause(
         "contact_damping_law",
         "dynamics",
-        (ParameterSpec("c_N_s_per_m", 0.0, 0.0, 1.0e4, "Kelvin-Voigt contact damping, N s/m",
-                       (0.0, 1.0e3)),),
+        (ParameterSpec(q.c_N_s_per_m, 0.0, 0.0, 1.0e4, (0.0, 1.0e3)),),
         "Kelvin-Voigt contact dissipation K delta^(3/2) + c deltadot instead of Hunt-Crossley.",
         dynamics=_kelvin_voigt,
         needs=frozenset({"barrier"}),
         plan=_plan_kelvin_voigt,
-        replaces=("mu0_s_per_m",),
+        replaces=(q.mu0_s_per_m,),
     )
 )
 register(
@@ -466,8 +472,8 @@ register(
         "excitation_distortion",
         "dynamics",
         (
-            ParameterSpec("h2", 0.0, 0.0, 1.0, "second-harmonic amplitude ratio", (0.0, 0.5)),
-            ParameterSpec("phi2_rad", 0.0, -2 * math.pi, 2 * math.pi, "second-harmonic phase"),
+            ParameterSpec(q.h2, 0.0, 0.0, 1.0, (0.0, 0.5)),
+            ParameterSpec(q.phi2_rad, 0.0, -2 * math.pi, 2 * math.pi),
         ),
         "Table motion with a second harmonic: A h2 sin(2 Omega t + phi2).",
         dynamics=_distortion,
@@ -479,8 +485,7 @@ register(
     Cause(
         "excitation_amplitude",
         "dynamics",
-        (ParameterSpec("eps", 0.0, -0.9, 9.0, "relative error of the stated amplitude",
-                       (-0.5, 0.5)),),
+        (ParameterSpec(q.eps, 0.0, -0.9, 9.0, (-0.5, 0.5)),),
         "True table amplitude A (1 + eps).",
         dynamics=_amplitude,
         needs=frozenset({"drive"}),
@@ -491,7 +496,7 @@ register(
     Cause(
         "sensor_offset",
         "measurement",
-        (ParameterSpec("offset_rad", 0.0, -1.0, 1.0, "sensor zero offset, rad", (-0.3, 0.3)),),
+        (ParameterSpec(q.offset_rad, 0.0, -1.0, 1.0, (-0.3, 0.3)),),
         "Angle sensor zero not at the hanging position: measured = theta + offset.",
         measurement=_offset,
         plan=_plan_offset,
@@ -502,7 +507,7 @@ register(
     Cause(
         "sensor_nonlinearity",
         "measurement",
-        (ParameterSpec("k3", 0.0, -10.0, 10.0, "cubic linearity error, 1/rad^2", (-3.0, 3.0)),),
+        (ParameterSpec(q.k3, 0.0, -10.0, 10.0, (-3.0, 3.0)),),
         "Angle sensor linearity error: measured = theta + k3 theta^3.",
         measurement=_nonlinearity,
         plan=_plan_nonlinearity,
@@ -513,8 +518,7 @@ register(
     Cause(
         "sensor_lag",
         "measurement",
-        (ParameterSpec("tau_s", 0.0, 0.0, 1.0, "first-order low-pass time constant, s",
-                       (0.0, 0.05)),),
+        (ParameterSpec(q.tau_s, 0.0, 0.0, 1.0, (0.0, 0.05)),),
         "Angle channel low-pass filtered with time constant tau.",
         measurement=_lag,
         measurement_memory=True,

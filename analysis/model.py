@@ -18,6 +18,7 @@ from typing import Any
 import numba
 import numpy as np
 
+from analysis import quantities as q
 from analysis.extensions import apply_dynamics, validate_extensions
 from analysis.packed import P, ParameterError
 
@@ -42,11 +43,11 @@ class RigParameters:
     theta_b_rad: float = 0.0
 
     def __post_init__(self) -> None:
-        for name in ("m_kg", "l_m", "L_m", "R_m", "g_m_s2", "E_Pa"):
+        for name in (q.m_kg, q.l_m, q.L_m, q.R_m, q.g_m_s2, q.E_Pa):
             _require(name, getattr(self, name), positive=True)
-        for name in ("zeta", "mu0_s_per_m"):
+        for name in (q.zeta, q.mu0_s_per_m):
             _require(name, getattr(self, name), positive=False)
-        _require("theta_b_rad", self.theta_b_rad, positive=False, allow_negative=True)
+        _require(q.theta_b_rad, self.theta_b_rad, positive=False, allow_negative=True)
         if abs(self.theta_b_rad) >= math.pi / 2:
             raise ParameterError(
                 f"theta_b_rad = {self.theta_b_rad!r}: the barrier must sit below the pivot "
@@ -65,7 +66,7 @@ class RigParameters:
 
     def with_stiffness(self, K_N_per_m1_5: float) -> RigParameters:
         """Same rig with the modulus chosen so that K = (4/3) E sqrt(R) takes the given value."""
-        _require("K_N_per_m1.5", K_N_per_m1_5, positive=True)
+        _require(q.K_N_per_m1_5, K_N_per_m1_5, positive=True)
         return replace(self, E_Pa=3.0 * K_N_per_m1_5 / (4.0 * math.sqrt(self.R_m)))
 
     def with_values(self, **values: float) -> RigParameters:
@@ -96,8 +97,8 @@ class Drive:
     def __post_init__(self) -> None:
         _require("amplitude_m", self.amplitude_m, positive=False)
         _require("frequency_hz", self.frequency_hz, positive=False)
-        _require("h2", self.h2, positive=False)
-        _require("phi2_rad", self.phi2_rad, positive=False, allow_negative=True)
+        _require(q.h2, self.h2, positive=False)
+        _require(q.phi2_rad, self.phi2_rad, positive=False, allow_negative=True)
         if self.amplitude_m > 0 and self.frequency_hz <= 0:
             raise ParameterError(
                 f"frequency_hz = {self.frequency_hz!r}: a drive with amplitude "
@@ -147,7 +148,7 @@ class Nondimensional:
     def __post_init__(self) -> None:
         for name in ("eta", "gamma"):
             _require(name, getattr(self, name), positive=True)
-        for name in ("beta", "mu", "zeta"):
+        for name in ("beta", "mu", q.zeta):
             _require(name, getattr(self, name), positive=False)
 
 

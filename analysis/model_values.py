@@ -12,6 +12,7 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
+from analysis import quantities as q
 from analysis.extensions import NONE, cause, measurement_chain
 from analysis.model import Drive, Model, RigParameters
 from analysis.packed import P
@@ -23,12 +24,12 @@ def model_from_values(
 ) -> Model:
     """The model with L from omega (L = g / omega^2), zeta, K and mu0 from ``values`` (the
     rig's own where absent) and every cause of ``causes`` switched on with its values."""
-    updates = {"L_m": rig.g_m_s2 / values["omega_rad_s"] ** 2, "zeta": values["zeta"]}
-    if "mu0_s_per_m" in values:
-        updates["mu0_s_per_m"] = values["mu0_s_per_m"]
+    updates = {q.L_m: rig.g_m_s2 / values[q.omega_rad_s] ** 2, q.zeta: values[q.zeta]}
+    if q.mu0_s_per_m in values:
+        updates[q.mu0_s_per_m] = values[q.mu0_s_per_m]
     fitted = rig.with_values(**updates)
-    if "K_N_per_m1.5" in values:
-        fitted = fitted.with_stiffness(values["K_N_per_m1.5"])
+    if q.K_N_per_m1_5 in values:
+        fitted = fitted.with_stiffness(values[q.K_N_per_m1_5])
     model = Model(rig=fitted, drive=drive, barrier=barrier)
     for name in causes:
         if name == NONE:
