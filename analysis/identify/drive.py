@@ -19,6 +19,7 @@ from typing import Any
 import numpy as np
 from scipy.optimize import minimize_scalar
 
+from analysis import quantities as q
 from analysis.dynamics.strobe import StrobeClock, clock_from_tach
 from analysis.identify.intervals import Z95, sandwich_covariance
 from analysis.identify.result import Estimate, FitQuality, IdentificationError, IdentificationResult
@@ -129,7 +130,7 @@ class MeasuredDrive:
             return {}
         a, stated = self.table.amplitude_m, self.stated_amplitude_m
         ci = None if a.ci95 is None else (a.ci95[0] / stated - 1.0, a.ci95[1] / stated - 1.0)
-        return {"eps": Estimate(a.value / stated - 1.0, ci), "h2": self.table.h2}
+        return {q.eps: Estimate(a.value / stated - 1.0, ci), q.h2: self.table.h2}
 
     def model_drive(self, frequency_hz: float | None = None) -> Drive:
         """The baseline model's drive: the stated amplitude, a pure sine, at the measured
@@ -155,7 +156,7 @@ class MeasuredDrive:
             tf = self.table
             out["table"] = {
                 "amplitude_m": tf.amplitude_m.as_json(), "phase_rad": tf.phase_rad.as_json(),
-                "h2": tf.h2.as_json(), "phi2_rad": tf.phi2_rad.as_json(),
+                q.h2: tf.h2.as_json(), q.phi2_rad: tf.phi2_rad.as_json(),
                 "amplitude_vs_stated": tf.amplitude_m.value / self.stated_amplitude_m - 1.0,
                 "rms_residual_m": tf.rms_residual_m,
             }
@@ -281,8 +282,8 @@ def fit_drive(record: Record, *, estimate_frequency: bool = False) -> Identifica
         "amplitude_m": table.amplitude_m,
         "phase_rad": table.phase_rad,
         "frequency_hz": Estimate(omega / (2.0 * math.pi)),
-        "h2": table.h2,
-        "phi2_rad": table.phi2_rad,
+        q.h2: table.h2,
+        q.phi2_rad: table.phi2_rad,
     }
     quality = FitQuality(
         rms_residual_rad=table.rms_residual_m, noise_rad=table.noise_m,

@@ -27,6 +27,7 @@ from typing import Any
 import numpy as np
 from scipy.signal import savgol_filter
 
+from analysis import quantities as q
 from analysis.dynamics.measured_regime import judge_record_regime
 from analysis.dynamics.regime import Regime
 from analysis.identify.drive import MeasuredDrive, measure_drive
@@ -83,10 +84,10 @@ SMOOTHING_S = 0.012
 
 # Baseline parameters of a forced fit: name -> (finite-difference step, log scale, bounds)
 BASELINE_PLANS: dict[str, tuple[float, bool, float, float]] = {
-    "omega_rad_s": (1e-7, True, 0.0, math.inf),
-    "zeta": (1e-6, False, 0.0, 0.5),
-    "K_N_per_m1.5": (1e-4, True, 1e-3, 1e14),
-    "mu0_s_per_m": (1e-4, False, 0.0, 50.0),
+    q.omega_rad_s: (1e-7, True, 0.0, math.inf),
+    q.zeta: (1e-6, False, 0.0, 0.5),
+    q.K_N_per_m1_5: (1e-4, True, 1e-3, 1e14),
+    q.mu0_s_per_m: (1e-4, False, 0.0, 50.0),
 }
 
 
@@ -274,7 +275,7 @@ def fit_over_record(
     finer one) gives the states, and no halving is needed."""
     say = progress or (lambda message: None)
     data = model.data
-    offset = fixed.get("offset_rad", next((p.start for p in free if p.name == "offset_rad"),
+    offset = fixed.get(q.offset_rad, next((p.start for p in free if p.name == q.offset_rad),
                                           0.0))
     segments = record_segments(data, heldout_s=heldout_s)
     smooth = smoothed_states(data, segments.start, offset)
@@ -407,32 +408,32 @@ def identify_forced(
         f"sensor zero {flight.offset_rad:.3g} rad")
     rig = data.rig
     start = {
-        "omega_rad_s": priors.get("omega_rad_s", flight.omega_rad_s),
-        "zeta": priors.get("zeta", max(flight.zeta, 1e-3)),
-        "K_N_per_m1.5": priors.get("K_N_per_m1.5", rig.K_N_per_m1_5),
-        "mu0_s_per_m": priors.get("mu0_s_per_m", rig.mu0_s_per_m),
+        q.omega_rad_s: priors.get(q.omega_rad_s, flight.omega_rad_s),
+        q.zeta: priors.get(q.zeta, max(flight.zeta, 1e-3)),
+        q.K_N_per_m1_5: priors.get(q.K_N_per_m1_5, rig.K_N_per_m1_5),
+        q.mu0_s_per_m: priors.get(q.mu0_s_per_m, rig.mu0_s_per_m),
     }
     offset = flight.offset_rad
     level = barrier_level(data.y, data.valid)
     # the swings stop past the barrier by the contact's penetration (sampled maxima, and
     # the contact's damping, keep the measured stop a little short of the Hertz peak)
-    penetration = hertz_penetration_rad(rig, start["omega_rad_s"], start["K_N_per_m1.5"],
+    penetration = hertz_penetration_rad(rig, start[q.omega_rad_s], start[q.K_N_per_m1_5],
                                         impact_speed(data, level))
-    start["theta_b_rad"] = level - offset - 0.8 * penetration
-    start["offset_rad"] = offset
+    start[q.theta_b_rad] = level - offset - 0.8 * penetration
+    start[q.offset_rad] = offset
     causes = ["barrier_offset", "sensor_offset"]
     extra = [
-        FreeParameter("theta_b_rad", start["theta_b_rad"], 1e-6, False, -0.5, 0.5),
-        FreeParameter("offset_rad", offset, 1e-6, False, -1.0, 1.0),
+        FreeParameter(q.theta_b_rad, start[q.theta_b_rad], 1e-6, False, -0.5, 0.5),
+        FreeParameter(q.offset_rad, offset, 1e-6, False, -1.0, 1.0),
     ]
     # a table amplitude no laser measured: the stated one times (1 + eps)
     if not amplitude_known:
         eps = (flight.amplitude_m / drive.stated_amplitude_m - 1.0) if flight.amplitude_m \
             else 0.0
         eps = float(np.clip(eps, *PLAUSIBLE_EPS))
-        start["eps"] = eps
+        start[q.eps] = eps
         causes.append("excitation_amplitude")
-        extra.append(FreeParameter("eps", eps, 1e-5, False, -0.9, 9.0))
+        extra.append(FreeParameter(q.eps, eps, 1e-5, False, -0.9, 9.0))
     # The phase between drive and measured angle is fitted even when the tach or table
     # tell the drive's: a lagging sensor or a shifted tach shows as a phase offset, which
     # would otherwise bend every other parameter.  Its difference from the measured phase
@@ -506,22 +507,22 @@ def identification_result(found: ForcedIdentification, experiment: str) -> Ident
     est = dict(fit.estimates)
     g = data.rig.g_m_s2
     parameters: dict[str, Estimate] = {}
-    omega = est["omega_rad_s"]
+    omega = est[q.omega_rad_s]
     ci = None
     if omega.ci95 is not None and omega.ci95[0] > 0:
         ci = (g / omega.ci95[1] ** 2, g / omega.ci95[0] ** 2)
-    parameters["L_m"] = Estimate(g / omega.value**2, ci)
-    parameters["omega_rad_s"] = omega
-    for key in ("zeta", "K_N_per_m1.5", "mu0_s_per_m", "theta_b_rad", "offset_rad"):
+    parameters[q.L_m] = Estimate(g / omega.value**2, ci)
+    parameters[q.omega_rad_s] = omega
+    for key in (q.zeta, q.K_N_per_m1_5, q.mu0_s_per_m, q.theta_b_rad, q.offset_rad):
         parameters[key] = est[key]
-    K = est["K_N_per_m1.5"]
+    K = est[q.K_N_per_m1_5]
     factor = 3.0 / (4.0 * math.sqrt(data.rig.R_m))
-    parameters["E_Pa"] = Estimate(K.value * factor, (K.ci95[0] * factor, K.ci95[1] * factor)
+    parameters[q.E_Pa] = Estimate(K.value * factor, (K.ci95[0] * factor, K.ci95[1] * factor)
                                   if K.ci95 else None)
-    parameters["R_m"] = Estimate(data.rig.R_m)
+    parameters[q.R_m] = Estimate(data.rig.R_m)
     drive = data.drive
-    if "eps" in est:
-        e = est["eps"]
+    if q.eps in est:
+        e = est[q.eps]
         a = drive.stated_amplitude_m
         parameters["amplitude_m"] = Estimate(a * (1 + e.value), (a * (1 + e.ci95[0]),
                                              a * (1 + e.ci95[1])) if e.ci95 else None)
@@ -553,8 +554,8 @@ def identification_result(found: ForcedIdentification, experiment: str) -> Ident
         "segment_s": float(data.t[found.segments.fit_stop[0]] - data.t[found.segments.start[0]]),
         "continuity_rms": np.sqrt(np.mean(fit.jumps**2, axis=0)).tolist()
         if fit.jumps.size else [],
-        "flight_regression": {"omega_rad_s": found.flight.omega_rad_s, "zeta": found.flight.zeta,
-                              "offset_rad": found.flight.offset_rad,
+        "flight_regression": {q.omega_rad_s: found.flight.omega_rad_s, q.zeta: found.flight.zeta,
+                              q.offset_rad: found.flight.offset_rad,
                               "amplitude_m": found.flight.amplitude_m},
         "iterations": fit.iterations,
         "solver": fit.message,

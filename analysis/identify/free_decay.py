@@ -19,6 +19,7 @@ from collections.abc import Callable, Sequence
 import numpy as np
 from scipy.optimize import least_squares
 
+from analysis import quantities as q
 from analysis.experiments import FREE_DECAY
 from analysis.identify.intervals import Z95, Covariance, sandwich_covariance
 from analysis.identify.preprocess import PreparedSignal, prepare
@@ -99,7 +100,7 @@ def fit_free_decay(
         method = "averaging" if guess.amplitude_rad <= AVERAGING_MAX_AMPLITUDE_RAD else "simulation"
     g = record.gravity_m_s2
     if method == "averaging":
-        names = ("amplitude_rad", "phase_rad", "zeta", "omega_rad_s", "offset_rad")
+        names = ("amplitude_rad", "phase_rad", q.zeta, q.omega_rad_s, q.offset_rad)
         x0 = [guess.amplitude_rad, guess.phase_rad, guess.zeta, guess.omega_rad_s,
               guess.offset_rad]
         lower = [0.0, guess.phase_rad - math.pi, 0.0, 0.5 * guess.omega_rad_s, -math.inf]
@@ -113,7 +114,7 @@ def fit_free_decay(
         # The period from the turning points belongs to their median swing.
         typical = float(np.median(guess.turning_amplitudes_rad))
         omega_small = guess.omega_rad_s * _period_factor(typical)
-        names = ("theta0_rad", "theta_dot0_rad_s", "zeta", "omega_rad_s", "offset_rad")
+        names = (q.theta0_rad, "theta_dot0_rad_s", q.zeta, q.omega_rad_s, q.offset_rad)
         x0 = [theta0_guess, theta_dot0_guess, guess.zeta, omega_small, guess.offset_rad]
         lower = [-math.pi, -math.inf, 0.0, 0.5 * omega_small, -math.inf]
         upper = [math.pi, math.inf, 1.0, 2.0 * omega_small, math.inf]
@@ -126,29 +127,29 @@ def fit_free_decay(
         diff_step=None if method == "averaging" else SIMULATION_DIFF_STEP,
     )
     values = dict(zip(names, x, strict=True))
-    omega, zeta = values["omega_rad_s"], values["zeta"]
-    i_omega, i_zeta = names.index("omega_rad_s"), names.index("zeta")
+    omega, zeta = values[q.omega_rad_s], values[q.zeta]
+    i_omega, i_zeta = names.index(q.omega_rad_s), names.index(q.zeta)
     parameters: dict[str, Estimate] = {}
     grad = np.zeros(len(names))
     grad[i_omega] = -2.0 * g / omega**3
     L = g / omega**2
-    parameters["L_m"] = Estimate(L, cov.derived_ci95(L, grad))
-    parameters["omega_rad_s"] = Estimate(omega, cov.ci95(omega, i_omega))
-    parameters["zeta"] = Estimate(zeta, cov.ci95(zeta, i_zeta))
+    parameters[q.L_m] = Estimate(L, cov.derived_ci95(L, grad))
+    parameters[q.omega_rad_s] = Estimate(omega, cov.ci95(omega, i_omega))
+    parameters[q.zeta] = Estimate(zeta, cov.ci95(zeta, i_zeta))
     if method == "averaging":
         amplitude, phase = values["amplitude_rad"], values["phase_rad"]
         theta0 = amplitude * math.cos(phase)
         grad = np.zeros(len(names))
         grad[0], grad[1] = math.cos(phase), -amplitude * math.sin(phase)
-        parameters["theta0_rad"] = Estimate(theta0, cov.derived_ci95(theta0, grad))
+        parameters[q.theta0_rad] = Estimate(theta0, cov.derived_ci95(theta0, grad))
     else:
-        parameters["theta0_rad"] = Estimate(values["theta0_rad"], cov.ci95(values["theta0_rad"], 0))
-    i_off = names.index("offset_rad")
-    parameters["offset_rad"] = Estimate(values["offset_rad"], cov.ci95(values["offset_rad"], i_off))
+        parameters[q.theta0_rad] = Estimate(values[q.theta0_rad], cov.ci95(values[q.theta0_rad], 0))
+    i_off = names.index(q.offset_rad)
+    parameters[q.offset_rad] = Estimate(values[q.offset_rad], cov.ci95(values[q.offset_rad], i_off))
     warnings = list(_fit_warnings(signal, guess, quality))
     details = {
         "fit_model": "averaging solution" if method == "averaging" else "full simulation",
-        "g_m_s2": g,
+        q.g_m_s2: g,
         "release_trim_s": signal.trim_start_s,
         "rest_trim_s": signal.trim_end_s,
         "nonfinite_samples": signal.n_nonfinite,
@@ -338,10 +339,10 @@ def pool_free_decays(results: Sequence[IdentificationResult]) -> IdentificationR
     """
     if not results:
         raise IdentificationError("no free-decay results to pool")
-    g = float(results[0].details.get("g_m_s2", 9.81))
+    g = float(results[0].details.get(q.g_m_s2, 9.81))
     parameters: dict[str, Estimate] = {}
     consistency: dict[str, float] = {}
-    for key in ("omega_rad_s", "zeta"):
+    for key in (q.omega_rad_s, q.zeta):
         values = np.array([r[key].value for r in results])
         sigmas = np.array([max(r[key].half_width / Z95, 1e-300) for r in results])
         w = 1.0 / sigmas**2
@@ -354,10 +355,10 @@ def pool_free_decays(results: Sequence[IdentificationResult]) -> IdentificationR
             sigma *= max(1.0, birge)
         half = Z95 * sigma
         parameters[key] = Estimate(mean, (mean - half, mean + half))
-    omega = parameters["omega_rad_s"]
+    omega = parameters[q.omega_rad_s]
     L = g / omega.value**2
     half_L = 2.0 * L / omega.value * omega.half_width
-    pooled = {"L_m": Estimate(L, (L - half_L, L + half_L)), **parameters}
+    pooled = {q.L_m: Estimate(L, (L - half_L, L + half_L)), **parameters}
     worst = max(results, key=lambda r: r.quality.rms_residual_rad)
     warnings = [w for r in results for w in r.warnings]
     for key, birge in consistency.items():

@@ -16,6 +16,7 @@ from collections.abc import Mapping
 import numpy as np
 from scipy.optimize import minimize_scalar
 
+from analysis import quantities as q
 from analysis.experiments import FREE_DECAY
 from analysis.identify.free_decay import SIMULATION_DIFF_STEP, _robust_fit, fit_free_decay
 from analysis.identify.preprocess import PreparedSignal, prepare
@@ -25,7 +26,7 @@ from analysis.model import Drive, Model, RigParameters
 from analysis.records import Record
 
 CONTACT_TIME_CONSTANT = 3.2181
-FITTED = ("L_m", "zeta")
+FITTED = (q.L_m, q.zeta)
 FREE_SWING_RATIO = 3.0  # a barrier-free fit this close to the noise means no impacts
 MIN_SHORTFALL = 0.03  # impacts must stop the swing this fraction below its free height
 TROUGH_SPAN, TROUGH_DEGREE = 0.2, 6
@@ -132,7 +133,7 @@ def impact_events(
     restitution = w_out / w_in
     mu0 = float(1.5 * np.sum((1.0 - restitution) * v) / np.sum(v * v))
     return {
-        "omega_rad_s": omega, "offset_rad": offset, "theta_b_rad": theta_b, "K": K,
+        q.omega_rad_s: omega, q.offset_rad: offset, q.theta_b_rad: theta_b, "K": K,
         "mu0": max(mu0, 0.0), "v_in": w_in, "restitution": restitution, "t_c": t_c,
     }
 
@@ -225,49 +226,49 @@ def fit_impact_decay(
     unknown = sorted(set(hold) - set(FITTED))
     if unknown:
         raise ValueError(f"cannot hold {unknown}; holdable: {FITTED}")
-    if "L_m" in hold and not (math.isfinite(hold["L_m"]) and hold["L_m"] > 0):
+    if q.L_m in hold and not (math.isfinite(hold[q.L_m]) and hold[q.L_m] > 0):
         raise ValueError(f"held L_m = {hold['L_m']!r}: must be a positive length in m")
-    if "zeta" in hold and not (math.isfinite(hold["zeta"]) and 0 <= hold["zeta"] < 1):
+    if q.zeta in hold and not (math.isfinite(hold[q.zeta]) and 0 <= hold[q.zeta] < 1):
         raise ValueError(f"held zeta = {hold['zeta']!r}: must lie in [0, 1)")
     rig0 = record.rig_parameters()
     g = record.gravity_m_s2
     signal = prepare(record.time_s, record.angle_rad, detect_release=detect_release)
     _refuse_free_decay(record, signal)
-    omega_hint = math.sqrt(g / hold["L_m"]) if "L_m" in hold else None
+    omega_hint = math.sqrt(g / hold[q.L_m]) if q.L_m in hold else None
     events = impact_events(signal, rig0.with_values(g_m_s2=g), omega_hint)
-    omega0 = float(events["omega_rad_s"])
-    zeta0 = hold.get("zeta", 0.005)
-    theta_start = float(signal.angle_rad[signal.valid][0]) - events["offset_rad"]
+    omega0 = float(events[q.omega_rad_s])
+    zeta0 = hold.get(q.zeta, 0.005)
+    theta_start = float(signal.angle_rad[signal.valid][0]) - events[q.offset_rad]
     dt = float(signal.time_s[1] - signal.time_s[0])
     theta_dot_start = float(
         np.polyfit(signal.time_s[:5], np.nan_to_num(signal.angle_rad[:5], nan=theta_start), 1)[0]
     )
-    names = ["theta0_rad", "theta_dot0_rad_s", "log_K", "mu0_s_per_m", "theta_b_rad",
-             "offset_rad"]
+    names = [q.theta0_rad, "theta_dot0_rad_s", "log_K", q.mu0_s_per_m, q.theta_b_rad,
+             q.offset_rad]
     x0 = [theta_start, theta_dot_start, math.log(events["K"]), events["mu0"],
-          events["theta_b_rad"], events["offset_rad"]]
+          events[q.theta_b_rad], events[q.offset_rad]]
     lower = [-math.pi / 2, -math.inf, math.log(events["K"]) - 5, 0.0, -1.0, -math.inf]
     upper = [math.pi / 2, math.inf, math.log(events["K"]) + 5, 50.0, 1.0, math.inf]
-    if "L_m" not in hold:
-        names.append("omega_rad_s")
+    if q.L_m not in hold:
+        names.append(q.omega_rad_s)
         x0.append(omega0)
         lower.append(0.7 * omega0)
         upper.append(1.3 * omega0)
-    if "zeta" not in hold:
-        names.append("zeta")
+    if q.zeta not in hold:
+        names.append(q.zeta)
         x0.append(zeta0)
         lower.append(0.0)
         upper.append(0.5)
 
     def curve(t: np.ndarray, x: np.ndarray) -> np.ndarray:
         values = dict(zip(names, x, strict=True))
-        omega = values.get("omega_rad_s", omega0)
+        omega = values.get(q.omega_rad_s, omega0)
         rig = rig0.with_values(
-            L_m=g / omega**2, g_m_s2=g, zeta=values.get("zeta", zeta0),
-            mu0_s_per_m=values["mu0_s_per_m"], theta_b_rad=values["theta_b_rad"],
+            L_m=g / omega**2, g_m_s2=g, zeta=values.get(q.zeta, zeta0),
+            mu0_s_per_m=values[q.mu0_s_per_m], theta_b_rad=values[q.theta_b_rad],
         ).with_stiffness(math.exp(values["log_K"]))
-        return _simulate(rig, values["theta0_rad"], values["theta_dot0_rad_s"], dt, t.size) \
-            + values["offset_rad"]
+        return _simulate(rig, values[q.theta0_rad], values["theta_dot0_rad_s"], dt, t.size) \
+            + values[q.offset_rad]
 
     x, cov, quality, excluded = _robust_fit(
         signal, curve, x0, lower, upper, 2.0 * math.pi / omega0, diff_step=SIMULATION_DIFF_STEP
@@ -278,31 +279,31 @@ def fit_impact_decay(
     lo, hi = cov.ci95(values["log_K"], i_k)
     R = rig0.R_m
     parameters = {
-        "K_N_per_m1.5": Estimate(K, (math.exp(lo), math.exp(hi))),
-        "E_Pa": Estimate(*_e_from_k(K, math.exp(lo), math.exp(hi), R)),
-        "R_m": Estimate(R),
-        "mu0_s_per_m": Estimate(values["mu0_s_per_m"], cov.ci95(values["mu0_s_per_m"],
-                                                                names.index("mu0_s_per_m"))),
-        "theta_b_rad": Estimate(values["theta_b_rad"], cov.ci95(values["theta_b_rad"],
-                                                                names.index("theta_b_rad"))),
-        "theta0_rad": Estimate(values["theta0_rad"], cov.ci95(values["theta0_rad"], 0)),
-        "offset_rad": Estimate(values["offset_rad"], cov.ci95(values["offset_rad"],
-                                                              names.index("offset_rad"))),
+        q.K_N_per_m1_5: Estimate(K, (math.exp(lo), math.exp(hi))),
+        q.E_Pa: Estimate(*_e_from_k(K, math.exp(lo), math.exp(hi), R)),
+        q.R_m: Estimate(R),
+        q.mu0_s_per_m: Estimate(values[q.mu0_s_per_m], cov.ci95(values[q.mu0_s_per_m],
+                                                                names.index(q.mu0_s_per_m))),
+        q.theta_b_rad: Estimate(values[q.theta_b_rad], cov.ci95(values[q.theta_b_rad],
+                                                                names.index(q.theta_b_rad))),
+        q.theta0_rad: Estimate(values[q.theta0_rad], cov.ci95(values[q.theta0_rad], 0)),
+        q.offset_rad: Estimate(values[q.offset_rad], cov.ci95(values[q.offset_rad],
+                                                              names.index(q.offset_rad))),
     }
-    if "omega_rad_s" in values:
-        i = names.index("omega_rad_s")
-        omega = values["omega_rad_s"]
+    if q.omega_rad_s in values:
+        i = names.index(q.omega_rad_s)
+        omega = values[q.omega_rad_s]
         grad = np.zeros(len(names))
         grad[i] = -2.0 * g / omega**3
-        parameters["L_m"] = Estimate(g / omega**2, cov.derived_ci95(g / omega**2, grad))
-        parameters["omega_rad_s"] = Estimate(omega, cov.ci95(omega, i))
+        parameters[q.L_m] = Estimate(g / omega**2, cov.derived_ci95(g / omega**2, grad))
+        parameters[q.omega_rad_s] = Estimate(omega, cov.ci95(omega, i))
     else:
-        parameters["L_m"] = Estimate(hold["L_m"])
-    if "zeta" in values:
-        parameters["zeta"] = Estimate(values["zeta"], cov.ci95(values["zeta"],
-                                                               names.index("zeta")))
+        parameters[q.L_m] = Estimate(hold[q.L_m])
+    if q.zeta in values:
+        parameters[q.zeta] = Estimate(values[q.zeta], cov.ci95(values[q.zeta],
+                                                               names.index(q.zeta)))
     else:
-        parameters["zeta"] = Estimate(hold["zeta"])
+        parameters[q.zeta] = Estimate(hold[q.zeta])
     warnings = []
     if signal.n_nonfinite or signal.n_spikes:
         warnings.append(
@@ -321,11 +322,11 @@ def fit_impact_decay(
         "outlier_samples": excluded,
         "impacts_used_for_first_estimate": int(events["v_in"].size),
         "first_estimate": {
-            "K_N_per_m1.5": float(events["K"]), "mu0_s_per_m": float(events["mu0"]),
-            "theta_b_rad": float(events["theta_b_rad"]),
+            q.K_N_per_m1_5: float(events["K"]), q.mu0_s_per_m: float(events["mu0"]),
+            q.theta_b_rad: float(events[q.theta_b_rad]),
         },
         "fitted": {k: float(v) for k, v in values.items()},
-        "m_kg": rig0.m_kg, "l_m": rig0.l_m,
+        q.m_kg: rig0.m_kg, q.l_m: rig0.l_m,
     }
     return IdentificationResult(
         experiment=record.experiment, method="impact decay, full simulation",
