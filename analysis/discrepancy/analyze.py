@@ -23,6 +23,7 @@ from typing import Any
 
 import numpy as np
 
+from analysis import quantities as q
 from analysis.discrepancy.candidates import candidates_for, excluded_for
 from analysis.discrepancy.constancy import constancy_finding
 from analysis.discrepancy.fitting import FitData, FitResult, fit, predict
@@ -105,7 +106,7 @@ def decay_implausibility(model: ModelSpec, values: Mapping[str, float],
     viscous damping (zeta below ``policy.viscous_floor``).  A contact damping on delta^2
     was named dry friction, whose fit held zeta at 0, with nothing flagged."""
     reasons = [implausibility(model, values)]
-    if model.causes and values.get("zeta", math.inf) < policy.viscous_floor:
+    if model.causes and values.get(q.zeta, math.inf) < policy.viscous_floor:
         reasons.append(f"zeta = {values['zeta']:.3g}: the causes take all of the rig's "
                        f"viscous damping (below {policy.viscous_floor:g}), which air alone "
                        "gives a real pendulum")
@@ -139,17 +140,17 @@ def baseline_start(
     notes: list[str] = []
     if not data.barrier:
         result = fit_free_decay(record)
-        hints = {"offset_rad": result["offset_rad"].value}
+        hints = {q.offset_rad: result[q.offset_rad].value}
         fitted = result.details["fitted"]
-        omega, zeta = result["omega_rad_s"].value, result["zeta"].value
+        omega, zeta = result[q.omega_rad_s].value, result[q.zeta].value
         if "theta_dot0_rad_s" in fitted:
             theta_dot0 = float(fitted["theta_dot0_rad_s"])
         else:
             a, ph = fitted["amplitude_rad"], fitted["phase_rad"]
             theta_dot0 = -a * omega * (math.sin(ph) + zeta * math.cos(ph))
         return {
-            "theta0_rad": result["theta0_rad"].value, "theta_dot0_rad_s": theta_dot0,
-            "omega_rad_s": omega, "zeta": zeta,
+            q.theta0_rad: result[q.theta0_rad].value, "theta_dot0_rad_s": theta_dot0,
+            q.omega_rad_s: omega, q.zeta: zeta,
         }, hints, notes
     if data.barrier:
         try:
@@ -159,16 +160,16 @@ def baseline_start(
             # impact-by-impact first estimate still gives a start
             notes.append(f"identification failed ({error}); started from the impact events")
             return (*_impact_events_start(record, data), notes)
-        hints = {"offset_rad": result["offset_rad"].value,
-                 "theta_b_rad": result["theta_b_rad"].value}
+        hints = {q.offset_rad: result[q.offset_rad].value,
+                 q.theta_b_rad: result[q.theta_b_rad].value}
         fitted = result.details["fitted"]
-        omega = data.rig.g_m_s2 / result["L_m"].value
+        omega = data.rig.g_m_s2 / result[q.L_m].value
         return {
-            "theta0_rad": float(fitted["theta0_rad"]),
+            q.theta0_rad: float(fitted[q.theta0_rad]),
             "theta_dot0_rad_s": float(fitted["theta_dot0_rad_s"]),
-            "omega_rad_s": math.sqrt(omega), "zeta": result["zeta"].value,
-            "K_N_per_m1.5": result["K_N_per_m1.5"].value,
-            "mu0_s_per_m": max(result["mu0_s_per_m"].value, 1e-3),
+            q.omega_rad_s: math.sqrt(omega), q.zeta: result[q.zeta].value,
+            q.K_N_per_m1_5: result[q.K_N_per_m1_5].value,
+            q.mu0_s_per_m: max(result[q.mu0_s_per_m].value, 1e-3),
         }, hints, notes
     raise AnalysisError(f"{record.experiment}: not a decay record")
 
@@ -181,14 +182,14 @@ def _impact_events_start(
     rig = data.rig
     events = impact_events(signal, rig)
     good = np.flatnonzero(signal.valid[:5])
-    y = signal.angle_rad - events["offset_rad"]
+    y = signal.angle_rad - events[q.offset_rad]
     theta_dot0 = float(np.polyfit(signal.time_s[good], y[good], 1)[0]) if good.size > 1 else 0.0
     start = {
-        "theta0_rad": float(y[good[0]]), "theta_dot0_rad_s": theta_dot0,
-        "omega_rad_s": float(events["omega_rad_s"]), "zeta": 0.005,
-        "K_N_per_m1.5": float(events["K"]), "mu0_s_per_m": max(float(events["mu0"]), 1e-3),
+        q.theta0_rad: float(y[good[0]]), "theta_dot0_rad_s": theta_dot0,
+        q.omega_rad_s: float(events[q.omega_rad_s]), q.zeta: 0.005,
+        q.K_N_per_m1_5: float(events["K"]), q.mu0_s_per_m: max(float(events["mu0"]), 1e-3),
     }
-    hints = {"offset_rad": float(events["offset_rad"]), "theta_b_rad": float(events["theta_b_rad"])}
+    hints = {q.offset_rad: float(events[q.offset_rad]), q.theta_b_rad: float(events[q.theta_b_rad])}
     return start, hints
 
 
@@ -199,19 +200,19 @@ def priors_from_decays(
     priors: dict[str, float] = {}
     if free_decay is not None:
         result = fit_free_decay(free_decay)
-        priors.update(omega_rad_s=result["omega_rad_s"].value, zeta=result["zeta"].value)
+        priors.update(omega_rad_s=result[q.omega_rad_s].value, zeta=result[q.zeta].value)
     if impact_decay is not None:
-        hold = {"L_m": free_decay and result["L_m"].value, "zeta": priors.get("zeta")}
+        hold = {q.L_m: free_decay and result[q.L_m].value, q.zeta: priors.get(q.zeta)}
         result = fit_impact_decay(
             impact_decay, hold={k: v for k, v in hold.items() if v}
         )
-        priors["K_N_per_m1.5"] = result["K_N_per_m1.5"].value
-        priors["mu0_s_per_m"] = result["mu0_s_per_m"].value
-        priors["theta_b_rad"] = result["theta_b_rad"].value
-        priors["offset_rad"] = result["offset_rad"].value
-        if "omega_rad_s" in result.parameters:
-            priors.setdefault("omega_rad_s", result["omega_rad_s"].value)
-        priors.setdefault("zeta", result["zeta"].value)
+        priors[q.K_N_per_m1_5] = result[q.K_N_per_m1_5].value
+        priors[q.mu0_s_per_m] = result[q.mu0_s_per_m].value
+        priors[q.theta_b_rad] = result[q.theta_b_rad].value
+        priors[q.offset_rad] = result[q.offset_rad].value
+        if q.omega_rad_s in result.parameters:
+            priors.setdefault(q.omega_rad_s, result[q.omega_rad_s].value)
+        priors.setdefault(q.zeta, result[q.zeta].value)
     return priors
 
 
@@ -537,8 +538,8 @@ def compare_restitution(
     """The paper's case: instantaneous impacts with constant e against Hunt-Crossley contact."""
     v = baseline.values
     speeds = np.abs(sim.contacts.theta_dot_in)
-    speed = float(np.median(speeds)) if speeds.size else abs(v["omega_rad_s"] * v["theta0_rad"])
-    e0 = restitution_from_hunt_crossley(v["mu0_s_per_m"], data.rig.l_m, speed)
+    speed = float(np.median(speeds)) if speeds.size else abs(v[q.omega_rad_s] * v[q.theta0_rad])
+    e0 = restitution_from_hunt_crossley(v[q.mu0_s_per_m], data.rig.l_m, speed)
     if sim.contacts.count >= 2:
         ratios = np.abs(sim.contacts.theta_dot_out / sim.contacts.theta_dot_in)
         e0 = float(np.clip(np.median(ratios), 0.05, 0.99))

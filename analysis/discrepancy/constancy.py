@@ -32,6 +32,7 @@ from typing import Any
 import numpy as np
 from scipy import stats
 
+from analysis import quantities as q
 from analysis.discrepancy.fitting import FitData, FitResult, fit, free_parameters, predict
 from analysis.discrepancy.residual_reading import Finding
 from analysis.dynamics.lines import FALSE_ALARM
@@ -43,7 +44,7 @@ from analysis.identify.intervals import Z95
 # gave z = -2.1 there, -9.5 at 0.45.
 SPLIT_SHARE = 0.45
 MIN_SWINGS = 2  # each part lasts at least this many of the model's periods
-STATES = ("theta0_rad", "theta_dot0_rad_s")
+STATES = (q.theta0_rad, "theta_dot0_rad_s")
 
 
 def rules_json() -> dict[str, dict[str, Any]]:
@@ -77,14 +78,14 @@ def constancy_finding(data: FitData, final: FitResult, scale: RecordScale) -> Fi
         return None
     ahead = np.maximum.accumulate(np.abs(theta)[::-1])[::-1]  # the true angle: 0 at rest
     split = int(np.argmax(ahead < SPLIT_SHARE * ahead[0]))
-    period = 2.0 * math.pi / final.values["omega_rad_s"]
+    period = 2.0 * math.pi / final.values[q.omega_rad_s]
     if split == 0 or min(data.t[split], data.t[-1] - data.t[split]) < MIN_SWINGS * period:
         return None
     early_data = replace(data, t=data.t[:split], y=data.y[:split], valid=data.valid[:split])
     late_data = replace(data, t=data.t[split:] - data.t[split], y=data.y[split:],
                        valid=data.valid[split:])
     early = fit(early_data, final.model, final.values, scale)
-    late = fit(late_data, final.model, {**final.values, "theta0_rad": float(sim.theta[split]),
+    late = fit(late_data, final.model, {**final.values, q.theta0_rad: float(sim.theta[split]),
                                         "theta_dot0_rad_s": float(sim.theta_dot[split])},
                scale)
     compared = _compared(data, final, scale, early, late)

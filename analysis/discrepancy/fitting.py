@@ -18,6 +18,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from scipy.optimize import least_squares
 
+from analysis import quantities as q
 from analysis.discrepancy.candidates import plan_for
 from analysis.extensions import ModelSpec, ParameterPlan, RecordScale, cause
 from analysis.identify.intervals import Z95, sandwich_covariance
@@ -32,16 +33,16 @@ MAX_ITERATIONS = 25
 START_INSIDE = 10.0  # steps between a start value and a bound
 
 # the baseline parameters a decay fit adjusts; the contact's only with the barrier in
-SWING_PARAMETERS = ("theta0_rad", "theta_dot0_rad_s", "omega_rad_s", "zeta")
-CONTACT_PARAMETERS = ("K_N_per_m1.5", "mu0_s_per_m")
-POSITIVE = {"omega_rad_s", "K_N_per_m1.5"}  # fitted on a log scale
+SWING_PARAMETERS = (q.theta0_rad, "theta_dot0_rad_s", q.omega_rad_s, q.zeta)
+CONTACT_PARAMETERS = (q.K_N_per_m1_5, q.mu0_s_per_m)
+POSITIVE = {q.omega_rad_s, q.K_N_per_m1_5}  # fitted on a log scale
 BOUNDS = {
-    "theta0_rad": (-math.pi, math.pi),  # large free swings start beyond the horizontal
+    q.theta0_rad: (-math.pi, math.pi),  # large free swings start beyond the horizontal
     "theta_dot0_rad_s": (-math.inf, math.inf),
-    "omega_rad_s": (0.0, math.inf),
-    "zeta": (0.0, 0.5),
-    "K_N_per_m1.5": (1e-3, 1e14),
-    "mu0_s_per_m": (0.0, 50.0),
+    q.omega_rad_s: (0.0, math.inf),
+    q.zeta: (0.0, 0.5),
+    q.K_N_per_m1_5: (1e-3, 1e14),
+    q.mu0_s_per_m: (0.0, 50.0),
 }
 
 
@@ -92,7 +93,7 @@ def predict(
     p = packed_from_values(data.rig, data.drive, data.barrier, values, model.causes,
                            data.phase0_rad)
     sim = simulate_packed(
-        p, values["theta0_rad"], values["theta_dot0_rad_s"],
+        p, values[q.theta0_rad], values["theta_dot0_rad_s"],
         settings=SimulationSettings(
             duration_s=n * data.dt, fs_hz=1.0 / data.dt, poincare_phase=None, rtol=RTOL, atol=ATOL,
         ),
@@ -101,7 +102,7 @@ def predict(
     if theta.size < n:
         # The trial left the experiment's regime: hold the last angle, so the optimiser sees
         # a large residual and steps back instead of failing.
-        last = theta[-1] if theta.size else values["theta0_rad"]
+        last = theta[-1] if theta.size else values[q.theta0_rad]
         theta = np.concatenate([theta, np.full(n - theta.size, last)])
     return measured_angle(model.causes, values, np.arange(n) * data.dt, theta), sim
 
@@ -131,12 +132,12 @@ def free_parameters(
 
 def _baseline_step(name: str, s: RecordScale) -> float:
     steps = {
-        "theta0_rad": 1e-6 * max(s.amplitude_rad, 1e-2),
+        q.theta0_rad: 1e-6 * max(s.amplitude_rad, 1e-2),
         "theta_dot0_rad_s": 1e-6 * s.omega_rad_s * max(s.amplitude_rad, 1e-2),
-        "omega_rad_s": 1e-7,  # log scale: relative step
-        "zeta": 1e-4 * max(s.zeta, 1e-4),
-        "K_N_per_m1.5": 1e-4,  # log scale
-        "mu0_s_per_m": 1e-4 * max(s.mu0_s_per_m, 1e-2),
+        q.omega_rad_s: 1e-7,  # log scale: relative step
+        q.zeta: 1e-4 * max(s.zeta, 1e-4),
+        q.K_N_per_m1_5: 1e-4,  # log scale
+        q.mu0_s_per_m: 1e-4 * max(s.mu0_s_per_m, 1e-2),
     }
     return steps[name]
 

@@ -12,6 +12,7 @@ from typing import Any, Generic, TypeVar
 
 import numpy as np
 
+from analysis import quantities as q
 from analysis.discrepancy.candidates import plan_for
 from analysis.discrepancy.fitting import FitData, FitResult
 from analysis.experiments import FORCED
@@ -154,9 +155,9 @@ def as_fit_result(fit: ShootingFit, model: ModelSpec, contacts: int = 0) -> FitR
 def record_scale(data: ForcedData, values: Mapping[str, float]) -> RecordScale:
     """Magnitudes that size the candidates' steps and start values: the penetration of a
     Hertz impact at the speed the record's highest angle implies."""
-    omega = values["omega_rad_s"]
+    omega = values[q.omega_rad_s]
     speed = impact_speed(data, float(np.nanmax(data.y)))
-    K = values.get("K_N_per_m1.5", data.rig.K_N_per_m1_5)
+    K = values.get(q.K_N_per_m1_5, data.rig.K_N_per_m1_5)
     return RecordScale.of(data.rig, data.t, data.y, values,
                           data.rig.l_m * hertz_penetration_rad(data.rig, omega, K, speed))
 
@@ -166,19 +167,19 @@ def cause_hints(ident: ForcedIdentification) -> dict[str, float]:
     identified barrier and sensor zero, the table channel's amplitude and harmonic (or the
     identified amplitude when there is no table channel)."""
     values = ident.values
-    hints = {"theta_b_rad": values["theta_b_rad"], "offset_rad": values["offset_rad"]}
+    hints = {q.theta_b_rad: values[q.theta_b_rad], q.offset_rad: values[q.offset_rad]}
     drive = ident.data.drive
     if drive.phase_known:
         # a sensor lagging by tau reads the response the drive caused Omega tau earlier
         delay = -math.remainder(values["drive_phase_rad"] - drive.phase0_rad, 2 * math.pi) \
             / drive.omega_rad_s
         if delay > 0:
-            hints["tau_s"] = delay
+            hints[q.tau_s] = delay
     if drive.table is not None:
         hints |= {name: size.value for name, size in drive.measured_sizes().items()}
-        hints["phi2_rad"] = drive.table.phi2_rad.value
-    elif "eps" in values:
-        hints["eps"] = values["eps"]
+        hints[q.phi2_rad] = drive.table.phi2_rad.value
+    elif q.eps in values:
+        hints[q.eps] = values[q.eps]
     return hints
 
 
@@ -190,12 +191,12 @@ def level_hints(model: ModelSpec, hints: Mapping[str, float]) -> dict[str, float
     and a zero -0.175 rad for a true barrier -0.025 and zero 0 under a sensor cubic)."""
     out = dict(hints)
     present = set(model.causes)
-    if "theta_b_rad" in hints and "offset_rad" in hints:
-        level = hints["theta_b_rad"] + hints["offset_rad"]
+    if q.theta_b_rad in hints and q.offset_rad in hints:
+        level = hints[q.theta_b_rad] + hints[q.offset_rad]
         if "barrier_offset" in present and "sensor_offset" not in present:
-            out["theta_b_rad"] = level
+            out[q.theta_b_rad] = level
         elif "sensor_offset" in present and "barrier_offset" not in present:
-            out["offset_rad"] = level
+            out[q.offset_rad] = level
     return out
 
 

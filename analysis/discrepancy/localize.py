@@ -13,6 +13,7 @@ from typing import Any
 
 import numpy as np
 
+from analysis import quantities as q
 from analysis.discrepancy.fitting import FitData, FitResult
 from analysis.simulate import SimulationResult
 
@@ -147,7 +148,7 @@ def _residual_features(
     filled = np.where(valid, r, 0.0)
     spectrum = np.abs(np.fft.rfft(filled * np.hanning(filled.size)))
     freqs = np.fft.rfftfreq(filled.size, data.dt)
-    omega_hz = baseline.values["omega_rad_s"] / (2 * math.pi)
+    omega_hz = baseline.values[q.omega_rad_s] / (2 * math.pi)
     if spectrum.size > 2:
         k = int(np.argmax(spectrum[1:])) + 1
         f["residual_peak_hz"] = float(freqs[k])

@@ -9,6 +9,7 @@ from typing import Any
 
 import numpy as np
 
+from analysis import quantities as q
 from analysis.discrepancy.fitting import FitData, FitResult, predict
 from analysis.discrepancy.localize import Localization
 from analysis.discrepancy.policy import DEFAULT_POLICY, SelectionPolicy
@@ -310,20 +311,20 @@ def report_parameters(result: FitResult, rig) -> dict[str, Any]:
     out: dict[str, Any] = {}
     g = rig.g_m_s2
     est = result.estimates
-    if "omega_rad_s" in est:
-        omega = est["omega_rad_s"]
+    if q.omega_rad_s in est:
+        omega = est[q.omega_rad_s]
         ci = None
         if omega.ci95 is not None and omega.ci95[0] > 0:
             ci = (g / omega.ci95[1] ** 2, g / omega.ci95[0] ** 2)
-        out["L_m"] = Estimate(g / omega.value**2, ci).as_json()
+        out[q.L_m] = Estimate(g / omega.value**2, ci).as_json()
     for key, value in est.items():
         out[key] = value.as_json()
-    if "K_N_per_m1.5" in est:
-        K = est["K_N_per_m1.5"]
+    if q.K_N_per_m1_5 in est:
+        K = est[q.K_N_per_m1_5]
         factor = 3.0 / (4.0 * math.sqrt(rig.R_m))
         ci = (K.ci95[0] * factor, K.ci95[1] * factor) if K.ci95 else None
-        out["E_Pa"] = Estimate(K.value * factor, ci).as_json()
-        out["R_m"] = {"value": rig.R_m}
-    if ("barrier_offset" not in result.model.causes and "K_N_per_m1.5" in est) or "K_n" in est:
-        out.setdefault("theta_b_rad", {"value": 0.0, "held": True})
+        out[q.E_Pa] = Estimate(K.value * factor, ci).as_json()
+        out[q.R_m] = {"value": rig.R_m}
+    if ("barrier_offset" not in result.model.causes and q.K_N_per_m1_5 in est) or q.K_n in est:
+        out.setdefault(q.theta_b_rad, {"value": 0.0, "held": True})
     return out
