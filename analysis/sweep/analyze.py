@@ -27,6 +27,7 @@ from typing import Any
 
 import numpy as np
 
+from analysis import quantities as q
 from analysis.discrepancy.policy import DEFAULT_POLICY, SelectionPolicy
 from analysis.discrepancy.residual_reading import Finding
 from analysis.model import Drive, Model
@@ -258,7 +259,7 @@ def sweep_json(analysis: SweepAnalysis) -> dict[str, Any]:
             "explained_rms_over_noise": final_rms / d.noise_rad,
         })
     fit = ident.fit
-    omega = fit.estimates["omega_rad_s"]
+    omega = fit.estimates[q.omega_rad_s]
     g = data.steps[0].rig.g_m_s2
     length = {"value": g / omega.value ** 2}
     if omega.ci95 is not None and omega.ci95[0] > 0:
@@ -268,7 +269,7 @@ def sweep_json(analysis: SweepAnalysis) -> dict[str, Any]:
         "parameter": sweep.parameter,
         "steps": steps,
         "set_aside": [{"step": s.number, "reason": s.reason} for s in sweep.set_aside],
-        "shared": {"L_m": length, **shared_json(fit)},
+        "shared": {q.L_m: length, **shared_json(fit)},
         "model": list(ident.model.causes),
         "cause": (analysis.causes.named or ["none"])[0],
         "causes": causes_json(analysis.causes),

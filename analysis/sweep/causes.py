@@ -42,6 +42,7 @@ from typing import Any
 import numpy as np
 from scipy import stats
 
+from analysis import quantities as q
 from analysis.discrepancy.candidates import candidates_for
 from analysis.discrepancy.forced_judges import table_gaps
 from analysis.discrepancy.forced_models import (
@@ -120,7 +121,7 @@ def fit_on(
         free = _per_step(data, free, per_step)
     values = {p.name: p.start for p in free}
     dt = data.steps[0].dt
-    fallback = joined_smoothed_states(data, layout, values.get("offset_rad", 0.0))
+    fallback = joined_smoothed_states(data, layout, values.get(q.offset_rad, 0.0))
     rates = joined_inherited_states(layout, origin_layout, origin.states, fallback)
     measured = origin.prediction[layout.segments.start]
     measured = np.where(np.isfinite(measured), measured, fallback[:, 0])
@@ -202,7 +203,7 @@ class SweepSteps:
         record's even where the current model's is not), the current causes' own where
         they are fitted, the new cause's from the hints."""
         ident = self.ident.fit.values
-        rig = {k: ident[k] for k in ("omega_rad_s", "zeta", "K_N_per_m1.5", "mu0_s_per_m")}
+        rig = {k: ident[k] for k in (q.omega_rad_s, q.zeta, q.K_N_per_m1_5, q.mu0_s_per_m)}
         own = {k: v for k, v in current.full.values.items() if k not in rig}
         return {**own, **rig}
 
@@ -327,7 +328,7 @@ def select_causes(
     data = ident.data
     lay = sweep_layouts(data)
     values = ident.fit.values
-    hints = {name: values[name] for name in ("theta_b_rad", "offset_rad", "eps")
+    hints = {name: values[name] for name in (q.theta_b_rad, q.offset_rad, q.eps)
              if name in values}
     say("fitting the baseline over every step")
     base_full = fit_on(data, BASELINE, values, hints, lay.full, ident.fit, ident.segments,

@@ -32,6 +32,7 @@ from typing import Any
 
 import numpy as np
 
+from analysis import quantities as q
 from analysis.discrepancy.forced_models import SideBySide, candidate_parameters, record_scale
 from analysis.extensions import ModelSpec
 from analysis.identify.forced import (
@@ -310,7 +311,7 @@ def identify_sweep(
         values = found.result.short_fit.values
         say(f"step {k + 1} of {n} (step {data.numbers[k]}) identified alone: "
             + ", ".join(f"{name} {values[name]:.4g}" for name in
-                        ("omega_rad_s", "zeta", "K_N_per_m1.5", "theta_b_rad")))
+                        (q.omega_rad_s, q.zeta, q.K_N_per_m1_5, q.theta_b_rad)))
     causes = alone[0].model.causes  # the identification's: barrier, sensor zero, [amplitude]
     model = SweepModel(data, causes)
     start: dict[str, float] = {}
@@ -369,7 +370,7 @@ def fit_sweep_over_record(
     say = progress or (lambda message: None)
     data = model.data
     values = {**fixed, **{p.name: p.start for p in free}}
-    offset = values.get("offset_rad", 0.0)
+    offset = values.get(q.offset_rad, 0.0)
     hs = sweep_state_steps(data)
     full = joined(data, [record_segments(d) for d in data.steps])
     smooth = joined_smoothed_states(data, full, offset)
