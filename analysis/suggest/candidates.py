@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 
+from analysis import quantities as q
 from analysis.extensions import NONE, cause
 from analysis.identify.forced import BASELINE_PLANS
 from analysis.identify.intervals import Z95
@@ -120,10 +121,10 @@ def candidate(entry: Mapping[str, Any], source: str) -> Candidate:
             low, high = float(ci[0]), float(ci[1])
             if math.isfinite(low) and math.isfinite(high) and low <= values[key] <= high:
                 intervals[key] = (low, high)
-    for key in ("omega_rad_s", "zeta"):
+    for key in (q.omega_rad_s, q.zeta):
         if key not in values:
             raise ReportError(f"{source}: ranking entry {name!r}: its model has no {key}")
-    barrier = parameters.get("theta_b_rad") or {}
+    barrier = parameters.get(q.theta_b_rad) or {}
     theta_b = 0.0 if "barrier_offset" in causes else float(barrier.get("value") or 0.0)
     return Candidate(str(name), causes, values, intervals, theta_b)
 
