@@ -14,6 +14,8 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from types import MappingProxyType
 
+from analysis import quantities as q
+
 BARRIER = "barrier"  # the pendulum strikes the barrier
 DRIVE = "drive"  # the table moves
 HARMONICS = "harmonics"  # the swing is more than one damped sinusoid (impacts, a drive)
@@ -60,7 +62,7 @@ FREE_DECAY = ExperimentKind(
     name="free_decay",
     label="free decay",
     provides=frozenset(),
-    determines=("L_m", "omega_rad_s", "zeta", "theta0_rad", "offset_rad"),
+    determines=(q.L_m, q.omega_rad_s, q.zeta, q.theta0_rad, q.offset_rad),
     comparison="point by point: fitted on the first part, predicting the rest",
     lacks={
         BARRIER: "a free decay has no barrier, so a contact law or barrier position cannot show",
@@ -74,8 +76,8 @@ IMPACT_DECAY = ExperimentKind(
     name="impact_decay",
     label="impact decay",
     provides=frozenset({BARRIER, HARMONICS}),
-    determines=("L_m", "omega_rad_s", "zeta", "K_N_per_m1.5", "E_Pa", "mu0_s_per_m",
-                "theta_b_rad", "theta0_rad", "offset_rad"),
+    determines=(q.L_m, q.omega_rad_s, q.zeta, q.K_N_per_m1_5, q.E_Pa, q.mu0_s_per_m,
+                q.theta_b_rad, q.theta0_rad, q.offset_rad),
     comparison="point by point: fitted on the first part, predicting the rest",
     lacks={DRIVE: "the table does not move in a decay, so the excitation cannot show"},
 )
@@ -83,8 +85,8 @@ FORCED = ExperimentKind(
     name="forced",
     label="forced response",
     provides=frozenset({BARRIER, DRIVE, HARMONICS}),
-    determines=("L_m", "omega_rad_s", "zeta", "K_N_per_m1.5", "E_Pa", "mu0_s_per_m",
-                "theta_b_rad", "offset_rad", "amplitude_m", "frequency_hz"),
+    determines=(q.L_m, q.omega_rad_s, q.zeta, q.K_N_per_m1_5, q.E_Pa, q.mu0_s_per_m,
+                q.theta_b_rad, q.offset_rad, "amplitude_m", "frequency_hz"),
     comparison="multiple shooting over the record; forecasts of the stretches after fitted "
     "ones (and, when chaotic, the invariant statistics of the model's own long run)",
 )

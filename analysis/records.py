@@ -14,6 +14,7 @@ from typing import Any
 
 import numpy as np
 
+from analysis import quantities as q
 from analysis.experiments import NAMES, ExperimentKind, experiment_kind
 from analysis.model import G_STANDARD, Drive, RigParameters
 from recording.errors import RecordFormatError
@@ -82,7 +83,7 @@ class Record:
 
     def rig_parameters(self, **values: float) -> RigParameters:
         """The model's rig constants: the paper's defaults, overridden by what the record knows."""
-        known = {"m_kg": "m_kg", "l_m": "l_m", "R_m": "R_m", "g": "g_m_s2"}
+        known = {q.m_kg: q.m_kg, q.l_m: q.l_m, q.R_m: q.R_m, "g": q.g_m_s2}
         given = {known[k]: float(v) for k, v in self.rig.items() if k in known and v}
         given.update(values)
         return RigParameters().with_values(**given)
