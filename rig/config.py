@@ -16,6 +16,7 @@ from pathlib import Path
 from types import MappingProxyType
 from typing import Any
 
+from analysis import quantities as q
 from drivers.limits import LimitsConfigError, ShakerLimits
 from drivers.sensors import LaserCalibration, PotentiometerCalibration, TachometerCalibration
 
@@ -48,11 +49,11 @@ class RigConstants:
     def as_exchange(self) -> dict[str, float]:
         """The constants under the exchange-format keys (docs/MODEL.md section 5) plus L_m."""
         return {
-            "m_kg": self.m_kg,
-            "l_m": self.l_m,
-            "R_m": self.R_m,
+            q.m_kg: self.m_kg,
+            q.l_m: self.l_m,
+            q.R_m: self.R_m,
             "g": self.g_m_s2,
-            "L_m": self.L_m,
+            q.L_m: self.L_m,
         }
 
 
@@ -385,11 +386,11 @@ def parse_config(text: str, source: str = "<rig file>") -> RigConfig:
     operator = rig.text("operator") if "operator" in rig.table else ""
     constants_section = rig.section("constants")
     constants = RigConstants(
-        m_kg=constants_section.number("m_kg", low=0, low_open=True),
-        l_m=constants_section.number("l_m", low=0, low_open=True),
-        L_m=constants_section.number("L_m", low=0, low_open=True),
-        R_m=constants_section.number("R_m", low=0, low_open=True),
-        g_m_s2=constants_section.number("g_m_s2", low=0, low_open=True),
+        m_kg=constants_section.number(q.m_kg, low=0, low_open=True),
+        l_m=constants_section.number(q.l_m, low=0, low_open=True),
+        L_m=constants_section.number(q.L_m, low=0, low_open=True),
+        R_m=constants_section.number(q.R_m, low=0, low_open=True),
+        g_m_s2=constants_section.number(q.g_m_s2, low=0, low_open=True),
     )
     constants_section.finish()
     rig.finish()
@@ -476,7 +477,7 @@ def parse_config(text: str, source: str = "<rig file>") -> RigConfig:
 
     virtual_section = top.section("virtual")
     virtual = VirtualRigConfig(
-        theta_b_rad=virtual_section.number("theta_b_rad", low=-0.5, high=0.5),
+        theta_b_rad=virtual_section.number(q.theta_b_rad, low=-0.5, high=0.5),
         barrier=virtual_section.flag("barrier"),
         release_angle_rad=virtual_section.number("release_angle_rad", low=-1.5, high=1.5),
         noise_rad=virtual_section.number("noise_rad", low=0),

@@ -6,6 +6,7 @@ import argparse
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from analysis import quantities as q
 from rig.cli import CommandError, add_command
 from rig.logs import progress
 
@@ -168,16 +169,16 @@ def _identify_one(args: argparse.Namespace, record: Record) -> IdentificationRes
             raise CommandError(
                 f"--free-decay {args.free_decay}: cannot identify: {error}"
             ) from None
-        hold.setdefault("L_m", decay["L_m"].value)
-        hold.setdefault("zeta", decay["zeta"].value)
+        hold.setdefault(q.L_m, decay[q.L_m].value)
+        hold.setdefault(q.zeta, decay[q.zeta].value)
     if not kind.driven:
         return fit_impact_decay(record, hold=hold)
-    unknown = sorted(set(hold) - {"L_m", "zeta", "K_N_per_m1.5", "mu0_s_per_m"})
+    unknown = sorted(set(hold) - {q.L_m, q.zeta, q.K_N_per_m1_5, q.mu0_s_per_m})
     if unknown:
         raise CommandError(f"--hold: {unknown} cannot start a forced fit; use L_m, zeta, "
                            "K_N_per_m1.5 or mu0_s_per_m")
-    priors = {k: v for k, v in hold.items() if k != "L_m"}
-    if "L_m" in hold:
-        priors["omega_rad_s"] = math.sqrt(record.gravity_m_s2 / hold["L_m"])
+    priors = {k: v for k, v in hold.items() if k != q.L_m}
+    if q.L_m in hold:
+        priors[q.omega_rad_s] = math.sqrt(record.gravity_m_s2 / hold[q.L_m])
     return fit_forced(record, priors=priors,
                       progress=lambda text: progress(f"  {text}"))

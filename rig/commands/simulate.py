@@ -20,6 +20,7 @@ import time
 from pathlib import Path
 from typing import Any
 
+from analysis import quantities as q
 from analysis.experiments import FORCED, IMPACT_DECAY, NAMES, experiment_kind
 from rig.cli import CommandError, add_command
 from rig.logs import log, progress
@@ -302,7 +303,7 @@ def _metadata(model: Any, experiment: str, args: argparse.Namespace, extra: dict
         }
     return ExchangeMeta(
         experiment=experiment,
-        rig={"m_kg": rig.m_kg, "l_m": rig.l_m, "R_m": rig.R_m, "g": rig.g_m_s2},
+        rig={q.m_kg: rig.m_kg, q.l_m: rig.l_m, q.R_m: rig.R_m, "g": rig.g_m_s2},
         drive=drive,
         notes=f"simulated by impact-rig simulate ({' '.join(sys.argv[1:]) or 'library call'})",
         extra={"simulation": extra, "provenance": provenance()},
@@ -461,7 +462,7 @@ def run(args: argparse.Namespace) -> int:
         "barrier": model.barrier,
         "extensions": {k: dict(v) for k, v in model.extensions.items()},
         "paper_case": args.case,
-        "theta0_rad": args.theta0,
+        q.theta0_rad: args.theta0,
         "theta_dot0_rad_s": args.omega0,
         "skip_s": result.record_start_s,
         "sample_rate_hz": args.fs,

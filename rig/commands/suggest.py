@@ -10,6 +10,7 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from analysis import quantities as q
 from rig.cli import CommandError, add_command
 from rig.logs import progress
 
@@ -232,7 +233,7 @@ def _read_report(path: Path) -> dict[str, Any]:
 
 def _default_settle(pairs: list) -> float:
     """Three decay times of the slowest candidate (its linear free decay), 5 to 60 s."""
-    slowest = max(1.0 / max(c.values["zeta"] * c.values["omega_rad_s"], 1e-9)
+    slowest = max(1.0 / max(c.values[q.zeta] * c.values[q.omega_rad_s], 1e-9)
                   for p in pairs for c in (p.first, p.second))
     return min(MAX_SETTLE_S, max(MIN_SETTLE_S, round(SETTLE_DECAY_TIMES * slowest, 1)))
 

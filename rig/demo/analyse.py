@@ -16,6 +16,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from analysis import quantities as q
 from analysis.experiments import FORCED, FREE_DECAY, IMPACT_DECAY
 from analysis.progress import ProgressText
 from rig.demo.settings import NONE, DemoError, DemoSettings, indented
@@ -56,7 +57,7 @@ def identify(records: Mapping[str, Any], say: ProgressText) -> dict[str, Identif
     try:
         free = fit_free_decay(records["free_decay"])
         say("  free decay: " + free.summary().splitlines()[1].strip())
-        hold = {"L_m": free["L_m"].value, "zeta": free["zeta"].value}
+        hold = {q.L_m: free[q.L_m].value, q.zeta: free[q.zeta].value}
         impact = fit_impact_decay(records["impact_decay"], hold=hold)
     except IdentificationError as error:
         raise DemoError(f"identification failed: {error}") from None
@@ -71,9 +72,9 @@ def combined_parameters(identified: Mapping[str, Any]) -> dict[str, dict[str, An
     """L, omega, zeta from the free decay; K, E, R, mu0, theta_b from the impact decay."""
     out: dict[str, dict[str, Any]] = {}
     free, impact = identified["free_decay"], identified["impact_decay"]
-    for key in ("L_m", "omega_rad_s", "zeta"):
+    for key in (q.L_m, q.omega_rad_s, q.zeta):
         out[key] = free[key].as_json() | {"from": "free_decay"}
-    for key in ("K_N_per_m1.5", "E_Pa", "R_m", "mu0_s_per_m", "theta_b_rad"):
+    for key in (q.K_N_per_m1_5, q.E_Pa, q.R_m, q.mu0_s_per_m, q.theta_b_rad):
         if key in impact.parameters:
             out[key] = impact[key].as_json() | {"from": "impact_decay"}
     return out
@@ -193,7 +194,7 @@ def sweep_candidates(
     return [found]
 
 
-FORCED_PRIORS = ("omega_rad_s", "zeta", "K_N_per_m1.5", "mu0_s_per_m")
+FORCED_PRIORS = (q.omega_rad_s, q.zeta, q.K_N_per_m1_5, q.mu0_s_per_m)
 
 
 def _forced_step_to_analyse(steps: list[Any], regimes: list[dict[str, Any]]):
@@ -250,10 +251,10 @@ def identified_model(
 
     values = {
         key: parameters[key]["value"]
-        for key in ("L_m", "zeta", "mu0_s_per_m", "theta_b_rad")
+        for key in (q.L_m, q.zeta, q.mu0_s_per_m, q.theta_b_rad)
         if key in parameters
     }
-    fitted = rig.with_values(**values).with_stiffness(parameters["K_N_per_m1.5"]["value"])
+    fitted = rig.with_values(**values).with_stiffness(parameters[q.K_N_per_m1_5]["value"])
     model = Model(rig=fitted, drive=Drive(amplitude_m=0.0, frequency_hz=frequency_hz))
     for name, cause_values in (causes or {}).items():
         model = model.with_extension(name, **cause_values)
@@ -277,8 +278,8 @@ def explained_parameters(
 
     out = {key: dict(value) for key, value in baseline.items()}
     sources = {
-        FREE_DECAY.name: ("L_m", "omega_rad_s", "zeta"),
-        IMPACT_DECAY.name: ("K_N_per_m1.5", "E_Pa", "mu0_s_per_m", "theta_b_rad"),
+        FREE_DECAY.name: (q.L_m, q.omega_rad_s, q.zeta),
+        IMPACT_DECAY.name: (q.K_N_per_m1_5, q.E_Pa, q.mu0_s_per_m, q.theta_b_rad),
     }
     causes: dict[str, dict[str, float]] = {}
     for name in (IMPACT_DECAY.name, FREE_DECAY.name):

@@ -7,6 +7,7 @@ from dataclasses import replace
 from pathlib import Path
 from types import MappingProxyType
 
+from analysis import quantities as q
 from analysis.progress import ProgressText
 from rig.config import RigConfig
 from rig.demo.settings import (
@@ -75,13 +76,13 @@ def true_values(config: RigConfig) -> dict[str, float]:
     c = config.constants
     rig = RigParameters(m_kg=c.m_kg, l_m=c.l_m, L_m=c.L_m, R_m=c.R_m, g_m_s2=c.g_m_s2)
     return {
-        "L_m": rig.L_m,
-        "omega_rad_s": rig.omega_rad_s,
-        "zeta": rig.zeta,
-        "K_N_per_m1.5": rig.K_N_per_m1_5,
-        "E_Pa": rig.E_Pa,
-        "mu0_s_per_m": rig.mu0_s_per_m,
-        "theta_b_rad": config.virtual.theta_b_rad,
+        q.L_m: rig.L_m,
+        q.omega_rad_s: rig.omega_rad_s,
+        q.zeta: rig.zeta,
+        q.K_N_per_m1_5: rig.K_N_per_m1_5,
+        q.E_Pa: rig.E_Pa,
+        q.mu0_s_per_m: rig.mu0_s_per_m,
+        q.theta_b_rad: config.virtual.theta_b_rad,
     }
 
 

@@ -13,6 +13,7 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from analysis import quantities as q
 from analysis.estimate_text import estimate_text, interval_determined, interval_text
 from analysis.figure_style import save_figure
 from analysis.json_output import write_json
@@ -53,7 +54,7 @@ class DemoResult:
         """A few lines for the terminal."""
         lines = [f"impact-rig demo: report in {self.report} (for a browser: "
                  f"{self.report.with_suffix('.html').name})"]
-        for key in ("L_m", "zeta", "K_N_per_m1.5", "mu0_s_per_m", *self._cause_keys()):
+        for key in (q.L_m, q.zeta, q.K_N_per_m1_5, q.mu0_s_per_m, *self._cause_keys()):
             if key in self.parameters:
                 lines.append("  " + _estimate_text(key, self.parameters[key], self.truth.get(key)))
         if self.findings:

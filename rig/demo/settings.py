@@ -7,6 +7,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from types import MappingProxyType
 
+from analysis import quantities as q
 from analysis.progress import ProgressText
 
 NONE = "none"
@@ -14,7 +15,7 @@ DEFAULT_CAUSE = "coulomb_friction"
 # Pivot friction that takes about 5 mrad off the swing per cycle: as much as the viscous
 # damping does at 0.12 rad, so the free decay's envelope turns visibly straight, while
 # a release at 0.15 rad still gives a decay of some twenty cycles.
-DEFAULT_CAUSE_VALUES: Mapping[str, float] = MappingProxyType({"Tc_N_m": 2.0e-5})
+DEFAULT_CAUSE_VALUES: Mapping[str, float] = MappingProxyType({q.Tc_N_m: 2.0e-5})
 RECORDINGS = "recordings"
 FIGURES = "figures"
 ANALYSIS = "analysis"  # one discrepancy-analysis page (Markdown, JSON, figures) per record
