@@ -27,6 +27,7 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
+from analysis import quantities as q
 from drivers.interfaces import LimitError
 from gui.live_data import LiveData, drive_description
 from gui.live_sweep import LiveStep, judge_dwell, step_dwell
@@ -252,7 +253,7 @@ class MainWindow(QMainWindow):
         self.data = LiveData(
             session.sample_rate_hz,
             origin_index=session.span.first_index,
-            equivalent_length_m=session.info.rig.get("L_m"),
+            equivalent_length_m=session.info.rig.get(q.L_m),
             recorded_steps=session.steps,
         )
         self.connection_panel.show_state(f"replaying {path}", True)

@@ -14,6 +14,7 @@ from typing import Any
 
 import numpy as np
 
+from analysis import quantities as q
 from analysis.estimate_text import estimate_text
 from analysis.experiments import FREE_DECAY
 from analysis.identify import IdentificationResult, fit_drive, fit_free_decay, fit_impact_decay
@@ -194,21 +195,21 @@ def _free_decay_response(
             local,
             fitted["amplitude_rad"],
             fitted["phase_rad"],
-            fitted["zeta"],
-            fitted["omega_rad_s"],
-            fitted["offset_rad"],
+            fitted[q.zeta],
+            fitted[q.omega_rad_s],
+            fitted[q.offset_rad],
         )
     else:
         model = (
             simulated_free_decay(
                 local,
-                fitted["theta0_rad"],
+                fitted[q.theta0_rad],
                 fitted["theta_dot0_rad_s"],
-                fitted["zeta"],
-                fitted["omega_rad_s"],
+                fitted[q.zeta],
+                fitted[q.omega_rad_s],
                 record.gravity_m_s2,
             )
-            + fitted["offset_rad"]
+            + fitted[q.offset_rad]
         )
     return model_t, model
 
@@ -221,20 +222,20 @@ def _impact_decay_response(
     fitted = result.details["fitted"]
     p = result.parameters
     rig = record.rig_parameters(
-        L_m=p["L_m"].value,
-        zeta=p["zeta"].value,
+        L_m=p[q.L_m].value,
+        zeta=p[q.zeta].value,
         g_m_s2=record.gravity_m_s2,
-        mu0_s_per_m=p["mu0_s_per_m"].value,
-        theta_b_rad=p["theta_b_rad"].value,
-    ).with_stiffness(p["K_N_per_m1.5"].value)
+        mu0_s_per_m=p[q.mu0_s_per_m].value,
+        theta_b_rad=p[q.theta_b_rad].value,
+    ).with_stiffness(p[q.K_N_per_m1_5].value)
     span = _fitted_span(t, result)
     model_t = t[span]
     fs = 1.0 / float(t[1] - t[0])
     run = simulate(
         Model(rig=rig, drive=Drive(), barrier=True),
-        fitted["theta0_rad"],
+        fitted[q.theta0_rad],
         fitted["theta_dot0_rad_s"],
         settings=SimulationSettings(duration_s=model_t.size / fs, fs_hz=fs, poincare_phase=None),
     )
     theta = np.asarray(run.theta, dtype=float)[: model_t.size]
-    return model_t[: theta.size], theta + fitted["offset_rad"]
+    return model_t[: theta.size], theta + fitted[q.offset_rad]

@@ -20,6 +20,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from PySide6.QtWidgets import QApplication, QWidget
 
+from analysis import quantities as q
 from analysis.provenance import png_metadata
 from gui.worker import LiveSession, ReplaySession
 
@@ -168,7 +169,7 @@ def friction_decay(path: Path, duration_s: float) -> Path:
         0.0, 2e-4, run.theta.size)
     meta = ExchangeMeta(
         experiment="free_decay",
-        rig={"m_kg": rig.m_kg, "l_m": rig.l_m, "R_m": rig.R_m, "g": rig.g_m_s2},
+        rig={q.m_kg: rig.m_kg, q.l_m: rig.l_m, q.R_m: rig.R_m, "g": rig.g_m_s2},
         notes=f"simulated free decay with dry friction, Tc_N_m = {torque:.4g}",
         extra={"provenance": provenance()},
     )
