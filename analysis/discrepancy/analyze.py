@@ -107,7 +107,7 @@ def decay_implausibility(model: ModelSpec, values: Mapping[str, float],
     was named dry friction, whose fit held zeta at 0, with nothing flagged."""
     reasons = [implausibility(model, values)]
     if model.causes and values.get(q.zeta, math.inf) < policy.viscous_floor:
-        reasons.append(f"zeta = {values['zeta']:.3g}: the causes take all of the rig's "
+        reasons.append(f"zeta = {values[q.zeta]:.3g}: the causes take all of the rig's "
                        f"viscous damping (below {policy.viscous_floor:g}), which air alone "
                        "gives a real pendulum")
     return "; ".join(r for r in reasons if r) or None

@@ -227,9 +227,9 @@ def fit_impact_decay(
     if unknown:
         raise ValueError(f"cannot hold {unknown}; holdable: {FITTED}")
     if q.L_m in hold and not (math.isfinite(hold[q.L_m]) and hold[q.L_m] > 0):
-        raise ValueError(f"held L_m = {hold['L_m']!r}: must be a positive length in m")
+        raise ValueError(f"held L_m = {hold[q.L_m]!r}: must be a positive length in m")
     if q.zeta in hold and not (math.isfinite(hold[q.zeta]) and 0 <= hold[q.zeta] < 1):
-        raise ValueError(f"held zeta = {hold['zeta']!r}: must lie in [0, 1)")
+        raise ValueError(f"held zeta = {hold[q.zeta]!r}: must lie in [0, 1)")
     rig0 = record.rig_parameters()
     g = record.gravity_m_s2
     signal = prepare(record.time_s, record.angle_rad, detect_release=detect_release)

@@ -62,8 +62,8 @@ def identify(records: Mapping[str, Any], say: ProgressText) -> dict[str, Identif
     except IdentificationError as error:
         raise DemoError(f"identification failed: {error}") from None
     say(
-        f"  impact decay: K = {impact['K_N_per_m1.5'].value:.4g} N/m^1.5, "
-        f"mu0 = {impact['mu0_s_per_m'].value:.3g} s/m"
+        f"  impact decay: K = {impact[q.K_N_per_m1_5].value:.4g} N/m^1.5, "
+        f"mu0 = {impact[q.mu0_s_per_m].value:.3g} s/m"
     )
     return {"free_decay": free, "impact_decay": impact}
 
