@@ -318,7 +318,7 @@ def identify_sweep(
     shared_names = [name for name in alone[0].short_fit.values if name not in PER_STEP]
     for name in shared_names:
         start[name] = float(np.median([a.short_fit.values[name] for a in alone]))
-    stray = _strays(data, alone, start["omega_rad_s"], say)
+    stray = _strays(data, alone, start[q.omega_rad_s], say)
     for k, (number, a) in enumerate(zip(data.numbers, alone, strict=True)):
         measured = {"drive_phase_rad": data.steps[k].drive.phase0_rad,
                     "drive_frequency_hz": data.steps[k].drive.frequency_hz}
@@ -332,7 +332,7 @@ def identify_sweep(
     say(f"the steps' short segments fitted together ({short.segments.count} segments, "
         f"{len(free)} parameters)")
     problem = model.problem(short, free, {}, threads=threads)
-    offset = start.get("offset_rad", 0.0)
+    offset = start.get(q.offset_rad, 0.0)
     states = [smoothed_states(d, a.short.start, offset) if k in stray else a.short_fit.states
               for k, (d, a) in enumerate(zip(data.steps, alone, strict=True))]
     fit_short = problem.fit(np.concatenate(states), state_steps=hs)
@@ -349,7 +349,7 @@ def _strays(data: SweepData, alone: Sequence[ForcedIdentification], omega: float
     the steps' median ``omega``."""
     out = set()
     for k, a in enumerate(alone):
-        own = a.short_fit.values["omega_rad_s"]
+        own = a.short_fit.values[q.omega_rad_s]
         if abs(own / omega - 1.0) > STRAY_OMEGA:
             out.add(k)
             say(f"  step {data.numbers[k]} alone put omega at {own:.4g} rad/s against the "
