@@ -120,8 +120,8 @@ def run_case(seed: int, cause: str, args: argparse.Namespace, folder: Path
     row["suggest_s"] = seconds
     row["suggest_printed"] = printed
     if status != 0 and "no competing explanations" in printed:
-        # nothing named and nothing indistinct: what suggest does not search yet (the
-        # explained model against the baseline); the case stays as the first record left it
+        # nothing indistinct, nothing named and no candidate ranked to set against the
+        # baseline: the case stays as the first record left it
         return row | {"nothing_to_suggest": printed.strip().splitlines()[-1]}
     if status != 0:
         return row | {"failed": f"suggest: {printed.strip().splitlines()[-1:]}"}
@@ -284,8 +284,9 @@ def _save(args: argparse.Namespace, found: dict[str, Any], load: float) -> None:
         figure("true cause named, every case through the loop: before / after",
                f"{_share(every['before'], every['cases'])} / "
                f"{_share(every['after'], every['cases'])}"),
-        figure("loop cases whose report had nothing for suggest (no cause named, none "
-               "indistinct)", f"{found['nothing_to_suggest']}/{found['loop_cases']}"),
+        figure("loop cases whose report had nothing for suggest (none indistinct, no cause "
+               "named, no candidate ranked)",
+               f"{found['nothing_to_suggest']}/{found['loop_cases']}"),
         figure("loops failed", f"{found['failed']}/{found['drawn']}", "0"),
     ]
     if found["suggest_s"] is not None:

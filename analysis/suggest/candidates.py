@@ -4,7 +4,11 @@ An ``analyze --json`` report of a forced record (docs/MODEL.md section 6) ranks 
 candidate model it fitted, each with its fitted parameters and their 95 % intervals
 (``ranking[].model``).  Two explanations compete when the report lists them as
 ``indistinct`` (the record cannot tell them apart), and the cause it named competes with
-its runner-up (the best other candidate, a plausible one when there is one).
+its runner-up (the best other candidate, a plausible one when there is one).  A report
+that names no cause keeps the baseline (its ``baseline`` section) as its explanation,
+which competes with the best-ranked candidate: the first of the ranking (a plausible one
+when there is one), and the next ones the record ranks within the report's information
+criterion margin of it (at most ``BASELINE_RIVALS``).
 """
 
 from __future__ import annotations
@@ -26,6 +30,10 @@ from analysis.model import RigParameters
 RIG_KEYS = tuple(BASELINE_PLANS)
 # a 95 % interval spans 2 x Z95 standard deviations of a normal estimate
 CI95_WIDTH_IN_SD = 2.0 * Z95
+# the candidates paired with the baseline when nothing is named: the best-ranked, and the
+# next ones within the report's BIC margin of it, at most this many in all
+BASELINE_RIVALS = 2
+BASELINE = "baseline"  # the name the baseline competes under
 
 
 class ReportError(ValueError):
@@ -129,10 +137,44 @@ def candidate(entry: Mapping[str, Any], source: str) -> Candidate:
     return Candidate(str(name), causes, values, intervals, theta_b)
 
 
+def baseline_candidate(report: Mapping[str, Any], source: str) -> Candidate:
+    """The report's baseline model (its ``baseline`` section) as a :class:`Candidate` with
+    no cause, named ``baseline``."""
+    baseline = report.get("baseline")
+    if not isinstance(baseline, Mapping) or not isinstance(baseline.get("parameters"), Mapping):
+        raise ReportError(f"{source}: no 'baseline' parameters: not an 'impact-rig analyze "
+                          "--json' report")
+    return candidate({"cause": BASELINE, "model": {"causes": [],
+                                                   "parameters": baseline["parameters"]}},
+                     source)
+
+
+def _rivals_of_the_baseline(report: Mapping[str, Any],
+                            ranking: Sequence[Mapping[str, Any]]) -> list[Mapping[str, Any]]:
+    """The best-ranked candidates (plausible ones when there are any) that a report naming
+    nothing leaves against the baseline: the first, and the next ones within the report's
+    BIC margin of it (``policy.bic_margin``; none without it), at most ``BASELINE_RIVALS``."""
+    plausible = [e for e in ranking if not e.get("implausible")]
+    ranked = plausible or list(ranking)
+    if not ranked:
+        return []
+    margin = ((report.get("policy") or {}).get("bic_margin") or {}).get("value")
+    best = ranked[0].get("score")
+    out = [ranked[0]]
+    for entry in ranked[1:BASELINE_RIVALS]:
+        score = entry.get("score")
+        if not all(isinstance(v, int | float) for v in (margin, best, score)) \
+                or best - score > margin:
+            break
+        out.append(entry)
+    return out
+
+
 def competing_pairs(report: Mapping[str, Any], source: str) -> list[CompetingPair]:
-    """The explanations the report leaves competing: every ``indistinct`` pair, and the
-    named cause against its runner-up.  ReportError, in one line, when there is none or
-    the report is not a forced record's."""
+    """The explanations the report leaves competing: every ``indistinct`` pair, the named
+    cause against its runner-up, and, when no cause is named, the baseline against the
+    best-ranked candidate(s).  ReportError, in one line, when there is none or the report
+    is not a forced record's."""
     if report.get("kind") == "sweep":
         raise ReportError(f"{source}: a sweep's report; suggest reads the report of one "
                           "forced record (sweeps are not searched yet)")
@@ -143,7 +185,8 @@ def competing_pairs(report: Mapping[str, Any], source: str) -> list[CompetingPai
     ranking = report.get("ranking")
     if not isinstance(ranking, list):
         raise ReportError(f"{source}: no 'ranking': not an 'impact-rig analyze --json' report")
-    entries = {entry.get("cause"): entry for entry in ranking if isinstance(entry, Mapping)}
+    ranking = [entry for entry in ranking if isinstance(entry, Mapping)]
+    entries = {entry.get("cause"): entry for entry in ranking}
     pairs: list[CompetingPair] = []
     seen: set[frozenset[str]] = set()
 
@@ -170,8 +213,20 @@ def competing_pairs(report: Mapping[str, Any], source: str) -> list[CompetingPai
         if runner_up is not None:
             add(named, runner_up["cause"],
                 f"{named} is named; {runner_up['cause']} is its runner-up")
+    if named == NONE:
+        rivals = _rivals_of_the_baseline(report, ranking)
+        if rivals:
+            baseline = baseline_candidate(report, source)
+            for number, entry in enumerate(rivals):
+                name = entry.get("cause")
+                why = (f"nothing named; the best-ranked candidate {name} against the baseline"
+                       if number == 0 else
+                       f"nothing named; {name}, ranked within the BIC margin of the best, "
+                       "against the baseline")
+                pairs.append(CompetingPair(baseline, candidate(entry, source), why))
     if not pairs:
+        lacking = "no cause named and no candidate ranked" if named == NONE \
+            else "no runner-up"
         raise ReportError(f"{source}: no competing explanations to tell apart: no indistinct "
-                          f"pair, and {'no cause named' if named == NONE else 'no runner-up'} "
-                          "(cause " + str(named) + ")")
+                          f"pair, and {lacking} (cause {named})")
     return pairs

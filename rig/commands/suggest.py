@@ -25,10 +25,13 @@ the record's noise and beyond what their own parameter intervals can produce.
 
 REPORT is the JSON report of a forced record ('impact-rig analyze RECORD --json
 REPORT'). The competing explanations are the pairs it lists as indistinct (the record
-cannot tell them apart) and the cause it named against its runner-up (the best other
-candidate); each is its fitted model, with the 95 % intervals of its parameters. A report
-that names none (no indistinct pair, no cause named) has nothing to tell apart: that is
-said in one line, with exit status 2.
+cannot tell them apart), the cause it named against its runner-up (the best other
+candidate), and, when it names no cause, the baseline against the best-ranked candidate
+(a plausible one when there is one; with the next one too when the record ranks it
+within the report's BIC margin of the best); each is its fitted model, with the 95 %
+intervals of its parameters, and each pair is printed with why it was chosen. A report
+with none of these (no indistinct pair, no cause named, no candidate ranked) has nothing
+to tell apart: that is said in one line, with exit status 2.
 
 Every setting of the grid (--frequency-hz x --amplitude-mm) is run for each candidate
 from rest, settled for --settle seconds and dwelt on for --dwell, and read as its sensor

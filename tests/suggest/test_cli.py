@@ -22,7 +22,7 @@ import pytest
 from analysis.experiment_plan import read_plan
 from analysis.hdf5_records import read_recording_arrays
 from rig.cli import main
-from tests.suggest.reports import contact_pair_report, write_report
+from tests.suggest.reports import contact_pair_report, nothing_named_report, write_report
 
 SEARCH = ["--frequency-hz", "2", "--amplitude-mm", "0.6:3:2", "--draws", "2", "--best", "1",
           "--settle", "2", "--dwell", "3"]
@@ -87,8 +87,25 @@ def test_the_loop_on_the_virtual_rig_first_record_plan_and_both_analysed(
     assert {"omega_rad_s", "zeta"} <= set(sweep["shared"])
 
 
-def test_a_report_with_nothing_to_tell_apart_is_one_line(tmp_path: Path, capsys) -> None:
-    report = write_report(tmp_path / "none.json", named="none", indistinct=False)
+def test_a_report_naming_nothing_gives_a_plan_against_the_baseline(
+        tmp_path: Path, capsys) -> None:
+    report = write_report(tmp_path / "none.json", nothing_named_report())
+    plan_path = tmp_path / "next.toml"
+    assert main(["suggest", str(report), *SEARCH, "--out", str(plan_path), "--quiet"]) == 0
+    printed = capsys.readouterr().out
+    assert ("baseline vs contact_exponent: nothing named; the best-ranked candidate "
+            "contact_exponent against the baseline") in printed
+    assert "1. 2 Hz, 3 mm: separation" in printed  # only the drive that reaches the barrier
+    plan = read_plan(plan_path)
+    assert [(s.frequency_hz, s.amplitude_m) for s in plan.steps] == [(2.0, 3e-3)]
+    assert plan.steps[0].why.startswith("baseline vs contact_exponent: separation")
+    (row,) = tomllib.loads(plan_path.read_text())["suggestion"]
+    assert row["pair"] == ["baseline", "contact_exponent"]
+
+
+def test_a_report_with_no_candidate_at_all_is_one_line(tmp_path: Path, capsys) -> None:
+    report = write_report(tmp_path / "none.json", named="none", indistinct=False,
+                          ranked=False)
     assert main(["suggest", str(report), "--out", str(tmp_path / "p.toml")]) == 2
     line = error_line(capsys)
     assert line.startswith(f"impact-rig suggest: error: {report}: no competing explanations")

@@ -10,7 +10,15 @@ import pickle
 import pytest
 
 from analysis.suggest import ReportError, competing_pairs, report_rig, search, settings_grid
-from tests.suggest.reports import FS_HZ, NOISE_RAD, contact_pair_report, reaches_barrier
+from tests.suggest.reports import (
+    BIC_MARGIN,
+    FS_HZ,
+    GAP_RAD,
+    NOISE_RAD,
+    contact_pair_report,
+    nothing_named_report,
+    reaches_barrier,
+)
 
 FREQUENCY_HZ = 2.0
 AMPLITUDES_M = (0.3e-3, 0.6e-3, 3e-3, 4e-3)
@@ -66,10 +74,55 @@ def test_a_named_cause_is_set_against_its_runner_up() -> None:
     assert "runner-up" in pair.why
 
 
+def test_a_report_naming_nothing_sets_the_best_ranked_candidate_against_the_baseline(
+        ) -> None:
+    report = nothing_named_report()
+    (pair,) = competing_pairs(report, "r")  # the second ranked beyond the BIC margin
+    assert (pair.first.name, pair.second.name) == ("baseline", "contact_exponent")
+    assert pair.why == ("nothing named; the best-ranked candidate contact_exponent against "
+                        "the baseline")
+    baseline, soft = pair.first, pair.second
+    assert baseline.causes == () and soft.causes == ("contact_exponent",)
+    # each with its fitted values, and intervals where the report gives them
+    assert baseline.theta_b_rad == soft.theta_b_rad == GAP_RAD
+    assert soft.values["n"] == 2.5 and soft.intervals["n"] == pytest.approx((2.45, 2.55))
+    assert "n" not in baseline.values and "K_n" not in soft.intervals
+    assert set(baseline.intervals) == set(soft.intervals) - {"n", "theta_b_rad"}
+
+
+def test_candidates_ranked_within_the_margin_of_the_best_are_each_set_against_the_baseline(
+        ) -> None:
+    pairs = competing_pairs(nothing_named_report(second_score=5.0 - BIC_MARGIN), "r")
+    assert [(p.first.name, p.second.name) for p in pairs] == [
+        ("baseline", "contact_exponent"), ("baseline", "barrier_offset")]
+    assert "within the BIC margin" in pairs[1].why
+
+
+def test_an_implausible_best_gives_way_to_the_best_plausible_one() -> None:
+    report = nothing_named_report()
+    report["ranking"][0]["implausible"] = "n on its bound"
+    (pair,) = competing_pairs(report, "r")
+    assert pair.second.name == "barrier_offset"
+
+
 def test_a_report_with_nothing_to_tell_apart_says_so() -> None:
-    report = contact_pair_report(named="none", indistinct=False)
-    with pytest.raises(ReportError, match="no competing explanations"):
+    report = contact_pair_report(named="none", indistinct=False, ranked=False)
+    with pytest.raises(ReportError, match="no competing explanations to tell apart: no "
+                       "indistinct pair, and no cause named and no candidate ranked"):
         competing_pairs(report, "r.json")
+
+
+def test_the_search_finds_where_the_best_ranked_candidate_shows_against_the_baseline(
+        ) -> None:
+    """The baseline's Hertz barrier and the soft law at the same gap: only the drive that
+    reaches the barrier separates them."""
+    report = nothing_named_report()
+    settings = settings_grid([FREQUENCY_HZ], (0.6e-3, 3e-3), settle_s=10.0, dwell_s=10.0)
+    (result,) = search(competing_pairs(report, "r"), report_rig(report, "r"), settings,
+                       noise_rad=NOISE_RAD, sample_rate_hz=FS_HZ, draws=2)
+    assert [s.setting.amplitude_m for s in result.best(3)] == [3e-3]
+    assert reaches_barrier(FREQUENCY_HZ, 3e-3) and reaches_barrier(FREQUENCY_HZ, 0.6e-3) \
+        is False
 
 
 
