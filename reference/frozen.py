@@ -296,4 +296,8 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    # run as the package's module, not as __main__: the generators register their draws in
+    # reference.frozen, which would otherwise be a second copy of this module
+    from reference import frozen as _package_module
+
+    raise SystemExit(_package_module.main())
