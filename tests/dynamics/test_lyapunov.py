@@ -105,6 +105,7 @@ def test_scaling_region_finds_the_straight_part():
     assert slope == pytest.approx(0.05, rel=0.02)
 
 
+@pytest.mark.slow
 def test_undamped_small_pendulum_without_barrier_is_neutral():
     # a linear conservative oscillator turns a frame in (theta, theta' / omega) rigidly: both
     # exponents vanish up to the small swing's nonlinearity and the integrator's error
