@@ -17,11 +17,24 @@
 
 Prints the located events and the seconds per continuation point.  Run it with ``nice``:
 it takes about 4 minutes on 2 cores.
+
+    python benchmarks/continuation_gallery.py --compare-jacobians [--repeats 2] [--save]
+
+draws no figure: it runs the three continuations above (case (g) period 1 and 2 over beta
+0.01 to 0.04, and the 10 Hz period-2 orbit over beta 0.01 to 0.13 from the state a run
+from rest settles to, as the command starts it) with the Jacobians from the sensitivities
+and from central differences, alternately in one process (after one short warm-up of
+each), prints every event of both, the largest difference between the events both found
+and between their brackets' ends, and the CPU time per point of each (the best of
+``--repeats``: CPU time, not wall time, so that a shared machine's other work counts
+less) and their ratio; ``--save`` writes the figures to
+``benchmarks/results/continuation.json``.
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import shutil
 import sys
 import time
@@ -40,6 +53,8 @@ from analysis.dynamics.period_map import PeriodMap
 from analysis.dynamics.periodic_orbits import ShootingError, find_periodic_orbit
 from analysis.dynamics.sweeps import PoincareSettings, run_poincare
 from analysis.model import Model, paper_case
+from analysis.simulate import SimulationSettings, simulate
+from harness.results import figure, result, save
 from rig.cli import add_common_options
 from rig.cli import main as rig_main
 from rig.commands import continuation
@@ -80,7 +95,8 @@ def gallery_case_g(figures: Path) -> None:
         report(result, f"case (g), period {periods}")
         branches += result.branches
         seconds += result.seconds
-    both = ContinuationResult("beta", (0.01, 0.04), branches, seconds, result.map_rtol)
+    both = ContinuationResult("beta", (0.01, 0.04), branches, seconds, result.map_rtol,
+                              result.jacobians)
     brute = simulate_bifurcation(model, np.linspace(0.01, 0.04, 61), periods=1000,
                                  record_periods=100)
     plot_continuation(both, overlays=brute, barrier_rad=model.rig.theta_b_rad, dpi=DPI,
@@ -169,6 +185,95 @@ def ten_hz(figures: Path, work: Path) -> None:
     shutil.copyfile(out.with_suffix(".png"), figures / "continuation_10hz.png")
 
 
+def settled_state(model: Model, periods: int = 2000) -> np.ndarray:
+    """(theta, theta') at drive phase 0 after ``periods`` drive periods from rest (where
+    ``impact-rig continue`` starts without --from-state)."""
+    period_s = 1.0 / model.drive.frequency_hz
+    run = simulate(model, 0.0, 0.0, settings=SimulationSettings(
+        duration_s=period_s, fs_hz=1.0 / period_s, skip_s=periods * period_s))
+    return np.array([run.poincare.theta[-1], run.poincare.theta_dot[-1]])
+
+
+def compare_jacobians(repeats: int) -> list[dict[str, str]]:
+    """The gallery's continuations with each Jacobian method: events and CPU time per point."""
+    model = case_g(0.01)
+    cases = [("case (g), period 1, beta 0.01..0.04", 1, 0.04, np.array((-0.012, -0.73)), 4),
+             ("case (g), period 2, beta 0.01..0.04", 2, 0.04, np.array((-0.028, -1.44)), 4),
+             ("10 Hz, period 2, beta 0.01..0.13", 2, 0.13, settled_state(model), 8)]
+    methods = ("sensitivities", "differences")
+    for method in methods:  # compile and warm both before timing either
+        continue_orbits(PeriodMap(model, "beta", 1, jacobians=method), 0.01, 0.011,
+                        cases[0][3], max_periods=1)
+    rows, total = [], {m: [0.0, 0] for m in methods}
+    for name, periods, stop, guess, max_periods in cases:
+        best: dict[str, float] = {}
+        found: dict[str, ContinuationResult] = {}
+        for _ in range(repeats):
+            for method in methods:
+                started = time.process_time()
+                outcome = continue_orbits(PeriodMap(model, "beta", periods, jacobians=method),
+                                          0.01, stop, guess, max_periods=max_periods)
+                cpu = (time.process_time() - started) / outcome.points
+                best[method] = min(best.get(method, np.inf), cpu)
+                found[method] = outcome
+        for method in methods:
+            total[method][0] += best[method] * found[method].points
+            total[method][1] += found[method].points
+            report(found[method], f"{name}, {method} ({found[method].jacobians})")
+            print(f"  CPU time {1e3 * best[method]:.2f} ms per point (best of {repeats})")
+        same, shift, ends, only = _matched_events(found["sensitivities"], found["differences"])
+        ratio = best["differences"] / best["sensitivities"]
+        print(f"{name}: {same} events found by both, largest difference {shift:.2g} in beta "
+              f"(bracket ends {ends:.2g}); {'; '.join(only) or 'no event found by one only'}; "
+              f"differences / sensitivities per point: {ratio:.2f}x")
+        rows.append(figure(
+            f"continuation, {name}: CPU ms per point, sensitivities / central differences "
+            f"(ratio); events found by both, their largest difference",
+            f"{1e3 * best['sensitivities']:.2f} / {1e3 * best['differences']:.2f} "
+            f"({ratio:.2f}x); {same}, {shift:.2g}" + (f"; {'; '.join(only)}" if only else ""),
+            ">= 2x"))
+    per_point = {m: total[m][0] / total[m][1] for m in methods}
+    ratio = per_point["differences"] / per_point["sensitivities"]
+    print(f"all three: {1e3 * per_point['sensitivities']:.2f} ms per point with the "
+          f"sensitivities, {1e3 * per_point['differences']:.2f} ms with central differences: "
+          f"{ratio:.2f}x")
+    rows.append(figure("continuation, the three above: CPU ms per point, sensitivities / "
+                       "central differences (ratio)",
+                       f"{1e3 * per_point['sensitivities']:.2f} / "
+                       f"{1e3 * per_point['differences']:.2f} ({ratio:.2f}x)", ">= 2x"))
+    return rows
+
+
+def _matched_events(a: ContinuationResult, b: ContinuationResult):
+    """Events of ``a`` and ``b`` paired in order by kind and period: how many pair, the
+    largest difference of their values and of their brackets' ends, and what only one found."""
+    def keyed(result: ContinuationResult) -> dict[tuple[str, int], list[float]]:
+        events: dict[tuple[str, int], list] = {}
+        for event in result.events:
+            events.setdefault((event.kind, event.periods), []).append(event)
+        return events
+
+    left, right = keyed(a), keyed(b)
+    same, shift, ends, only = 0, 0.0, 0.0, []
+    for key in sorted(set(left) | set(right)):
+        mine, theirs = left.get(key, []), right.get(key, [])
+        for x, y in zip(mine, theirs, strict=False):
+            located = [np.all(np.isfinite(e.bracket)) for e in (x, y)]
+            if not all(located):  # a branch stopped short of it: recorded, not located
+                only.append(f"{x.kind} (period {x.periods}) at {x.value:.9g} / {y.value:.9g}: "
+                            f"not located by the "
+                            f"{'sensitivities' if not located[0] else 'differences'}")
+                continue
+            same += 1
+            shift = max(shift, abs(x.value - y.value))
+            ends = max(ends, *(abs(p - q) for p, q in zip(x.bracket, y.bracket, strict=True)))
+        for extra, who in ((mine[len(theirs):], "sensitivities"),
+                           (theirs[len(mine):], "differences")):
+            only += [f"{event.kind} (period {event.periods}) at {event.value:.9g} by the "
+                     f"{who} only" for event in extra]
+    return same, shift, ends, only
+
+
 def main() -> int:
     """Regenerate the gallery's figures and print what they show."""
     parser = argparse.ArgumentParser(description=__doc__,
@@ -176,7 +281,19 @@ def main() -> int:
     parser.add_argument("--figures", type=Path, default=Path("docs/figures"))
     parser.add_argument("--work", type=Path, default=Path("continuation_gallery"),
                         help="folder for the sweep recording and the command's own output")
+    parser.add_argument("--compare-jacobians", action="store_true",
+                        help="only compare the continuations' Jacobian methods (no figures)")
+    parser.add_argument("--repeats", type=int, default=2,
+                        help="with --compare-jacobians: runs of each method, the best counts")
+    parser.add_argument("--save", action="store_true", help="with --compare-jacobians: also "
+                        "write the figures to benchmarks/results/continuation.json")
     args = parser.parse_args()
+    if args.compare_jacobians:
+        load = os.getloadavg()[0]
+        rows = compare_jacobians(args.repeats)
+        if args.save:
+            save(result("continuation", rows, load_at_start=load))
+        return 0
     args.figures.mkdir(parents=True, exist_ok=True)
     args.work.mkdir(parents=True, exist_ok=True)
     gallery_case_g(args.figures)

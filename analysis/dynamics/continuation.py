@@ -8,10 +8,14 @@ tangent (the null vector of [P_x - I, P_value]) and corrects with Newton's metho
 P^k(x) = x and the pseudo-arclength condition t . (u - u_predicted) = 0 (Keller).  The step
 grows after easy corrections (<= 2 iterations) and halves after a failed one (no
 convergence, the integrator stopped) or one that turns the tangent by more than
-``MAX_TURN_RAD``.  Tangents and multipliers come from Richardson's Jacobians.  On a
-strongly unstable orbit (``|multiplier|`` in the thousands, e.g. period 8 in the chaotic
-range) the bordered system is so ill-conditioned that the plain differences' error stalls
-Newton's method: once a correction shrinks the residual less than ``SLOW_CONVERGENCE``-fold,
+``MAX_TURN_RAD``.  Jacobians and the parameter derivative come from the period map: by
+default from one run of the forward sensitivities per (state, value), the Floquet
+multipliers the eigenvalues of that monodromy matrix.  With central differences (the
+fallback with Coulomb friction, or ``jacobians="differences"``) tangents and multipliers
+come from Richardson's Jacobians, and on a strongly unstable orbit (``|multiplier|`` in
+the thousands, e.g. period 8 in the chaotic range) the bordered system is so
+ill-conditioned that the plain differences' error stalls Newton's method: once a
+correction shrinks the residual less than ``SLOW_CONVERGENCE``-fold,
 the branch is corrected with Richardson's Jacobians, and the residual tolerance grows with
 the largest multiplier (:func:`residual_tolerance`), as the map's rounding noise does.
 
@@ -58,7 +62,12 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from analysis.dynamics.period_map import ORBIT_SAMPLES_PER_PERIOD, MapError, PeriodMap
+from analysis.dynamics.period_map import (
+    ORBIT_SAMPLES_PER_PERIOD,
+    Linearisation,
+    MapError,
+    PeriodMap,
+)
 from analysis.dynamics.periodic_orbits import (
     NEWTON_TOLERANCE,
     ShootingError,
@@ -104,6 +113,9 @@ class BranchPoint:
     contacts: int  # per k periods
     section_theta: np.ndarray  # (k,) theta at drive phase 0: x, P(x), ..., P^(k-1)(x)
     iterations: int
+    # the scaled system's Jacobian (2, 3) there: the corrector's first step from this point
+    # (with the sensitivities; None with differences)
+    system_jacobian: np.ndarray | None = field(default=None, repr=False, compare=False)
 
     @property
     def stable(self) -> bool:
@@ -189,6 +201,7 @@ class ContinuationResult:
     branches: list[Branch]
     seconds: float
     map_rtol: float
+    jacobians: str = "forward sensitivities"  # how the Jacobians were taken (PeriodMap's note)
 
     @property
     def events(self) -> list[BifurcationEvent]:
@@ -245,20 +258,38 @@ class _Branching:
         t /= np.linalg.norm(t)
         return t if t @ previous >= 0 else -t
 
-    def correct(self, predicted: np.ndarray, normal: np.ndarray, previous_tangent: np.ndarray):
-        """Newton on P^k(x) = x with normal . (u - predicted) = 0; the BranchPoint, or None."""
+    def correct(self, predicted: np.ndarray, normal: np.ndarray, previous_tangent: np.ndarray,
+                near: BranchPoint | None = None):
+        """Newton on P^k(x) = x with normal . (u - predicted) = 0; the BranchPoint, or None.
+
+        With exact Jacobians (the sensitivities) and ``near``, a converged point near the
+        prediction, the first step takes ``near``'s Jacobian and only the map's image at
+        the prediction (a chord step: the Jacobian moves by O(step), the step it corrects
+        is O(step^2))."""
         u = predicted.copy()
         previous = math.inf
+        exact = self.map.jacobian_method == "sensitivities"
+        chord = exact and near is not None and near.system_jacobian is not None
         for iteration in range(1, MAX_CORRECTOR_ITERATIONS + 1):
             try:
-                residual, jac, lin = self.system(u, richardson=self.precise)
+                if chord:
+                    x, value = self.split(u)
+                    residual = (self.map.images(value, x)[0] - x) / self.scale
+                    jac = near.system_jacobian
+                    chord = float(np.linalg.norm(residual)) >= residual_tolerance(
+                        near.multipliers)
+                if not chord:  # (a prediction already on the branch: the point's own)
+                    residual, jac, lin = self.system(u, richardson=self.precise)
             except MapError:
                 return None
             if not np.all(np.isfinite(jac)) or not np.all(np.isfinite(residual)):
                 return None
             size = float(np.linalg.norm(residual))
-            if size < residual_tolerance(lin.multipliers):
-                return self.point(u, previous_tangent, iteration)
+            if not chord and size < residual_tolerance(lin.multipliers):
+                # exact derivatives need no second, Richardson, linearisation at the point
+                return self.point(u, previous_tangent, iteration,
+                                  (jac, lin) if exact else None)
+            chord = False
             # Newton's method slowed to linear convergence: the plain differences' error,
             # magnified by an ill-conditioned system (|multiplier| >> 1), is the cause; the
             # rest of the branch is corrected with Richardson's Jacobians
@@ -272,12 +303,17 @@ class _Branching:
                 return None
         return None
 
-    def point(self, u: np.ndarray, previous_tangent: np.ndarray,
-              iterations: int) -> BranchPoint | None:
-        """The BranchPoint at a converged u: Richardson multipliers and tangent, orbit geometry."""
+    def point(self, u: np.ndarray, previous_tangent: np.ndarray, iterations: int,
+              linearised: tuple[np.ndarray, Linearisation] | None = None) -> BranchPoint | None:
+        """The BranchPoint at a converged u: multipliers and tangent (from ``linearised``,
+        the system's Jacobian and the map's linearisation at u, or Richardson's), orbit
+        geometry."""
         x, value = self.split(u)
         try:
-            _, jac, lin = self.system(u, richardson=True)
+            if linearised is None:
+                _, jac, lin = self.system(u, richardson=True)
+            else:
+                jac, lin = linearised
             orbit = self.map.orbit(value, x)
         except MapError:
             return None
@@ -289,6 +325,7 @@ class _Branching:
             impact_speed_rad_s=orbit.impact_speed_rad_s, contacts=orbit.contacts.count,
             section_theta=orbit.theta[::ORBIT_SAMPLES_PER_PERIOD][: self.map.periods].copy(),
             iterations=iterations,
+            system_jacobian=jac if linearised is not None else None,
         )
 
 
@@ -319,7 +356,8 @@ def continue_orbits(
     bounds = (min(start, stop), max(start, stop))
     scale = abs(stop - start)
     period_map = PeriodMap(period_map.model, period_map.parameter, period_map.periods,
-                           parameter_scale=scale, rtol=period_map.rtol, atol=period_map.atol)
+                           parameter_scale=scale, rtol=period_map.rtol, atol=period_map.atol,
+                           jacobians=period_map.jacobians)
     try:
         orbit = find_periodic_orbit(period_map, start, guess)
     except ShootingError as error:
@@ -353,7 +391,8 @@ def continue_orbits(
             branches.append(Branch(2 * branch.periods, origin, [point]))
             queue.append((len(branches) - 1, new_problem))
     return ContinuationResult(period_map.parameter, bounds, branches,
-                              time.perf_counter() - started, period_map.rtol)
+                              time.perf_counter() - started, period_map.run_rtol,
+                              period_map.jacobian_note)
 
 
 def _follow(problem: _Branching, branch: Branch, index: int, bounds: tuple[float, float],
@@ -365,7 +404,7 @@ def _follow(problem: _Branching, branch: Branch, index: int, bounds: tuple[float
         last = branch.points[-1]
         u_last = problem.unknowns(last.state, last.value)
         predicted = u_last + h * last.tangent
-        point = problem.correct(predicted, last.tangent, last.tangent)
+        point = problem.correct(predicted, last.tangent, last.tangent, last)
         turned = point is not None and point.tangent @ last.tangent < math.cos(MAX_TURN_RAD)
         if point is None or turned:
             h *= 0.5
@@ -415,7 +454,7 @@ def _point_at_value(problem: _Branching, last: BranchPoint, value: float) -> Bra
     if abs(last.tangent[2]) < 1e-12:
         return None
     predicted = u_last + (target - u_last[2]) / last.tangent[2] * last.tangent
-    return problem.correct(predicted, np.array([0.0, 0.0, 1.0]), last.tangent)
+    return problem.correct(predicted, np.array([0.0, 0.0, 1.0]), last.tangent, last)
 
 
 def _detect(problem: _Branching, branch: Branch, index: int, before: BranchPoint,
@@ -463,7 +502,7 @@ def _locate(problem: _Branching, before: BranchPoint, after: BranchPoint,
         s = 0.5 * (lo + hi) if bisect else (lo * f_hi - hi * f_lo) / (f_hi - f_lo)
         if not min(lo, hi) < s < max(lo, hi):
             s = 0.5 * (lo + hi)
-        point = problem.correct(u0 + s * tangent, tangent, tangent)
+        point = problem.correct(u0 + s * tangent, tangent, tangent, before)
         if point is None:
             return None
         f = function(point)

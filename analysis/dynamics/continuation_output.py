@@ -15,7 +15,8 @@ File layout (all float64 unless said)::
     /events/branch, periods           (m,)  int32
     /events/parameter, parameter_low, parameter_high, theta, theta_dot   (m,)
     /events/multipliers_real, multipliers_imag   (m, 2)
-    root attributes: parameter, bounds, seconds, seconds_per_point, map_rtol,
+    root attributes: parameter, bounds, seconds, seconds_per_point, map_rtol, jacobians
+                     (how the Jacobians were taken: sensitivities, or differences and why),
                      model_json (rig, drive, barrier, causes), provenance_json,
                      overlays_json (what the figure drew over the branches: file or
                      computation, and the directions)
@@ -68,6 +69,7 @@ def write_continuation(path: str | Path, result: ContinuationResult, model: Mode
         handle.attrs["seconds"] = result.seconds
         handle.attrs["seconds_per_point"] = result.seconds_per_point
         handle.attrs["map_rtol"] = result.map_rtol
+        handle.attrs["jacobians"] = result.jacobians
         handle.attrs["model_json"] = to_json_text(model_summary(model), one_line=True)
         handle.attrs["provenance_json"] = to_json_text(provenance, one_line=True)
         handle.attrs["overlays_json"] = to_json_text(list(overlays), one_line=True)

@@ -6,8 +6,29 @@ trajectory is the project's compiled integrator with its exact contact events
 (:func:`analysis.simulate.segments.integrate_segments`: all the runs a Jacobian needs go
 in one compiled call).
 
-Jacobians are central finite differences, not the variational equations with saltation
-matrices: the Hertzian (and Kelvin-Voigt) contact force is continuous in the state, so the
+Jacobians come by default (``jacobians="sensitivities"``) from one run of the forward
+sensitivities (:func:`analysis.simulate.sensitivity.simulate_sensitivities`): the
+variational equations carried along the run's own steps and through every contact with the
+saltation matrix of the event, so d P / d x and d P / d value are the derivatives of the
+integrator's own discrete map, one run per (state, value).  d P / d value is the chain
+rule through the packed vector: the sensitivities to the entries the parameter moves
+times their derivatives with respect to it (the packing is algebraic: central
+differences of it, exact to rounding where the packing is linear), plus the vector field
+at the image times d T / d value when the parameter moves the drive's period T.  The
+sensitivities do not support Coulomb friction: with it the map falls back to the
+differences below (``jacobian_method`` says which is used, ``jacobian_note`` why).
+The sensitivities are the derivatives of the integrator's steps, not of its choice of
+them, and the step control watches the state, not its derivatives: at the same tolerance
+they are less accurate than Richardson's differences of runs (measured on the 10 Hz
+period-2 orbit at its period-doubling, against both routes at rtol 1e-13: det(J + I) off
+by 5e-8 at rtol 1e-11, by 7e-9 at 1e-12, where the differences at 1e-11 are off by 2e-9).
+With the sensitivities every run of the map (images, sensitivities, the sampled orbit)
+is therefore made at ``SENSITIVITY_TOLERANCE_FACTOR`` times the tolerances asked for
+(``run_rtol``, ``run_atol``): a period-doubling then lands within 3e-10 of where the
+differences put it.
+
+``jacobians="differences"`` takes central finite differences instead: the Hertzian (and
+Kelvin-Voigt) contact force is continuous in the state, so the
 flow, and the map, are continuously differentiable across contact entry and exit, and
 differences of the map see every contact.  Each column steps the state by
 ``FD_RELATIVE_STEP`` times its size (floored at the typical size of a swing, so that a
@@ -18,29 +39,38 @@ and the O(h^2) truncation error is of the same order (checked: steps from 1e-3 t
 the state agree to 1e-7 in the multipliers of case (g)'s orbits).  :func:`Linearisation`
 carries a second route, Richardson's: the columns at steps h and 2 h give a fourth-order
 Jacobian and an estimate of the plain one's error; tests compare both with a
-least-squares fit to a ring of runs of the single-run simulator.
+least-squares fit to a ring of runs of the single-run simulator, and the sensitivities'
+Jacobian with both.
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
 from analysis.dynamics.model_parameters import model_with, parameter_value
-from analysis.model import Model
+from analysis.model import Model, acceleration
 from analysis.packed import P
 from analysis.simulate import SimulationSettings, simulate_packed
 from analysis.simulate import integrator as ig
 from analysis.simulate.result import ContactEvents
 from analysis.simulate.segments import integrate_segments
+from analysis.simulate.sensitivity import SensitivitySettings, simulate_sensitivities
 
 MAP_RTOL = 1e-11
 MAP_ATOL = 1e-13
 FD_RELATIVE_STEP = 1e-5
 ANGLE_FLOOR_RAD = 0.05  # the size a finite-difference step is a fraction of, at least
 ORBIT_SAMPLES_PER_PERIOD = 512
+JACOBIAN_METHODS = ("sensitivities", "differences")
+SENSITIVITY_TOLERANCE_FACTOR = 0.1  # the map's runs with the sensitivities: rtol / 10
+PACKING_RELATIVE_STEP = 1e-5  # differences of the (algebraic) packing
+# packed entries that are flags or follow another entry (SIN_THETA_B follows THETA_B, whose
+# sensitivity column carries it): no column of their own
+_FOLLOWING = frozenset({int(P.SIN_THETA_B), int(P.BARRIER)})
 
 
 class MapError(RuntimeError):
@@ -53,7 +83,8 @@ class Linearisation:
     """The map at one (state, value): its image, Jacobian d P / d x and d P / d value.
 
     ``jacobian_error`` is Richardson's estimate of the Jacobian's error (largest entry,
-    relative to the largest entry of J); 0 when the second step was not run.
+    relative to the largest entry of J); 0 when the second step was not run and with the
+    sensitivities (exact derivatives of the integrator's discrete map).
     """
 
     image: np.ndarray
@@ -61,7 +92,7 @@ class Linearisation:
     parameter_derivative: np.ndarray
     jacobian_error: float = 0.0
 
-    @property
+    @cached_property
     def multipliers(self) -> np.ndarray:
         """Floquet multipliers: eigenvalues of the Jacobian, largest modulus first."""
         values = np.linalg.eigvals(self.jacobian).astype(complex)
@@ -101,7 +132,8 @@ class PeriodMap:
 
     ``parameter_scale`` is the parameter's typical size (e.g. the range a continuation
     covers): the finite-difference step in the parameter never falls below a fraction
-    of it.
+    of it.  ``jacobians`` is "sensitivities" (default) or "differences"; the first falls
+    back to the second with Coulomb friction (``jacobian_method``, ``jacobian_note``).
     """
 
     def __init__(
@@ -113,9 +145,14 @@ class PeriodMap:
         parameter_scale: float | None = None,
         rtol: float = MAP_RTOL,
         atol: float = MAP_ATOL,
+        jacobians: str = "sensitivities",
     ) -> None:
         if periods < 1:
             raise ValueError(f"periods = {periods}: a period map needs k >= 1")
+        if jacobians not in JACOBIAN_METHODS:
+            raise ValueError(f"jacobians = {jacobians!r}: choose from "
+                             f"{', '.join(JACOBIAN_METHODS)}")
+        self.jacobians = jacobians
         self.model = model
         self.parameter = parameter
         self.periods = int(periods)
@@ -124,16 +161,28 @@ class PeriodMap:
         start = parameter_value(model, parameter)  # refuses an unknown name
         self.parameter_scale = float(parameter_scale or abs(start) or 1.0)
         self._packed_cache: tuple[float, np.ndarray] | None = None
+        self._direction_cache: tuple[float, SensitivitySettings, np.ndarray, float] | None = None
         if model.drive.frequency_hz <= 0 or not model.drive.is_forced:
             raise ValueError(
                 "a stroboscopic map needs a forced model (amplitude and frequency > 0)"
             )
+        self.jacobian_method, self.jacobian_note = jacobians, "central differences"
+        if jacobians == "sensitivities":
+            self.jacobian_note = ("forward sensitivities (the variational equations through "
+                                  "every contact)")
+            if self.packed(start)[P.COULOMB_ACC] > 0.0 or self._moves_friction(start):
+                self.jacobian_method = "differences"
+                self.jacobian_note = ("central differences: the sensitivities do not "
+                                      "support Coulomb friction")
+        # the tolerances every run of the map is made at (see the module docstring)
+        tighter = SENSITIVITY_TOLERANCE_FACTOR if self.jacobian_method == "sensitivities" else 1.0
+        self.run_rtol, self.run_atol = rtol * tighter, atol * tighter
 
     def with_periods(self, periods: int) -> PeriodMap:
         """The same map iterated ``periods`` times per application."""
         return PeriodMap(
             self.model, self.parameter, periods, parameter_scale=self.parameter_scale,
-            rtol=self.rtol, atol=self.atol,
+            rtol=self.rtol, atol=self.atol, jacobians=self.jacobians,
         )
 
     def packed(self, value: float) -> np.ndarray:
@@ -162,7 +211,7 @@ class PeriodMap:
         n = states.shape[0]
         end = np.full(n, self.duration_s(value))
         theta, rate, status = integrate_segments(
-            p, np.zeros(n), states, end, np.arange(n + 1), rtol=self.rtol, atol=self.atol
+            p, np.zeros(n), states, end, np.arange(n + 1), rtol=self.run_rtol, atol=self.run_atol
         )
         failed = np.flatnonzero(status != ig.STATUS_OK)
         if failed.size:
@@ -186,11 +235,14 @@ class PeriodMap:
     def linearise(
         self, value: float, state: np.ndarray, *, richardson: bool = False
     ) -> Linearisation:
-        """Image, Jacobian and parameter derivative at (state, value) by central differences;
-        ``richardson`` adds the columns at twice the steps and returns the extrapolated
-        (fourth-order) Jacobian and parameter derivative, with the plain Jacobian's error
-        estimate."""
+        """Image, Jacobian and parameter derivative at (state, value): from the
+        sensitivities, or by central differences, where ``richardson`` adds the columns at
+        twice the steps and returns the extrapolated (fourth-order) Jacobian and parameter
+        derivative, with the plain Jacobian's error estimate (the sensitivities need no
+        such check: ``richardson`` changes nothing there)."""
         state = np.asarray(state, dtype=float)
+        if self.jacobian_method == "sensitivities":
+            return self._sensitivity_linearisation(value, state)
         h = self.state_steps(state, value)
         scales = (1.0, 2.0) if richardson else (1.0,)
         runs = [state]
@@ -224,6 +276,71 @@ class PeriodMap:
             derivative = (4.0 * derivatives[0] - derivatives[1]) / 3.0
         return Linearisation(image, jacobian, derivative, error)
 
+    def _sensitivity_linearisation(self, value: float, state: np.ndarray) -> Linearisation:
+        """The linearisation from one run of the forward sensitivities."""
+        settings, dp, dt = self._direction(value)
+        p = self.packed(value)
+        duration = self.duration_s(value)
+        run = simulate_sensitivities(p, float(state[0]), float(state[1]), np.array([duration]),
+                                     settings=settings)
+        if run.status != "ok":
+            raise MapError(
+                f"the integrator stopped ({run.status}) within {self.periods} period(s) from "
+                f"(theta, theta') = ({state[0]:.6g}, {state[1]:.6g}) at {self.parameter} = "
+                f"{value:.10g}"
+            )
+        image = np.array([run.theta[0], run.theta_dot[0]])
+        jacobian = run.jacobian[0]
+        derivative = jacobian[:, 2:] @ dp
+        if dt != 0.0:  # the image is taken at T(value): the flow's rate times dT / dvalue
+            rate = acceleration(duration, image[0], image[1], p)
+            derivative = derivative + dt * np.array([image[1], rate])
+        return Linearisation(image, jacobian[:, :2].copy(), derivative)
+
+    def _packed_derivative(self, value: float) -> np.ndarray:
+        """d p / d value of the packed vector: central differences of the packing (the
+        one-sided three-point rule where a step leaves the physical range), exact to
+        rounding where the packing is linear in the parameter, within about
+        ``PACKING_RELATIVE_STEP`` squared of it elsewhere."""
+        h = PACKING_RELATIVE_STEP * (abs(value) or self.parameter_scale)
+
+        def pack(v: float) -> np.ndarray:
+            return model_with(self.model, self.parameter, v).pack()
+
+        try:
+            return (pack(value + h) - pack(value - h)) / (2.0 * h)
+        except ValueError:  # a value at the edge of its range (e.g. zeta = 0)
+            pass
+        for step in (h, -h):
+            try:
+                return (-3.0 * pack(value) + 4.0 * pack(value + step)
+                        - pack(value + 2.0 * step)) / (2.0 * step)
+            except ValueError:
+                continue
+        raise MapError(f"{self.parameter} = {value:.10g}: no packing on either side of it")
+
+    def _moves_friction(self, value: float) -> bool:
+        try:
+            return bool(self._packed_derivative(value)[P.COULOMB_ACC] != 0.0)
+        except MapError:
+            return False
+
+    def _direction(self, value: float) -> tuple[SensitivitySettings, np.ndarray, float]:
+        """The sensitivity run's settings at ``value`` (the packed entries the parameter
+        moves), their derivatives, and d T / d value (kept for the last value)."""
+        if self._direction_cache is not None and self._direction_cache[0] == value:
+            return self._direction_cache[1:]
+        dp = self._packed_derivative(value)
+        moved = [int(i) for i in np.flatnonzero(dp) if int(i) not in _FOLLOWING]
+        names = tuple(P(i).name for i in moved)
+        settings = self._direction_cache[1] if self._direction_cache is not None else None
+        if settings is None or settings.parameters != names:
+            settings = SensitivitySettings(parameters=names, rtol=self.run_rtol,
+                                           atol=self.run_atol)
+        dt = -self.duration_s(value) / self.drive_rate(value) * float(dp[P.OMEGA_DRIVE])
+        self._direction_cache = (value, settings, dp[moved], dt)
+        return settings, dp[moved], dt
+
     def orbit(self, value: float, state: np.ndarray,
               samples_per_period: int = ORBIT_SAMPLES_PER_PERIOD) -> OrbitSample:
         """The k periods after k periods from ``state``, sampled ``samples_per_period`` times
@@ -235,8 +352,8 @@ class PeriodMap:
         run = simulate_packed(
             p, float(state[0]), float(state[1]),
             settings=SimulationSettings(
-                duration_s=duration, fs_hz=fs, skip_s=duration, poincare_phase=None, rtol=self.rtol,
-                atol=self.atol,
+                duration_s=duration, fs_hz=fs, skip_s=duration, poincare_phase=None,
+                rtol=self.run_rtol, atol=self.run_atol,
             ),
         )
         if run.status != "ok":
@@ -268,13 +385,23 @@ def _peak(t: np.ndarray, y: np.ndarray, slope: np.ndarray, i: int) -> float:
         c0 = m0
         c1 = 2.0 * (-3.0 * y0 - 2.0 * m0 + 3.0 * y1 - m1)
         c2 = 3.0 * (2.0 * y0 + m0 - 2.0 * y1 + m1)
-        roots = np.roots([c2, c1, c0]) if (c2 or c1) else np.array([])
-        for s in roots:
-            if abs(s.imag) < 1e-12 and 0.0 < s.real < 1.0:
-                s = s.real
+        for s in _real_roots(c2, c1, c0):
+            if 0.0 < s < 1.0:
                 value = (
                     (2 * s**3 - 3 * s**2 + 1) * y0 + (s**3 - 2 * s**2 + s) * m0
                     + (-2 * s**3 + 3 * s**2) * y1 + (s**3 - s**2) * m1
                 )
                 best = max(best, float(value))
     return best
+
+
+def _real_roots(c2: float, c1: float, c0: float) -> list[float]:
+    """The real roots of c2 s^2 + c1 s + c0 (a pair closer than 1e-12 to real counts as
+    its real part), by the rounding-safe quadratic formula."""
+    if c2 == 0.0:
+        return [-c0 / c1] if c1 != 0.0 else []
+    disc = c1 * c1 - 4.0 * c2 * c0
+    if disc < 0.0:
+        return [-c1 / (2.0 * c2)] if math.sqrt(-disc) < 2e-12 * abs(c2) else []
+    q = -0.5 * (c1 + math.copysign(math.sqrt(disc), c1))
+    return [q / c2, c0 / q] if q != 0.0 else [0.0]

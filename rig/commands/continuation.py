@@ -180,8 +180,8 @@ def run(args: argparse.Namespace) -> int:
               f"{event.value:.9g} ({_bracket_text(event.bracket)}), "
               f"multipliers {np.round(event.point.multipliers, 4).tolist()}")
     print(f"continue: {result.points} orbits in {result.seconds:.2f} s "
-          f"({1e3 * result.seconds_per_point:.1f} ms per point) -> {args.out}, {figure_path.name}",
-          file=sys.stdout)
+          f"({1e3 * result.seconds_per_point:.1f} ms per point; Jacobians: {result.jacobians}) "
+          f"-> {args.out}, {figure_path.name}", file=sys.stdout)
     return 0
 
 
