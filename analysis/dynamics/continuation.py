@@ -36,8 +36,12 @@ the parameter range):
   branch can turn within a few 1e-5 rad of a grazing, faster than the corrector follows
   (the map is C^1 there, its curvature huge): the branch then stops, saying so, with the
   grazing recorded at its last point, not located (bracket NaN).  Measured on one such
-  branch: Newton's method at fixed parameter steps gets to within 1e-5 rad of the grazing,
-  then finds no orbit (its residual stays at 6e-9): the branch turns there.
+  branch with central differences: Newton's method at fixed parameter steps gets to
+  within 1e-5 rad of the grazing, then finds no orbit (its residual stays at 6e-9): the
+  branch turns there.  With the sensitivities the corrector follows the two branches
+  where differences stopped so (the 10 Hz period-4 orbit of case (g)'s rig, its grazing
+  located at beta = 0.106640866, and with a 0.02 rad gap, at 0.0269055) through the
+  grazing, and on.
 
 At a period-doubling of a period-k branch, the period-2k branch is followed from it: the
 fixed point of P^2k next to the bifurcation, displaced along the eigenvector of the -1

@@ -14,6 +14,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import numba
 import numpy as np
@@ -298,6 +299,60 @@ def model_lyapunov_spectrum(
     time = (np.arange(n) + 1.0) * interval
     running = np.cumsum(logs, axis=0) / time[:, None]
     return LyapunovSpectrum(running[-1].copy(), period, interval, time, running, t, states)
+
+
+CONVERGENCE_BATCHES = 10  # batch means of the exponents: their standard error
+
+
+def spectrum_report(spectrum: LyapunovSpectrum) -> dict[str, Any]:
+    """The spectrum as plain values (a command's JSON): its method; the exponents per second
+    and per period (per drive period, per small-angle natural period undriven); the span
+    measured (``from_s`` to ``to_s`` of the run's time, in ``intervals`` intervals of
+    ``interval_s``); and how far it has settled: ``standard_error_per_period``, the
+    batch-means standard error of each exponent (``CONVERGENCE_BATCHES`` batches of whole
+    intervals; None with fewer than two intervals a batch), and
+    ``change_over_last_half_per_period``, how much the running averages moved over the
+    second half of the span."""
+    n = spectrum.time.size
+    totals = spectrum.running * spectrum.time[:, None]  # the summed log growth to each end
+    per_interval = np.diff(np.vstack([np.zeros(2), totals]), axis=0)
+    errors = None
+    if n >= 2 * CONVERGENCE_BATCHES:
+        means = np.array([chunk.mean(axis=0) for chunk in
+                          np.array_split(per_interval, CONVERGENCE_BATCHES)])
+        errors = (means.std(axis=0, ddof=1) / math.sqrt(CONVERGENCE_BATCHES)
+                  * spectrum.period_s / spectrum.interval_s)
+    change = (spectrum.running[-1] - spectrum.running[n // 2 - 1]) * spectrum.period_s \
+        if n >= 2 else np.full(2, math.nan)
+    return {
+        "method": spectrum.method,
+        "exponents_per_s": spectrum.exponents_per_s.tolist(),
+        "exponents_per_period": spectrum.exponents_per_period.tolist(),
+        "period_s": spectrum.period_s,
+        "interval_s": spectrum.interval_s,
+        "intervals": n,
+        "from_s": float(spectrum.t[0]),
+        "to_s": float(spectrum.t[-1]),
+        "standard_error_per_period": None if errors is None else errors.tolist(),
+        "batches": CONVERGENCE_BATCHES if errors is not None else None,
+        "change_over_last_half_per_period": [float(x) for x in change],
+    }
+
+
+def spectrum_text(report: dict[str, Any], period_name: str = "drive period") -> str:
+    """:func:`spectrum_report`'s values as two lines for a terminal."""
+    per_period = ", ".join(f"{x:+.4g}" for x in report["exponents_per_period"])
+    per_s = ", ".join(f"{x:+.4g}" for x in report["exponents_per_s"])
+    errors = report["standard_error_per_period"]
+    settled = (f"batch-means standard error {', '.join(f'{x:.2g}' for x in errors)} per "
+               f"{period_name} ({report['batches']} batches)" if errors is not None else
+               f"too short for batch means (fewer than {2 * CONVERGENCE_BATCHES} intervals)")
+    moved = ", ".join(f"{x:.2g}" for x in report["change_over_last_half_per_period"])
+    return (f"Lyapunov spectrum ({report['method']}): {per_period} per {period_name} "
+            f"({per_s} per s), over t = {report['from_s']:.6g} to {report['to_s']:.6g} s "
+            f"({report['intervals']} intervals of {report['interval_s']:.6g} s)\n"
+            f"  convergence: {settled}; the running averages moved {moved} per "
+            f"{period_name} over the second half")
 
 
 def _qr_2x2(matrix: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -130,6 +130,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     parser.add_argument("--seed", type=int, help="seed of the measurement noise")
     parser.add_argument(
+        "--lyapunov", action="store_true",
+        help="also the model's Lyapunov spectrum over the recorded span (the transient "
+        "turns the frame without counting): both exponents by the QR method on the exact "
+        "sensitivities, with their convergence; printed and in the JSON (not with Coulomb "
+        "friction)",
+    )
+    parser.add_argument(
         "--rtol", type=float, default=1e-9,
         help="integrator relative tolerance (1e-9); the absolute one is rtol / 100",
     )
@@ -441,6 +448,7 @@ def run(args: argparse.Namespace) -> int:
     if result.t.size < 2:
         raise CommandError(f"the simulation produced too few samples ({result.status})")
 
+    spectrum = _lyapunov(model, args, result.record_start_s) if args.lyapunov else None
     time_s = np.arange(result.t.size) / args.fs  # = result.t - record start, without rounding
     angle = result.theta
     measured = not measurement.is_ideal or has_measurement_causes(model)
@@ -476,6 +484,8 @@ def run(args: argparse.Namespace) -> int:
         "status": result.status,
         "contacts": result.contacts.count,
     }
+    if spectrum is not None:
+        extra["lyapunov_spectrum"] = spectrum
     meta = _metadata(model, experiment, args, extra)
     if suffix == ".csv":
         record = ExchangeRecord(time_s, angle, meta, table_m=table, tach=tach)
@@ -489,7 +499,32 @@ def run(args: argparse.Namespace) -> int:
         f"simulate: {result.t.size} samples, {result.contacts.count} contacts, "
         f"{wall:.3f} s wall, status {result.status} -> {written}"
     )
+    if spectrum is not None:
+        from analysis.dynamics.lyapunov import spectrum_text
+
+        driven = experiment_kind(experiment).driven
+        print(spectrum_text(spectrum, "drive period" if driven else "natural period"))
     return 0 if result.ok else 1
+
+
+def _lyapunov(model: Any, args: argparse.Namespace, transient_s: float) -> dict[str, Any]:
+    """The model's Lyapunov spectrum from the run's start, over the recorded span after
+    ``transient_s`` (:func:`analysis.dynamics.lyapunov.spectrum_report`)."""
+    from analysis.dynamics.lyapunov import (
+        SpectrumSettings,
+        model_lyapunov_spectrum,
+        spectrum_report,
+    )
+
+    try:
+        spectrum = model_lyapunov_spectrum(
+            model.pack(), args.theta0, args.omega0,
+            SpectrumSettings(duration_s=args.duration, transient_s=transient_s,
+                             rtol=args.rtol, atol=args.rtol * 1e-2),
+        )
+    except (ValueError, RuntimeError) as error:
+        raise CommandError(f"--lyapunov: {error}") from None
+    return spectrum_report(spectrum)
 
 
 def _tach(t: Any, p: Any, fs_hz: float) -> Any:

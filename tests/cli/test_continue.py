@@ -33,6 +33,7 @@ def test_continue_writes_branches_events_and_figure(tmp_path):
     with h5py.File(out) as handle:
         assert handle.attrs["parameter"] == "beta"
         assert "command_line" in json.loads(handle.attrs["provenance_json"])
+        assert handle.attrs["jacobians"].startswith("forward sensitivities")
         branch = handle["branches/0"]
         assert branch.attrs["periods"] == 1
         beta = branch["parameter"][:]

@@ -7,12 +7,14 @@ import subprocess
 import sys
 
 import numpy as np
+import pytest
 
 from analysis.exchange import read_exchange
 from analysis.model import Model, paper_case
 from analysis.simulate import SimulationSettings, simulate
 from recording.reader import open_recording
 from rig.cli import main
+from rig.commands.simulate import build_model
 
 
 def _impact_rig(*args: str) -> subprocess.CompletedProcess:
@@ -170,3 +172,41 @@ def test_simulated_hdf5_is_a_recording_that_replays_and_exports_like_its_csv(tmp
                                    atol=1e-12)
     assert np.array_equal(back.tach_indices, direct.tach_indices)
     assert back.meta.drive == direct.meta.drive and back.meta.experiment == "forced"
+
+
+def test_lyapunov_spectrum_is_printed_and_written_with_its_span_and_convergence(tmp_path):
+    # a linear damped swing: both exponents are -zeta omega (their sum, the divergence,
+    # exactly; each up to the frame's phase wobble, ln(omega) / T)
+    out = tmp_path / "decay.csv"
+    done = _impact_rig("--experiment", "free_decay", "--theta0", "0.01", "--param",
+                       "zeta=0.005", "--skip", "2", "--duration", "60", "--fs", "50",
+                       "--lyapunov", "--out", str(out))
+    assert done.returncode == 0, done.stderr
+    lines = done.stdout.splitlines()
+    assert lines[1].startswith("Lyapunov spectrum (QR on the variational flow")
+    assert "per natural period" in lines[1] and lines[2].startswith("  convergence: ")
+    spectrum = read_exchange(out).meta.extra["simulation"]["lyapunov_spectrum"]
+    model, _ = build_model(None, "free_decay", {"zeta": 0.005}, [])
+    omega = model.rig.omega_rad_s
+    rate = 0.005 * omega
+    exponents = np.array(spectrum["exponents_per_s"])
+    assert np.sum(exponents) == pytest.approx(-2.0 * rate, rel=1e-6)
+    assert np.all(np.abs(exponents + rate) <= math.log(omega) / 60.0)
+    # the span: the natural periods after the skipped transient, counted from its end
+    period = 2.0 * math.pi / omega
+    assert spectrum["period_s"] == pytest.approx(period)
+    assert spectrum["from_s"] == pytest.approx(round(2.0 / period) * period)
+    assert spectrum["intervals"] == round(60.0 / period)
+    assert len(spectrum["standard_error_per_period"]) == 2 and spectrum["batches"] == 10
+    assert f"{exponents[0]:+.4g}" in lines[1]
+
+
+def test_lyapunov_refuses_coulomb_friction_in_one_line(tmp_path, capsys):
+    out = tmp_path / "x.csv"
+    assert main(["simulate", "--case", "h", "--duration", "0.5", "--cause",
+                 "coulomb_friction", "--param", "Tc_N_m=1e-5", "--lyapunov",
+                 "--out", str(out)]) == 2
+    error = capsys.readouterr().err.strip().splitlines()[-1]  # after the progress line
+    assert error.startswith("impact-rig simulate: error: --lyapunov: ")
+    assert "Coulomb friction" in error
+    assert not out.exists()
