@@ -45,6 +45,7 @@ Jacobian with both.
 
 from __future__ import annotations
 
+import contextlib
 import math
 from dataclasses import dataclass
 from functools import cached_property
@@ -161,7 +162,8 @@ class PeriodMap:
         start = parameter_value(model, parameter)  # refuses an unknown name
         self.parameter_scale = float(parameter_scale or abs(start) or 1.0)
         self._packed_cache: tuple[float, np.ndarray] | None = None
-        self._direction_cache: tuple[float, SensitivitySettings, np.ndarray, float] | None = None
+        self._direction_cache: tuple[float | None, SensitivitySettings, np.ndarray,
+                                     float] | None = None
         if model.drive.frequency_hz <= 0 or not model.drive.is_forced:
             raise ValueError(
                 "a stroboscopic map needs a forced model (amplitude and frequency > 0)"
@@ -327,19 +329,32 @@ class PeriodMap:
 
     def _direction(self, value: float) -> tuple[SensitivitySettings, np.ndarray, float]:
         """The sensitivity run's settings at ``value`` (the packed entries the parameter
-        moves), their derivatives, and d T / d value (kept for the last value)."""
-        if self._direction_cache is not None and self._direction_cache[0] == value:
-            return self._direction_cache[1:]
-        dp = self._packed_derivative(value)
-        moved = [int(i) for i in np.flatnonzero(dp) if int(i) not in _FOLLOWING]
+        moves), their derivatives, and d T / d value (kept for the last value, and for
+        every value when the packing is affine in the parameter, as it is for beta, A_m,
+        f_drive_hz, theta_b_rad, zeta or mu0: the same derivatives at the first value and
+        one a hundredth of the scale away)."""
+        cache = self._direction_cache
+        if cache is not None and (cache[0] == value or cache[0] is None):
+            _, settings, dp, dt_per_duration = cache
+            return settings, dp, dt_per_duration * self.duration_s(value)
+        full = self._packed_derivative(value)
+        affine = False
+        if cache is None:
+            with contextlib.suppress(MapError):  # no packing there: take it value by value
+                affine = _same(full, self._packed_derivative(value + 1e-2 * self.parameter_scale))
+        moved = [int(i) for i in np.flatnonzero(full) if int(i) not in _FOLLOWING]
         names = tuple(P(i).name for i in moved)
-        settings = self._direction_cache[1] if self._direction_cache is not None else None
+        settings = cache[1] if cache is not None else None
         if settings is None or settings.parameters != names:
             settings = SensitivitySettings(parameters=names, rtol=self.run_rtol,
                                            atol=self.run_atol)
-        dt = -self.duration_s(value) / self.drive_rate(value) * float(dp[P.OMEGA_DRIVE])
-        self._direction_cache = (value, settings, dp[moved], dt)
-        return settings, dp[moved], dt
+        # T = 2 pi k / Omega: dT / dvalue = -T dOmega / Omega, kept per unit T
+        dt_per_duration = -float(full[P.OMEGA_DRIVE]) / self.drive_rate(value)
+        if affine and full[P.OMEGA_DRIVE] != 0.0:  # 1 / Omega is not affine: per value
+            affine = False
+        self._direction_cache = (None if affine else value, settings, full[moved],
+                                 dt_per_duration)
+        return settings, full[moved], dt_per_duration * self.duration_s(value)
 
     def orbit(self, value: float, state: np.ndarray,
               samples_per_period: int = ORBIT_SAMPLES_PER_PERIOD) -> OrbitSample:
@@ -369,6 +384,11 @@ class PeriodMap:
         top = max(heights)
         nearest = min(heights, key=lambda h: abs(theta_b - h))
         return OrbitSample(run.t, y, slope, run.contacts, top, theta_b - top, theta_b - nearest)
+
+
+def _same(a: np.ndarray, b: np.ndarray) -> bool:
+    """Two derivative vectors equal to rounding (relative 1e-9 of the larger entry)."""
+    return bool(np.all(np.abs(a - b) <= 1e-9 * np.maximum(np.abs(a), np.abs(b))))
 
 
 def _peak(t: np.ndarray, y: np.ndarray, slope: np.ndarray, i: int) -> float:
