@@ -14,7 +14,9 @@ SETTLE_PERIODS = 2000
 DESCRIPTION = """\
 Follow the period-K orbit of the forced pendulum through one model parameter, stable and
 unstable, by pseudo-arclength continuation of the fixed points of the K-th iterate of the
-drive-period (stroboscopic) map; each orbit comes with its Floquet multipliers.
+drive-period (stroboscopic) map; each orbit comes with its Floquet multipliers (from the
+map's exact sensitivities through every contact; from central differences with Coulomb
+friction, which the last line then says).
 Period-doublings (a multiplier through -1), folds (the parameter turns back), branch points
 (a multiplier through +1 without a turn) and grazings (a swing's apex reaching the barrier)
 are located to about 1e-9 of the parameter range; at each period-doubling the period-2K
