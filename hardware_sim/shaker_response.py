@@ -14,6 +14,8 @@ import math
 import threading
 from dataclasses import dataclass
 
+from analysis import quantities as q
+
 AT_ZERO_M = 0.5e-6  # below this the output counts as stopped: it reads 0 in whole micrometres
 
 
@@ -104,9 +106,9 @@ class ShakerResponse:
         """New targets from now on (None keeps a target)."""
         with self._lock:
             if amplitude_m is not None:
-                self._amp_target = _non_negative("amplitude_m", amplitude_m)
+                self._amp_target = _non_negative(q.amplitude_m, amplitude_m)
             if frequency_hz is not None:
-                self._freq_target = _non_negative("frequency_hz", frequency_hz)
+                self._freq_target = _non_negative(q.frequency_hz, frequency_hz)
             if ramp_rate_m_s is not None:
                 rate = _non_negative("ramp_rate_m_s", ramp_rate_m_s)
                 if rate == 0:
@@ -117,10 +119,10 @@ class ShakerResponse:
         """Jump to a settled output (the table was already running when the simulation started)."""
         with self._lock:
             self._amp_target = self._amp_ref = self._amp_out = _non_negative(
-                "amplitude_m", amplitude_m
+                q.amplitude_m, amplitude_m
             )
             self._freq_target = self._freq_ref = self._freq_out = _non_negative(
-                "frequency_hz", frequency_hz
+                q.frequency_hz, frequency_hz
             )
 
     @property

@@ -5,11 +5,12 @@ from __future__ import annotations
 
 from dataclasses import fields, replace
 
+from analysis import quantities as q
 from analysis.dynamics.sweeps import model_at_beta
 from analysis.model import Model, RigParameters
 from analysis.packed import ParameterError
 
-DRIVE_PARAMETERS = ("beta", "A_m", "f_drive_hz")
+DRIVE_PARAMETERS = (q.beta, "A_m", "f_drive_hz")
 RIG_PARAMETERS = tuple(f.name for f in fields(RigParameters))
 
 
@@ -19,7 +20,7 @@ def model_with(model: Model, name: str, value: float) -> Model:
 
     Everything else stays as it is: varying ``L_m`` keeps the table amplitude A in metres,
     varying ``f_drive_hz`` keeps A (and so beta)."""
-    if name == "beta":
+    if name == q.beta:
         return model_at_beta(model, value)
     if name == "A_m":
         return replace(model, drive=replace(model.drive, amplitude_m=float(value)))
@@ -35,7 +36,7 @@ def model_with(model: Model, name: str, value: float) -> Model:
 
 def parameter_value(model: Model, name: str) -> float:
     """The current value of a parameter :func:`model_with` knows."""
-    if name == "beta":
+    if name == q.beta:
         return model.drive.amplitude_m / model.rig.L_m
     if name == "A_m":
         return model.drive.amplitude_m

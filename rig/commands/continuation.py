@@ -7,6 +7,7 @@ import math
 import sys
 from pathlib import Path
 
+from analysis import quantities as q
 from rig.cli import CommandError, add_command
 
 SETTLE_PERIODS = 2000
@@ -141,11 +142,11 @@ def run(args: argparse.Namespace) -> int:
     params = parse_assignments(args.param)
     if args.f_drive_hz is not None:
         params["f_drive_hz"] = args.f_drive_hz
-    if name in ("beta", "A_m", "f_drive_hz"):
+    if name in (q.beta, "A_m", "f_drive_hz"):
         params[name] = start
     if "f_drive_hz" not in params and not args.case:
         raise CommandError("the drive frequency is needed: --f-drive-hz F (or --case)")
-    if not any(k in params for k in ("beta", "A_m")) and not args.case:
+    if not any(k in params for k in (q.beta, "A_m")) and not args.case:
         raise CommandError("the drive amplitude is needed: --param beta=... or A_m=..., "
                            "or vary it with --vary beta=START:STOP")
     model, _ = build_model(args.case, "forced", params, args.cause)
