@@ -134,6 +134,13 @@ amplitude_m = _define("amplitude_m", "m", "A", "table drive amplitude", _NON_NEG
 frequency_hz = _define("frequency_hz", "Hz", "f", "table drive frequency (0: undriven)",
                        _NON_NEGATIVE)
 
+# the drive's names on the command line and in map files (simulate --param, map --vary,
+# continuation, a diagram's swept parameter), which the options have always taken: the
+# quantities above under shorter names, spelled here once
+f_drive_hz = "f_drive_hz"
+A_m = "A_m"
+COMMAND_LINE_NAMES: dict[str, str] = {f_drive_hz: frequency_hz, A_m: amplitude_m}
+
 # ------------------------------------------------ the nondimensional groups (section 4, eq. 15)
 eta = _define("eta", "", "eta", "natural over drive frequency omega / Omega", _POSITIVE)
 beta = _define("beta", "", "beta", "drive amplitude over effective length A / L", _NON_NEGATIVE)

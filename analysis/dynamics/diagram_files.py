@@ -23,7 +23,7 @@ from analysis.dynamics.strobe import strobe_record
 from analysis.hdf5_records import load_hdf5_steps, read_recording_arrays
 from recording.layout import FORMAT_NAME
 
-SWEPT = (q.beta, "f_drive_hz")  # what a recorded sweep can be drawn over
+SWEPT = (q.beta, q.f_drive_hz)  # what a recorded sweep can be drawn over
 
 
 class DiagramFileError(ValueError):

@@ -14,7 +14,7 @@ from analysis.hdf5_records import load_hdf5_steps
 from analysis.records import Record
 from recording.errors import RecordFormatError
 
-SWEPT = (q.beta, "f_drive_hz")  # what a recorded sweep steps: amplitude (as beta) or frequency
+SWEPT = (q.beta, q.f_drive_hz)  # what a recorded sweep steps: amplitude (as beta) or frequency
 
 
 @dataclass(frozen=True)

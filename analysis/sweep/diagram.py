@@ -530,7 +530,7 @@ def model_orbits(
     if first is None:
         return None
     simulated = comparison.simulated[first]
-    parameter = q.beta if sweep.parameter == "amplitude" else "f_drive_hz"
+    parameter = q.beta if sweep.parameter == "amplitude" else q.f_drive_hz
     top = max(comparison.steps[i].setting for i in up)
     start = comparison.steps[first].setting
     if top <= start:

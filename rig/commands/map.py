@@ -255,7 +255,7 @@ def _fixed_values(args: argparse.Namespace) -> dict[str, float]:
     from rig.commands.simulate import parse_assignments
 
     params = parse_assignments(args.param)
-    for option, name in (("--f-drive-hz", "f_drive_hz"), ("--beta", q.beta)):
+    for option, name in (("--f-drive-hz", q.f_drive_hz), ("--beta", q.beta)):
         value = getattr(args, name)
         if value is not None:
             if name in params:

@@ -26,8 +26,8 @@ from rig.cli import CommandError, add_command
 from rig.logs import log, progress
 
 DRIVE_PARAMETERS = {
-    "f_drive_hz": "drive frequency [Hz]",
-    "A_m": "table displacement amplitude [m]",
+    q.f_drive_hz: "drive frequency [Hz]",
+    q.A_m: "table displacement amplitude [m]",
     q.beta: "amplitude as a fraction of L (A = beta L)",
 }
 NONDIMENSIONAL_PARAMETERS = {
@@ -253,7 +253,7 @@ def _rig_and_drive(
         rig, drive = paper_case(case).dimensional()
         frequency, amplitude = drive.frequency_hz, drive.amplitude_m
     rig = rig.with_values(**{k: v for k, v in params.items() if k in rig_names})
-    frequency = params.get("f_drive_hz", frequency)
+    frequency = params.get(q.f_drive_hz, frequency)
     nondimensional = {k: v for k, v in params.items() if k in NONDIMENSIONAL_PARAMETERS}
     if nondimensional:
         if frequency <= 0:
@@ -264,7 +264,7 @@ def _rig_and_drive(
         amplitude = beta * rig.L_m
     if q.beta in params:
         amplitude = params[q.beta] * rig.L_m
-    amplitude = params.get("A_m", amplitude)
+    amplitude = params.get(q.A_m, amplitude)
     if not driven:
         return rig, Drive()
     if frequency <= 0 or amplitude <= 0:
