@@ -108,6 +108,13 @@ def test_the_rig_and_every_cause_name_registered_quantities():
             assert spec.doc == quantity(spec.name).doc  # meaning and unit defined once
 
 
+def test_a_cause_whose_fit_would_leave_the_physical_bounds_is_refused():
+    from analysis.extensions import ParameterSpec
+
+    with pytest.raises(ParameterError, match=r"tau_s = -0.1: must be >= 0"):
+        ParameterSpec(q.tau_s, 0.0, -0.1, 1.0)
+
+
 def test_every_quantity_knows_its_symbol_meaning_and_sane_bounds():
     for key, entry in QUANTITIES.items():
         assert entry.key == key and entry.symbol and entry.meaning, key
