@@ -32,10 +32,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from analysis import quantities as q
 from analysis.output_paths import check_outputs
 
 PLAN_FORMAT_VERSION = 1
-STEP_NUMBERS = ("frequency_hz", "amplitude_m", "settle_s", "dwell_s")
+STEP_NUMBERS = (q.frequency_hz, q.amplitude_m, "settle_s", "dwell_s")
 STEP_KEYS = (*STEP_NUMBERS, "why")
 TOP_KEYS = ("format_version", "made_by", "source", "notes", "provenance")
 

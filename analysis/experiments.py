@@ -86,7 +86,7 @@ FORCED = ExperimentKind(
     label="forced response",
     provides=frozenset({BARRIER, DRIVE, HARMONICS}),
     determines=(q.L_m, q.omega_rad_s, q.zeta, q.K_N_per_m1_5, q.E_Pa, q.mu0_s_per_m,
-                q.theta_b_rad, q.offset_rad, "amplitude_m", "frequency_hz"),
+                q.theta_b_rad, q.offset_rad, q.amplitude_m, q.frequency_hz),
     comparison="multiple shooting over the record; forecasts of the stretches after fitted "
     "ones (and, when chaotic, the invariant statistics of the model's own long run)",
 )

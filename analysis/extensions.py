@@ -41,7 +41,9 @@ class ParameterSpec:
     plausible: tuple[float, float] | None = None
 
     def __post_init__(self) -> None:
-        quantity(self.name)  # a cause's parameter is a registered quantity
+        entry = quantity(self.name)  # a cause's parameter is a registered quantity
+        for value in (self.default, self.lower, self.upper, *(self.plausible or ())):
+            entry.check(value)  # a fit explores physical values only: within the registry's
 
     @property
     def doc(self) -> str:

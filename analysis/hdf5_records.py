@@ -15,6 +15,7 @@ from typing import Any
 
 import numpy as np
 
+from analysis import quantities as q
 from analysis.exchange import rig_constants
 from analysis.records import Record
 from recording.errors import RecordFormatError, RecordingFormatError
@@ -129,13 +130,13 @@ def _whole_drive(
     if not steps.size:
         return arrays.drive, []
     listed = [{"step": int(s["step"]), "direction": int(s["direction"]),
-               "frequency_hz": float(s["frequency_hz"]),
-               "amplitude_m": float(s["amplitude_m"]),
+               q.frequency_hz: float(s[q.frequency_hz]),
+               q.amplitude_m: float(s[q.amplitude_m]),
                "start_s": _time_at(arrays, int(s["settle_start_index"])),
                "dwell_start_s": _time_at(arrays, int(s["dwell_start_index"])),
                "dwell_end_s": _time_at(arrays, int(s["dwell_end_index"])),
                "complete": bool(s["complete"])} for s in steps]
-    shared = {key: listed[0][key] for key in ("frequency_hz", "amplitude_m")
+    shared = {key: listed[0][key] for key in (q.frequency_hz, q.amplitude_m)
               if len({step[key] for step in listed}) == 1}
     return shared or None, listed
 
@@ -195,8 +196,8 @@ def load_hdf5_steps(path: str | Path) -> list[Record]:
                 "export the gap-free segments instead"
             )
         drive = {
-            "frequency_hz": float(step["frequency_hz"]),
-            "amplitude_m": float(step["amplitude_m"]),
+            q.frequency_hz: float(step[q.frequency_hz]),
+            q.amplitude_m: float(step[q.amplitude_m]),
         }
         out.append(stretch_record(arrays, positions, path, f" step {int(step['step'])}", drive))
     return out

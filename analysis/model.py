@@ -13,7 +13,6 @@ from __future__ import annotations
 import math
 from dataclasses import asdict, dataclass, field, fields, replace
 from types import MappingProxyType
-from typing import Any
 
 import numba
 import numpy as np
@@ -43,16 +42,8 @@ class RigParameters:
     theta_b_rad: float = 0.0
 
     def __post_init__(self) -> None:
-        for name in (q.m_kg, q.l_m, q.L_m, q.R_m, q.g_m_s2, q.E_Pa):
-            _require(name, getattr(self, name), positive=True)
-        for name in (q.zeta, q.mu0_s_per_m):
-            _require(name, getattr(self, name), positive=False)
-        _require(q.theta_b_rad, self.theta_b_rad, positive=False, allow_negative=True)
-        if abs(self.theta_b_rad) >= math.pi / 2:
-            raise ParameterError(
-                f"theta_b_rad = {self.theta_b_rad!r}: the barrier must sit below the pivot "
-                "(|theta_b_rad| < pi/2)"
-            )
+        for f in fields(self):  # each within its registered bounds (the barrier below the pivot)
+            q.check(f.name, getattr(self, f.name))
 
     @property
     def omega_rad_s(self) -> float:
@@ -66,7 +57,7 @@ class RigParameters:
 
     def with_stiffness(self, K_N_per_m1_5: float) -> RigParameters:
         """Same rig with the modulus chosen so that K = (4/3) E sqrt(R) takes the given value."""
-        _require(q.K_N_per_m1_5, K_N_per_m1_5, positive=True)
+        q.check(q.K_N_per_m1_5, K_N_per_m1_5)
         return replace(self, E_Pa=3.0 * K_N_per_m1_5 / (4.0 * math.sqrt(self.R_m)))
 
     def with_values(self, **values: float) -> RigParameters:
@@ -95,10 +86,8 @@ class Drive:
     phi2_rad: float = 0.0
 
     def __post_init__(self) -> None:
-        _require("amplitude_m", self.amplitude_m, positive=False)
-        _require("frequency_hz", self.frequency_hz, positive=False)
-        _require(q.h2, self.h2, positive=False)
-        _require(q.phi2_rad, self.phi2_rad, positive=False, allow_negative=True)
+        for f in fields(self):
+            q.check(f.name, getattr(self, f.name))
         if self.amplitude_m > 0 and self.frequency_hz <= 0:
             raise ParameterError(
                 f"frequency_hz = {self.frequency_hz!r}: a drive with amplitude "
@@ -121,17 +110,6 @@ class Drive:
         return self.amplitude_m > 0
 
 
-def _require(name: str, value: Any, *, positive: bool, allow_negative: bool = False) -> None:
-    if isinstance(value, bool) or not isinstance(value, int | float | np.floating | np.integer):
-        raise ParameterError(f"{name} = {value!r}: expected a number")
-    if not math.isfinite(value):
-        raise ParameterError(f"{name} = {value!r}: expected a finite number")
-    if positive and value <= 0:
-        raise ParameterError(f"{name} = {value!r}: must be > 0")
-    if not positive and not allow_negative and value < 0:
-        raise ParameterError(f"{name} = {value!r}: must be >= 0")
-
-
 # --------------------------------------------------------------------------- nondimensional form
 
 
@@ -146,16 +124,18 @@ class Nondimensional:
     zeta: float = 0.007
 
     def __post_init__(self) -> None:
-        for name in ("eta", "gamma"):
-            _require(name, getattr(self, name), positive=True)
-        for name in ("beta", "mu", q.zeta):
-            _require(name, getattr(self, name), positive=False)
+        for f in fields(self):
+            q.check(f.name, getattr(self, f.name))
+
+
+def _forming_frequency(frequency_hz: float) -> None:
+    if q.check(q.frequency_hz, frequency_hz) <= 0:
+        raise ParameterError(f"{q.frequency_hz} must be > 0 to form the nondimensional groups")
 
 
 def to_nondimensional(rig: RigParameters, drive: Drive) -> Nondimensional:
     """eta = omega/Omega, beta = A/L, mu = mu0 l Omega, gamma = K l^(5/2) / (m Omega^2 L^2)."""
-    if drive.frequency_hz <= 0:
-        raise ParameterError("frequency_hz must be > 0 to form the nondimensional groups")
+    _forming_frequency(drive.frequency_hz)
     Omega = drive.Omega_rad_s
     gamma = rig.K_N_per_m1_5 * rig.l_m**2.5 / (rig.m_kg * Omega**2 * rig.L_m**2)
     return Nondimensional(
@@ -175,7 +155,7 @@ def from_nondimensional(
     m, l, R and g are taken from ``rig`` (default: the paper's rig); L, zeta, E
     (through K, with that R), mu0 and the drive amplitude follow from the groups.
     """
-    _require("frequency_hz", frequency_hz, positive=True)
+    _forming_frequency(frequency_hz)
     base = rig or RigParameters()
     Omega = 2.0 * math.pi * frequency_hz
     L = base.g_m_s2 / (nd.eta * Omega) ** 2

@@ -93,6 +93,6 @@ class Record:
         if not self.drive:
             return Drive()
         return Drive(
-            amplitude_m=float(self.drive.get("amplitude_m") or 0.0),
-            frequency_hz=float(self.drive.get("frequency_hz") or 0.0),
+            amplitude_m=float(self.drive.get(q.amplitude_m) or 0.0),
+            frequency_hz=float(self.drive.get(q.frequency_hz) or 0.0),
         )

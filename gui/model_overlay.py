@@ -167,9 +167,9 @@ def identify_recording(path: str | Path, experiment: str | None = None) -> Model
         model_t, model = _impact_decay_response(record, t, result)
         return ModelOverlay(str(path), "angle", t, record.angle_rad, model_t, model, result)
     result = fit_drive(record)
-    amplitude = result["amplitude_m"].value
+    amplitude = result[q.amplitude_m].value
     phase = result["phase_rad"].value
-    omega = 2.0 * math.pi * result["frequency_hz"].value
+    omega = 2.0 * math.pi * result[q.frequency_hz].value
     sine = table_displacement(omega * t + phase, amplitude, 0.0, 0.0)  # the fundamental
     table = np.asarray(record.table_m, dtype=float)
     sine += float(np.nanmean(table - sine))
@@ -204,7 +204,7 @@ def _free_decay_response(
             simulated_free_decay(
                 local,
                 fitted[q.theta0_rad],
-                fitted["theta_dot0_rad_s"],
+                fitted[q.theta_dot0_rad_s],
                 fitted[q.zeta],
                 fitted[q.omega_rad_s],
                 record.gravity_m_s2,
@@ -234,7 +234,7 @@ def _impact_decay_response(
     run = simulate(
         Model(rig=rig, drive=Drive(), barrier=True),
         fitted[q.theta0_rad],
-        fitted["theta_dot0_rad_s"],
+        fitted[q.theta_dot0_rad_s],
         settings=SimulationSettings(duration_s=model_t.size / fs, fs_hz=fs, poincare_phase=None),
     )
     theta = np.asarray(run.theta, dtype=float)[: model_t.size]

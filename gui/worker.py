@@ -22,6 +22,7 @@ from pathlib import Path
 
 from PySide6.QtCore import QObject, Signal
 
+from analysis import quantities as q
 from analysis.progress import ProgressText
 from drivers.interfaces import ActuatorStatus, DeviceError, PulseBlock, SampleBlock, StreamStatus
 from drivers.shaker import ShakerAmplifier
@@ -278,7 +279,7 @@ class LiveSession(Session):
             raise RuntimeError(f"already recording to {self.recording.path}")
         drive = self.engine.stats().drive
         drive_meta = (
-            {"frequency_hz": drive.frequency_hz, "amplitude_m": drive.amplitude_m}
+            {q.frequency_hz: drive.frequency_hz, q.amplitude_m: drive.amplitude_m}
             if drive is not None and drive.enabled
             else None
         )

@@ -14,6 +14,8 @@ import math
 import threading
 from dataclasses import dataclass
 
+from analysis import quantities as q
+
 AT_ZERO_M = 0.5e-6  # below this the output counts as stopped: it reads 0 in whole micrometres
 
 
@@ -104,23 +106,21 @@ class ShakerResponse:
         """New targets from now on (None keeps a target)."""
         with self._lock:
             if amplitude_m is not None:
-                self._amp_target = _non_negative("amplitude_m", amplitude_m)
+                self._amp_target = q.check(q.amplitude_m, amplitude_m)
             if frequency_hz is not None:
-                self._freq_target = _non_negative("frequency_hz", frequency_hz)
+                self._freq_target = q.check(q.frequency_hz, frequency_hz)
             if ramp_rate_m_s is not None:
-                rate = _non_negative("ramp_rate_m_s", ramp_rate_m_s)
-                if rate == 0:
-                    raise ValueError("ramp_rate_m_s must be > 0")
+                rate = float(ramp_rate_m_s)
+                if not (math.isfinite(rate) and rate > 0):
+                    raise ValueError(f"ramp_rate_m_s = {ramp_rate_m_s!r}: must be > 0")
                 self._ramp_rate = rate
 
     def settle_at(self, *, amplitude_m: float, frequency_hz: float) -> None:
         """Jump to a settled output (the table was already running when the simulation started)."""
         with self._lock:
-            self._amp_target = self._amp_ref = self._amp_out = _non_negative(
-                "amplitude_m", amplitude_m
-            )
-            self._freq_target = self._freq_ref = self._freq_out = _non_negative(
-                "frequency_hz", frequency_hz
+            self._amp_target = self._amp_ref = self._amp_out = q.check(q.amplitude_m, amplitude_m)
+            self._freq_target = self._freq_ref = self._freq_out = q.check(
+                q.frequency_hz, frequency_hz
             )
 
     @property
@@ -173,10 +173,3 @@ class ShakerResponse:
             or abs(self._freq_out - self._freq_target) > 1e-4
         )
         return ShakerOutput(self._t, max(self._amp_out, 0.0), max(self._freq_out, 0.0), ramping)
-
-
-def _non_negative(name: str, value: float) -> float:
-    value = float(value)
-    if not (math.isfinite(value) and value >= 0):
-        raise ValueError(f"{name} = {value!r}: must be a finite number >= 0")
-    return value

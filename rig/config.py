@@ -17,6 +17,7 @@ from types import MappingProxyType
 from typing import Any
 
 from analysis import quantities as q
+from analysis.packed import ParameterError
 from drivers.limits import LimitsConfigError, ShakerLimits
 from drivers.sensors import LaserCalibration, PotentiometerCalibration, TachometerCalibration
 
@@ -195,18 +196,26 @@ class _Section:
         low_open: bool = False,
         nonzero: bool = False,
     ) -> float:
-        expected = ("a non-zero number" if nonzero else "a number") + _range_words(
-            low, high, low_open
-        )
+        bounds = _bounds(low, high, low_open)
+        expected = ("a non-zero number" if nonzero else "a number") + _words(bounds)
         value = self._get(key, expected)
         is_number = isinstance(value, int | float) and not isinstance(value, bool)
-        if not is_number or not math.isfinite(value):
+        if not is_number or not math.isfinite(value) or value not in bounds:
             raise self._bad(key, value, expected)
-        if low is not None and (value < low or (low_open and value == low)):
-            raise self._bad(key, value, expected)
-        if (high is not None and value > high) or (nonzero and value == 0):
+        if nonzero and value == 0:
             raise self._bad(key, value, expected)
         return float(value)
+
+    def quantity(self, key: str) -> float:
+        """A number within the bounds of the registered quantity ``key``
+        (:mod:`analysis.quantities`): the rig file and the model refuse the same values."""
+        bounds = q.quantity(key).bounds or q.Bounds()
+        expected = "a number" + _words(bounds)
+        value = self._get(key, expected)
+        try:
+            return q.check(key, value)
+        except ParameterError:
+            raise self._bad(key, value, expected) from None
 
     def magnitude(self, key: str, smallest: float, largest: float) -> float:
         """A number of either sign whose size lies in [smallest, largest]."""
@@ -236,7 +245,7 @@ class _Section:
         return values[0], values[1]
 
     def integer(self, key: str, *, low: int | None = None, high: int | None = None) -> int:
-        expected = "an integer" + _range_words(low, high, False)
+        expected = "an integer" + _words(_bounds(low, high, False))
         value = self._get(key, expected)
         if isinstance(value, bool) or not isinstance(value, int):
             raise self._bad(key, value, expected)
@@ -267,14 +276,14 @@ class _Section:
             )
 
 
-def _range_words(low: float | None, high: float | None, low_open: bool) -> str:
-    if low is not None and high is not None:
-        return f" in {'(' if low_open else '['}{low:g}, {high:g}]"
-    if low is not None:
-        return f" {'>' if low_open else '>='} {low:g}"
-    if high is not None:
-        return f" <= {high:g}"
-    return ""
+def _bounds(low: float | None, high: float | None, low_open: bool) -> q.Bounds:
+    return q.Bounds(-math.inf if low is None else low, math.inf if high is None else high,
+                    low_open)
+
+
+def _words(bounds: q.Bounds) -> str:
+    words = bounds.words()
+    return f" {words}" if words else ""
 
 
 def _virtual_causes(virtual: _Section) -> Mapping[str, Mapping[str, float]]:
@@ -283,7 +292,6 @@ def _virtual_causes(virtual: _Section) -> Mapping[str, Mapping[str, float]]:
     if "causes" not in virtual.table:
         return MappingProxyType({})
     from analysis.extensions import CAUSES
-    from analysis.packed import ParameterError
 
     table = virtual.section("causes")
     causes: dict[str, Mapping[str, float]] = {}
@@ -386,11 +394,11 @@ def parse_config(text: str, source: str = "<rig file>") -> RigConfig:
     operator = rig.text("operator") if "operator" in rig.table else ""
     constants_section = rig.section("constants")
     constants = RigConstants(
-        m_kg=constants_section.number(q.m_kg, low=0, low_open=True),
-        l_m=constants_section.number(q.l_m, low=0, low_open=True),
-        L_m=constants_section.number(q.L_m, low=0, low_open=True),
-        R_m=constants_section.number(q.R_m, low=0, low_open=True),
-        g_m_s2=constants_section.number(q.g_m_s2, low=0, low_open=True),
+        m_kg=constants_section.quantity(q.m_kg),
+        l_m=constants_section.quantity(q.l_m),
+        L_m=constants_section.quantity(q.L_m),
+        R_m=constants_section.quantity(q.R_m),
+        g_m_s2=constants_section.quantity(q.g_m_s2),
     )
     constants_section.finish()
     rig.finish()
@@ -457,7 +465,7 @@ def parse_config(text: str, source: str = "<rig file>") -> RigConfig:
             name: limits_section.number(f"drive_tolerance_{name}", low=0, low_open=True)
             if f"drive_tolerance_{name}" in limits_section.table
             else getattr(defaults, name)
-            for name in ("frequency_hz", "amplitude_fraction", "amplitude_floor_m", "settle_s")
+            for name in (q.frequency_hz, "amplitude_fraction", "amplitude_floor_m", "settle_s")
         }
     )
     limits_section.finish()

@@ -22,6 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
+from analysis import quantities as q
 from analysis.experiment_plan import ExperimentPlan
 from analysis.experiments import FORCED, experiment_kind
 from analysis.progress import ProgressText
@@ -448,7 +449,7 @@ def record_timed(
 ) -> ProcedureResult:
     """A plain recording: optional steady drive, then ``duration_s`` of data."""
     driven = plan.frequency_hz is not None and plan.amplitude_m is not None
-    drive = {"frequency_hz": plan.frequency_hz, "amplitude_m": plan.amplitude_m} if driven else None
+    drive = {q.frequency_hz: plan.frequency_hz, q.amplitude_m: plan.amplitude_m} if driven else None
     meta = base_metadata(devices, plan.experiment, notes, drive, asdict(plan))
     progress = progress or (lambda text: None)
     session = ProcedureSession(
@@ -638,7 +639,7 @@ def run_sweep(
     steps = plan.schedule()
     check_drives(devices.shaker.limits, devices.config.source, [(f, a) for _, f, a, *_ in steps])
     first = steps[0]
-    drive = {"frequency_hz": first[1], "amplitude_m": first[2]}
+    drive = {q.frequency_hz: first[1], q.amplitude_m: first[2]}
     meta = base_metadata(devices, FORCED.name, notes, drive, asdict(plan))
     session = ProcedureSession(
         devices,

@@ -15,6 +15,7 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Protocol
 
+from analysis import quantities as q
 from drivers.interfaces import PulseBlock, SampleBlock, StreamStatus
 from recording.errors import RecordingFormatError
 from recording.reader import Recording, open_recording
@@ -193,8 +194,8 @@ def step_marks(recording: Recording) -> list[StepMark]:
         StepMark(
             int(r["step"]),
             int(r["direction"]),
-            float(r["frequency_hz"]),
-            float(r["amplitude_m"]),
+            float(r[q.frequency_hz]),
+            float(r[q.amplitude_m]),
             int(r["settle_start_index"]),
             int(r["dwell_start_index"]),
             int(r["dwell_end_index"]),
@@ -258,8 +259,8 @@ class Replay:
             DriveSetting(
                 float(r["host_time_s"]),
                 int(r["sample_index"]),
-                float(r["frequency_hz"]),
-                float(r["amplitude_m"]),
+                float(r[q.frequency_hz]),
+                float(r[q.amplitude_m]),
                 bool(r["enabled"]),
                 int(r["source"]),
             )

@@ -143,13 +143,13 @@ def baseline_start(
         hints = {q.offset_rad: result[q.offset_rad].value}
         fitted = result.details["fitted"]
         omega, zeta = result[q.omega_rad_s].value, result[q.zeta].value
-        if "theta_dot0_rad_s" in fitted:
-            theta_dot0 = float(fitted["theta_dot0_rad_s"])
+        if q.theta_dot0_rad_s in fitted:
+            theta_dot0 = float(fitted[q.theta_dot0_rad_s])
         else:
             a, ph = fitted["amplitude_rad"], fitted["phase_rad"]
             theta_dot0 = -a * omega * (math.sin(ph) + zeta * math.cos(ph))
         return {
-            q.theta0_rad: result[q.theta0_rad].value, "theta_dot0_rad_s": theta_dot0,
+            q.theta0_rad: result[q.theta0_rad].value, q.theta_dot0_rad_s: theta_dot0,
             q.omega_rad_s: omega, q.zeta: zeta,
         }, hints, notes
     if data.barrier:
@@ -166,7 +166,7 @@ def baseline_start(
         omega = data.rig.g_m_s2 / result[q.L_m].value
         return {
             q.theta0_rad: float(fitted[q.theta0_rad]),
-            "theta_dot0_rad_s": float(fitted["theta_dot0_rad_s"]),
+            q.theta_dot0_rad_s: float(fitted[q.theta_dot0_rad_s]),
             q.omega_rad_s: math.sqrt(omega), q.zeta: result[q.zeta].value,
             q.K_N_per_m1_5: result[q.K_N_per_m1_5].value,
             q.mu0_s_per_m: max(result[q.mu0_s_per_m].value, 1e-3),
@@ -185,7 +185,7 @@ def _impact_events_start(
     y = signal.angle_rad - events[q.offset_rad]
     theta_dot0 = float(np.polyfit(signal.time_s[good], y[good], 1)[0]) if good.size > 1 else 0.0
     start = {
-        q.theta0_rad: float(y[good[0]]), "theta_dot0_rad_s": theta_dot0,
+        q.theta0_rad: float(y[good[0]]), q.theta_dot0_rad_s: theta_dot0,
         q.omega_rad_s: float(events[q.omega_rad_s]), q.zeta: 0.005,
         q.K_N_per_m1_5: float(events["K"]), q.mu0_s_per_m: max(float(events["mu0"]), 1e-3),
     }

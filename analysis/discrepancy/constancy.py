@@ -44,7 +44,7 @@ from analysis.identify.intervals import Z95
 # gave z = -2.1 there, -9.5 at 0.45.
 SPLIT_SHARE = 0.45
 MIN_SWINGS = 2  # each part lasts at least this many of the model's periods
-STATES = (q.theta0_rad, "theta_dot0_rad_s")
+STATES = (q.theta0_rad, q.theta_dot0_rad_s)
 
 
 def rules_json() -> dict[str, dict[str, Any]]:
@@ -86,7 +86,7 @@ def constancy_finding(data: FitData, final: FitResult, scale: RecordScale) -> Fi
                        valid=data.valid[split:])
     early = fit(early_data, final.model, final.values, scale)
     late = fit(late_data, final.model, {**final.values, q.theta0_rad: float(sim.theta[split]),
-                                        "theta_dot0_rad_s": float(sim.theta_dot[split])},
+                                        q.theta_dot0_rad_s: float(sim.theta_dot[split])},
                scale)
     compared = _compared(data, final, scale, early, late)
     if not compared:

@@ -33,12 +33,12 @@ MAX_ITERATIONS = 25
 START_INSIDE = 10.0  # steps between a start value and a bound
 
 # the baseline parameters a decay fit adjusts; the contact's only with the barrier in
-SWING_PARAMETERS = (q.theta0_rad, "theta_dot0_rad_s", q.omega_rad_s, q.zeta)
+SWING_PARAMETERS = (q.theta0_rad, q.theta_dot0_rad_s, q.omega_rad_s, q.zeta)
 CONTACT_PARAMETERS = (q.K_N_per_m1_5, q.mu0_s_per_m)
 POSITIVE = {q.omega_rad_s, q.K_N_per_m1_5}  # fitted on a log scale
 BOUNDS = {
     q.theta0_rad: (-math.pi, math.pi),  # large free swings start beyond the horizontal
-    "theta_dot0_rad_s": (-math.inf, math.inf),
+    q.theta_dot0_rad_s: (-math.inf, math.inf),
     q.omega_rad_s: (0.0, math.inf),
     q.zeta: (0.0, 0.5),
     q.K_N_per_m1_5: (1e-3, 1e14),
@@ -93,7 +93,7 @@ def predict(
     p = packed_from_values(data.rig, data.drive, data.barrier, values, model.causes,
                            data.phase0_rad)
     sim = simulate_packed(
-        p, values[q.theta0_rad], values["theta_dot0_rad_s"],
+        p, values[q.theta0_rad], values[q.theta_dot0_rad_s],
         settings=SimulationSettings(
             duration_s=n * data.dt, fs_hz=1.0 / data.dt, poincare_phase=None, rtol=RTOL, atol=ATOL,
         ),
@@ -133,7 +133,7 @@ def free_parameters(
 def _baseline_step(name: str, s: RecordScale) -> float:
     steps = {
         q.theta0_rad: 1e-6 * max(s.amplitude_rad, 1e-2),
-        "theta_dot0_rad_s": 1e-6 * s.omega_rad_s * max(s.amplitude_rad, 1e-2),
+        q.theta_dot0_rad_s: 1e-6 * s.omega_rad_s * max(s.amplitude_rad, 1e-2),
         q.omega_rad_s: 1e-7,  # log scale: relative step
         q.zeta: 1e-4 * max(s.zeta, 1e-4),
         q.K_N_per_m1_5: 1e-4,  # log scale

@@ -135,7 +135,7 @@ class Analysis:
         period = (self.regime or {}).get("period") or 1
         self.reading = read_residual(
             self.data.t, final.residual, self.data.valid, self.data.noise_rad,
-            drive_frequency_hz=(self.drive or {}).get("frequency_hz"), subharmonic=period,
+            drive_frequency_hz=(self.drive or {}).get(q.frequency_hz), subharmonic=period,
             model_rad=curve, backbone=backbone,
             beside=self.beside)
         return self

@@ -29,6 +29,7 @@ import numpy as np
 from scipy import fft as sp_fft
 from scipy import stats
 
+from analysis import quantities as q
 from analysis.dynamics.lines import FALSE_ALARM, find_lines, periodogram
 from analysis.dynamics.strobe import StrobeClock
 from analysis.identify.drive import fit_table
@@ -200,7 +201,7 @@ def read_residual(
     # the median of the upper half's independent bins (2.08 / their number)
     excess_se = math.sqrt(2.0 / n + 2.08 / upper.size)
     structured_rms = floor * math.sqrt(max(excess, 0.0))
-    q, p = _ljung_box(r, ok, LJUNG_BOX_LAGS)
+    q_stat, p = _ljung_box(r, ok, LJUNG_BOX_LAGS)
     scatter = noise_and_quantum(values)[0] / noise_rad
     findings: list[Finding] = []
     base = None if drive_frequency_hz is None else drive_frequency_hz / subharmonic
@@ -226,7 +227,7 @@ def read_residual(
     return ResidualReading(
         structured=structured, why=why, noise_rad=float(noise_rad),
         rms_rad=math.sqrt(mean_square), floor_rad=floor, structured_rms_rad=structured_rms,
-        excess_z=excess / excess_se, ljung_box_q=q, ljung_box_lags=LJUNG_BOX_LAGS,
+        excess_z=excess / excess_se, ljung_box_q=q_stat, ljung_box_lags=LJUNG_BOX_LAGS,
         ljung_box_p=p, scatter_ratio=scatter, n_samples=n, findings=tuple(findings),
     )
 
@@ -422,8 +423,8 @@ def _ljung_box(r: np.ndarray, ok: np.ndarray, lags: int) -> tuple[float, float]:
     acov = products / np.maximum(pairs, 1.0)
     rho = acov[1:] / acov[0]
     n = float(pairs[0])
-    q = float(n * (n + 2.0) * np.sum(rho**2 / np.maximum(pairs[1:], 1.0)))
-    return q, float(stats.chi2.sf(q, lags))
+    q_stat = float(n * (n + 2.0) * np.sum(rho**2 / np.maximum(pairs[1:], 1.0)))
+    return q_stat, float(stats.chi2.sf(q_stat, lags))
 
 
 # --- lines ---------------------------------------------------------------------------
@@ -436,7 +437,7 @@ def _lines(t, r, ok, floor_rad, base_hz, drive_hz) -> list[Finding]:
     for frequency, amplitude in find_lines(t, r, ok, base_hz, max_lines=MAX_FITTED_LINES):
         if amplitude / math.sqrt(2.0) < MIN_STRUCTURE * floor_rad:
             continue
-        numbers = {"frequency_hz": frequency, "amplitude_rad": amplitude,
+        numbers = {q.frequency_hz: frequency, "amplitude_rad": amplitude,
                    "amplitude_over_noise": amplitude / floor_rad}
         where = ""
         if drive_hz is not None:

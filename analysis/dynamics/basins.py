@@ -9,7 +9,7 @@ added to the catalogue under a name such as "period-2" or "chaotic".
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -26,7 +26,7 @@ from analysis.dynamics.regime import (
 from analysis.dynamics.sweeps import PoincareSettings, run_poincare
 from analysis.figure_style import legend_beside, save_figure
 from analysis.model import Model
-from analysis.progress import Progress
+from analysis.progress import ProgressCounts
 
 if TYPE_CHECKING:  # matplotlib is imported by the plot functions only (slow import)
     from matplotlib.figure import Figure
@@ -69,7 +69,7 @@ def basins_of_attraction(
     rtol: float = 1e-8,
     atol: float = 1e-10,
     workers: int | None = None,
-    progress: Callable[[Progress], None] | None = None,
+    progress: ProgressCounts | None = None,
 ) -> BasinMap:
     """Which attractor each initial state (at drive phase 0) settles on.
 

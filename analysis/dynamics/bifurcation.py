@@ -15,19 +15,20 @@ Simulated sweeps come in two kinds (``mode``):
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
 
+from analysis import quantities as q
 from analysis.dynamics.model_parameters import model_with
 from analysis.dynamics.poincare import PoincareSection
 from analysis.dynamics.sweeps import PoincareSettings, continue_along, run_poincare
 from analysis.figure_style import legend_beside, save_figure
 from analysis.model import Model
-from analysis.progress import Progress
+from analysis.progress import ProgressCounts
 
 if TYPE_CHECKING:  # matplotlib is imported by the plot functions only (slow import)
     from matplotlib.figure import Figure
@@ -49,7 +50,7 @@ class BifurcationDiagram:
     theta: np.ndarray
     theta_dot: np.ndarray
     direction: str
-    parameter_name: str = "beta"
+    parameter_name: str = q.beta
 
     def scatter(self) -> tuple[np.ndarray, np.ndarray]:
         """(parameter, theta) pairs of every finite sample, ready for a scatter plot."""
@@ -69,8 +70,8 @@ def simulate_bifurcation(
     rtol: float = 1e-8,
     atol: float = 1e-10,
     workers: int | None = None,
-    progress: Callable[[Progress], None] | None = None,
-    parameter: str = "beta",
+    progress: ProgressCounts | None = None,
+    parameter: str = q.beta,
 ) -> tuple[BifurcationDiagram, ...]:
     """Bifurcation diagram(s) of ``model`` over ``beta_values`` (sorted ascending here), or
     over the values of another model ``parameter`` (a name :func:`model_with` knows).
@@ -119,7 +120,7 @@ def bifurcation_from_recording(
     parameter_values: Sequence[float] | np.ndarray,
     sections: Sequence[PoincareSection | np.ndarray],
     *,
-    parameter_name: str = "beta",
+    parameter_name: str = q.beta,
     last: int | None = None,
 ) -> BifurcationDiagram:
     """Diagram of a recorded sweep: one Poincare section (or array of angles) per step.

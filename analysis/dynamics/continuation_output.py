@@ -33,6 +33,7 @@ from typing import TYPE_CHECKING, Any
 import h5py
 import numpy as np
 
+from analysis import quantities as q
 from analysis.dynamics.bifurcation import BifurcationDiagram, diagram_style
 from analysis.dynamics.continuation import BifurcationEvent, ContinuationResult
 from analysis.figure_style import legend_beside, save_figure
@@ -51,8 +52,8 @@ def model_summary(model: Model) -> dict[str, Any]:
     """The model as plain values, for the file's attributes."""
     return {
         "rig": model.rig.as_dict(),
-        "drive": {"frequency_hz": model.drive.frequency_hz,
-                  "amplitude_m": model.drive.amplitude_m},
+        "drive": {q.frequency_hz: model.drive.frequency_hz,
+                  q.amplitude_m: model.drive.amplitude_m},
         "barrier": model.barrier,
         "causes": {name: dict(values) for name, values in model.extensions.items()},
     }

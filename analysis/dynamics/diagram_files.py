@@ -17,19 +17,20 @@ from pathlib import Path
 import h5py
 import numpy as np
 
+from analysis import quantities as q
 from analysis.dynamics.bifurcation import BifurcationDiagram, bifurcation_from_recording
 from analysis.dynamics.strobe import strobe_record
 from analysis.hdf5_records import load_hdf5_steps, read_recording_arrays
 from recording.layout import FORMAT_NAME
 
-SWEPT = ("beta", "f_drive_hz")  # what a recorded sweep can be drawn over
+SWEPT = (q.beta, q.f_drive_hz)  # what a recorded sweep can be drawn over
 
 
 class DiagramFileError(ValueError):
     """A file that holds no diagram over the wanted parameter; the message says why."""
 
 
-def recorded_sweep_diagrams(path: str | Path, parameter: str = "beta"
+def recorded_sweep_diagrams(path: str | Path, parameter: str = q.beta
                             ) -> tuple[BifurcationDiagram, ...]:
     """The Poincare points of a recorded sweep's complete steps, one diagram per direction
     that occurs ('recorded up', 'recorded down'), over ``parameter`` (beta or f_drive_hz)."""
@@ -42,13 +43,13 @@ def recorded_sweep_diagrams(path: str | Path, parameter: str = "beta"
     values, sections = [], []
     for record in records:
         drive = record.drive
-        if parameter == "beta":
-            values.append(drive["amplitude_m"] / record.rig_parameters().L_m)
+        if parameter == q.beta:
+            values.append(drive[q.amplitude_m] / record.rig_parameters().L_m)
         else:
-            values.append(drive["frequency_hz"])
+            values.append(drive[q.frequency_hz])
         strobe = strobe_record(record.angle_rad, record.sample_rate_hz,
                                tach_indices=record.tach_indices,
-                               frequency_hz=drive["frequency_hz"])
+                               frequency_hz=drive[q.frequency_hz])
         sections.append(strobe.section)
     values = np.array(values)
     diagrams = []

@@ -17,6 +17,7 @@ from typing import Any
 
 import numpy as np
 
+from analysis import quantities as q
 from analysis.dynamics.lines import (
     HARMONIC_GUARD_BINS,
     MERGE_BINS,
@@ -217,7 +218,7 @@ class AdditiveLine:
                                            + self.phase_rad)
 
     def as_json(self) -> dict[str, float]:
-        return {"frequency_hz": self.frequency_hz, "amplitude_rad": self.amplitude_rad}
+        return {q.frequency_hz: self.frequency_hz, "amplitude_rad": self.amplitude_rad}
 
 
 def additive_lines(theta: np.ndarray, fs_hz: float, drive_hz: float) -> tuple[AdditiveLine, ...]:

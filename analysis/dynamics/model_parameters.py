@@ -5,11 +5,12 @@ from __future__ import annotations
 
 from dataclasses import fields, replace
 
+from analysis import quantities as q
 from analysis.dynamics.sweeps import model_at_beta
 from analysis.model import Model, RigParameters
 from analysis.packed import ParameterError
 
-DRIVE_PARAMETERS = ("beta", "A_m", "f_drive_hz")
+DRIVE_PARAMETERS = (q.beta, q.A_m, q.f_drive_hz)
 RIG_PARAMETERS = tuple(f.name for f in fields(RigParameters))
 
 
@@ -19,11 +20,11 @@ def model_with(model: Model, name: str, value: float) -> Model:
 
     Everything else stays as it is: varying ``L_m`` keeps the table amplitude A in metres,
     varying ``f_drive_hz`` keeps A (and so beta)."""
-    if name == "beta":
+    if name == q.beta:
         return model_at_beta(model, value)
-    if name == "A_m":
+    if name == q.A_m:
         return replace(model, drive=replace(model.drive, amplitude_m=float(value)))
-    if name == "f_drive_hz":
+    if name == q.f_drive_hz:
         return replace(model, drive=replace(model.drive, frequency_hz=float(value)))
     if name in RIG_PARAMETERS:
         return replace(model, rig=model.rig.with_values(**{name: float(value)}))
@@ -35,11 +36,11 @@ def model_with(model: Model, name: str, value: float) -> Model:
 
 def parameter_value(model: Model, name: str) -> float:
     """The current value of a parameter :func:`model_with` knows."""
-    if name == "beta":
+    if name == q.beta:
         return model.drive.amplitude_m / model.rig.L_m
-    if name == "A_m":
+    if name == q.A_m:
         return model.drive.amplitude_m
-    if name == "f_drive_hz":
+    if name == q.f_drive_hz:
         return model.drive.frequency_hz
     if name in RIG_PARAMETERS:
         return float(getattr(model.rig, name))

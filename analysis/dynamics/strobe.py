@@ -15,6 +15,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from analysis import quantities as q
+
 # A pulse more than this far from the fitted clock is not a drive-phase-0 mark (an extra
 # pulse, a bounce); one sample of quantisation jitter stays well inside it.
 PULSE_TOLERANCE_SAMPLES = 3.0
@@ -82,7 +84,7 @@ class StrobeClock:
         """The clock as plain values (for evidence and reports)."""
         return {
             "source": self.source,
-            "frequency_hz": self.frequency_hz,
+            q.frequency_hz: self.frequency_hz,
             "frequency_se_hz": self.frequency_se_hz,
             "phase_at_start_rad": self.phase_at_start_rad,
             "stated_frequency_hz": self.stated_frequency_hz,

@@ -10,14 +10,13 @@ from __future__ import annotations
 
 import math
 import os
-from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 import numpy as np
 
 from analysis.model import Model
 from analysis.packed import P
-from analysis.progress import Progress
+from analysis.progress import Progress, ProgressCounts
 from analysis.simulate import simulate_ensemble
 
 
@@ -68,7 +67,7 @@ def run_poincare(
     settings: PoincareSettings,
     *,
     workers: int | None = None,
-    progress: Callable[[Progress], None] | None = None,
+    progress: ProgressCounts | None = None,
 ) -> PoincareRuns:
     """Simulate runs (packed (n, P.SIZE), initial (n, 2)) and keep their Poincare samples.
 
@@ -103,7 +102,7 @@ def continue_along(
     settings: PoincareSettings,
     *,
     workers: int | None = None,
-    progress: Callable[[Progress], None] | None = None,
+    progress: ProgressCounts | None = None,
     restart_state: tuple[float, float] | np.ndarray | None = None,
 ) -> tuple[PoincareRuns, ...]:
     """Continuation sweeps: each step starts from the final state of the step before.

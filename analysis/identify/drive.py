@@ -141,9 +141,9 @@ class MeasuredDrive:
     def as_json(self) -> dict[str, Any]:
         """The measured drive against the stated one, for reports."""
         out: dict[str, Any] = {
-            "stated": {"frequency_hz": self.stated_frequency_hz,
-                       "amplitude_m": self.stated_amplitude_m},
-            "frequency_hz": self.frequency_hz,
+            "stated": {q.frequency_hz: self.stated_frequency_hz,
+                       q.amplitude_m: self.stated_amplitude_m},
+            q.frequency_hz: self.frequency_hz,
             "frequency_source": self.frequency_source,
             "frequency_offset_ppm": 1e6 * (self.frequency_hz / self.stated_frequency_hz - 1.0),
             "phase0_rad": self.phase0_rad,
@@ -155,7 +155,7 @@ class MeasuredDrive:
         if self.table is not None:
             tf = self.table
             out["table"] = {
-                "amplitude_m": tf.amplitude_m.as_json(), "phase_rad": tf.phase_rad.as_json(),
+                q.amplitude_m: tf.amplitude_m.as_json(), "phase_rad": tf.phase_rad.as_json(),
                 q.h2: tf.h2.as_json(), q.phi2_rad: tf.phi2_rad.as_json(),
                 "amplitude_vs_stated": tf.amplitude_m.value / self.stated_amplitude_m - 1.0,
                 "rms_residual_m": tf.rms_residual_m,
@@ -165,8 +165,8 @@ class MeasuredDrive:
 
 def _stated(record: Record) -> tuple[float, float]:
     drive = record.drive or {}
-    f = drive.get("frequency_hz")
-    a = drive.get("amplitude_m")
+    f = drive.get(q.frequency_hz)
+    a = drive.get(q.amplitude_m)
     if not f or not (float(f) > 0):
         raise IdentificationError(
             f"{record.source or 'record'}: a forced record needs drive.frequency_hz > 0 in its "
@@ -265,7 +265,7 @@ def fit_drive(record: Record, *, estimate_frequency: bool = False) -> Identifica
             f"{record.source or 'record'}: no table_m column; a forced record without the "
             "table channel relies on its stated drive and has nothing to fit"
         )
-    stated = (record.drive or {}).get("frequency_hz")
+    stated = (record.drive or {}).get(q.frequency_hz)
     if not stated:
         raise IdentificationError("a forced record needs drive.frequency_hz in its metadata")
     t = record.time_s - record.time_s[0]
@@ -279,9 +279,9 @@ def fit_drive(record: Record, *, estimate_frequency: bool = False) -> Identifica
         omega = _refine_frequency(t, x, omega)
     table = fit_table(t, x, omega)
     parameters = {
-        "amplitude_m": table.amplitude_m,
+        q.amplitude_m: table.amplitude_m,
         "phase_rad": table.phase_rad,
-        "frequency_hz": Estimate(omega / (2.0 * math.pi)),
+        q.frequency_hz: Estimate(omega / (2.0 * math.pi)),
         q.h2: table.h2,
         q.phi2_rad: table.phi2_rad,
     }
@@ -292,7 +292,7 @@ def fit_drive(record: Record, *, estimate_frequency: bool = False) -> Identifica
         residual_lag1_correlation=table.lag1_correlation, unit="m",
     )
     warnings = []
-    stated_amp = (record.drive or {}).get("amplitude_m")
+    stated_amp = (record.drive or {}).get(q.amplitude_m)
     if stated_amp:
         eps = table.amplitude_m.value / float(stated_amp) - 1.0
         if abs(eps) > AMPLITUDE_DISAGREEMENT:

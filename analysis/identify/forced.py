@@ -524,13 +524,13 @@ def identification_result(found: ForcedIdentification, experiment: str) -> Ident
     if q.eps in est:
         e = est[q.eps]
         a = drive.stated_amplitude_m
-        parameters["amplitude_m"] = Estimate(a * (1 + e.value), (a * (1 + e.ci95[0]),
+        parameters[q.amplitude_m] = Estimate(a * (1 + e.value), (a * (1 + e.ci95[0]),
                                              a * (1 + e.ci95[1])) if e.ci95 else None)
     elif drive.table is not None:
-        parameters["amplitude_m"] = drive.table.amplitude_m
+        parameters[q.amplitude_m] = drive.table.amplitude_m
     if "drive_phase_rad" in est:
         parameters["drive_phase_rad"] = est["drive_phase_rad"]
-    parameters["frequency_hz"] = est.get("drive_frequency_hz", Estimate(drive.frequency_hz))
+    parameters[q.frequency_hz] = est.get("drive_frequency_hz", Estimate(drive.frequency_hz))
     quality = FitQuality(
         rms_residual_rad=fit.rms, noise_rad=data.noise_rad, n_samples=fit.n,
         n_excluded=int(data.valid.size - data.n_valid), variance_inflation=1.0,
@@ -556,7 +556,7 @@ def identification_result(found: ForcedIdentification, experiment: str) -> Ident
         if fit.jumps.size else [],
         "flight_regression": {q.omega_rad_s: found.flight.omega_rad_s, q.zeta: found.flight.zeta,
                               q.offset_rad: found.flight.offset_rad,
-                              "amplitude_m": found.flight.amplitude_m},
+                              q.amplitude_m: found.flight.amplitude_m},
         "iterations": fit.iterations,
         "solver": fit.message,
     }

@@ -114,7 +114,7 @@ def fit_free_decay(
         # The period from the turning points belongs to their median swing.
         typical = float(np.median(guess.turning_amplitudes_rad))
         omega_small = guess.omega_rad_s * _period_factor(typical)
-        names = (q.theta0_rad, "theta_dot0_rad_s", q.zeta, q.omega_rad_s, q.offset_rad)
+        names = (q.theta0_rad, q.theta_dot0_rad_s, q.zeta, q.omega_rad_s, q.offset_rad)
         x0 = [theta0_guess, theta_dot0_guess, guess.zeta, omega_small, guess.offset_rad]
         lower = [-math.pi, -math.inf, 0.0, 0.5 * omega_small, -math.inf]
         upper = [math.pi, math.inf, 1.0, 2.0 * omega_small, math.inf]

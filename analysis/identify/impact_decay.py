@@ -243,7 +243,7 @@ def fit_impact_decay(
     theta_dot_start = float(
         np.polyfit(signal.time_s[:5], np.nan_to_num(signal.angle_rad[:5], nan=theta_start), 1)[0]
     )
-    names = [q.theta0_rad, "theta_dot0_rad_s", "log_K", q.mu0_s_per_m, q.theta_b_rad,
+    names = [q.theta0_rad, q.theta_dot0_rad_s, "log_K", q.mu0_s_per_m, q.theta_b_rad,
              q.offset_rad]
     x0 = [theta_start, theta_dot_start, math.log(events["K"]), events["mu0"],
           events[q.theta_b_rad], events[q.offset_rad]]
@@ -267,7 +267,7 @@ def fit_impact_decay(
             L_m=g / omega**2, g_m_s2=g, zeta=values.get(q.zeta, zeta0),
             mu0_s_per_m=values[q.mu0_s_per_m], theta_b_rad=values[q.theta_b_rad],
         ).with_stiffness(math.exp(values["log_K"]))
-        return _simulate(rig, values[q.theta0_rad], values["theta_dot0_rad_s"], dt, t.size) \
+        return _simulate(rig, values[q.theta0_rad], values[q.theta_dot0_rad_s], dt, t.size) \
             + values[q.offset_rad]
 
     x, cov, quality, excluded = _robust_fit(

@@ -4,7 +4,6 @@ finish, resumable, identical bit for bit wherever they ran."""
 
 from analysis.maps.axes import Axis, AxisError
 from analysis.maps.execute import (
-    MapProgress,
     MapRunner,
     RunReport,
     SchedulerError,
@@ -23,6 +22,7 @@ from analysis.maps.plan import (
 )
 from analysis.maps.store import MapFileError, MapStore, read_map
 from analysis.maps.summary import summarize
+from analysis.progress import MapProgress
 
 __all__ = [
     "BASIN_AXES",

@@ -21,7 +21,7 @@ from typing import Any
 from analysis.maps.plan import MapPlan, Task
 from analysis.maps.store import MapStore
 from analysis.maps.tasks import TaskInput, continued_state, run_task, task_input, warm_up
-from analysis.progress import Progress
+from analysis.progress import MapProgress, MapProgressReport, Progress
 
 CONNECT_TIMEOUT_S = 5.0
 WORKERS_TIMEOUT_S = 30.0
@@ -31,18 +31,6 @@ IN_FLIGHT_PER_WORKER = 2  # one running, one ready to start: no worker waits for
 
 class SchedulerError(RuntimeError):
     """The Dask scheduler or its workers cannot take the map; the message says what to do."""
-
-
-@dataclass(frozen=True)
-class MapProgress:
-    """Where a run stands: tasks and trajectories done of all (this run and earlier ones),
-    the rate of this run in trajectories per second and the time it still needs."""
-
-    tasks: Progress
-    trajectories: Progress
-    elapsed_s: float
-    rate_per_s: float
-    eta_s: float
 
 
 @dataclass(frozen=True)
@@ -109,7 +97,7 @@ class MapRunner:
         return client.gather([client.submit(function, item, pure=False) for item in inputs])
 
     def run(self, plan: MapPlan, store: MapStore,
-            progress: Callable[[MapProgress], None] | None = None) -> RunReport:
+            progress: MapProgressReport | None = None) -> RunReport:
         """Run every task of ``plan`` not yet done in ``store``, writing each as it finishes."""
         queue = _TaskQueue(plan, store)
         meter = _Meter(plan, store, progress)
@@ -168,7 +156,7 @@ class _Meter:
     """Counts finished tasks and reports progress."""
 
     def __init__(self, plan: MapPlan, store: MapStore,
-                 progress: Callable[[MapProgress], None] | None) -> None:
+                 progress: MapProgressReport | None) -> None:
         self.plan, self.progress = plan, progress
         self.started = time.perf_counter()
         self.tasks_run = self.trajectories_run = 0

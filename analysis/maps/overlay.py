@@ -9,11 +9,12 @@ from pathlib import Path
 
 import numpy as np
 
+from analysis import quantities as q
 from analysis.hdf5_records import load_hdf5_steps
 from analysis.records import Record
 from recording.errors import RecordFormatError
 
-SWEPT = ("beta", "f_drive_hz")  # what a recorded sweep steps: amplitude (as beta) or frequency
+SWEPT = (q.beta, q.f_drive_hz)  # what a recorded sweep steps: amplitude (as beta) or frequency
 
 
 @dataclass(frozen=True)
@@ -43,10 +44,10 @@ def sweep_from_steps(steps: Sequence[Record], parameter: str, source: str = "") 
     thetas, directions = [], []
     for record in steps:
         drive = record.drive or {}
-        if parameter == "beta":
-            value = drive["amplitude_m"] / record.rig_parameters().L_m
+        if parameter == q.beta:
+            value = drive[q.amplitude_m] / record.rig_parameters().L_m
         else:
-            value = drive["frequency_hz"]
+            value = drive[q.frequency_hz]
         settled = record.tach_indices[record.tach_indices >= record.angle_rad.size // 2]
         directions.append("up" if not values or value >= values[-1] else "down")
         values.append(float(value))

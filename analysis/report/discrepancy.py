@@ -14,6 +14,7 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 
+from analysis import quantities as q
 from analysis.discrepancy.fitting import predict
 from analysis.discrepancy.outcome import Analysis
 from analysis.estimate_text import interval_text
@@ -153,8 +154,8 @@ def write_report(
     if js.get("drive"):
         d = js["drive"]
         lines.append(
-            f"- drive: {d['frequency_hz']:.6g} Hz from the {d['frequency_source']} (stated "
-            f"{d['stated']['frequency_hz']:.6g} Hz), phase from the {d['phase_source']}"
+            f"- drive: {d[q.frequency_hz]:.6g} Hz from the {d['frequency_source']} (stated "
+            f"{d['stated'][q.frequency_hz]:.6g} Hz), phase from the {d['phase_source']}"
         )
     if js.get("comparison") == "invariant statistics":
         lines.append(

@@ -10,6 +10,7 @@ import time
 from pathlib import Path
 from typing import Any
 
+from analysis import quantities as q
 from analysis.dynamics.continuation import ContinuationResult
 from analysis.estimate_text import estimate_text
 from analysis.json_output import json_ready, write_json
@@ -110,9 +111,9 @@ def write_sweep_report(
               "residual / noise (rig) | explained / noise |", "|---|---|---|---|---|---|---|"]
     for step in sweep["steps"]:
         drive = step["drive"]
-        measured = f"{drive['frequency_hz']:.6g} Hz"
+        measured = f"{drive[q.frequency_hz]:.6g} Hz"
         if drive.get("table"):
-            measured += f", {_fmt(drive['table']['amplitude_m'])} m"
+            measured += f", {_fmt(drive['table'][q.amplitude_m])} m"
         direction = {1: "up", -1: "down"}.get(step["direction"], "-")
         lines.append(f"| {step['step']} | {direction} | {step['setting']:.4g} | {measured} | "
                      f"{step['regime']} | {step['rms_over_noise']:.3g} | "
@@ -155,7 +156,7 @@ def _diagram_section(diagrams: SweepDiagram, js: dict[str, Any], directory: Path
     lines.append(f"The {label}'s periodic orbits (stable solid, unstable dashed) are drawn "
                  "under its points." if orbits is not None else
                  f"The {label}'s periodic orbits are not drawn: {why}.")
-    setting = "beta" if diagrams.baseline.parameter == "amplitude" else "f [Hz]"
+    setting = q.beta if diagrams.baseline.parameter == "amplitude" else "f [Hz]"
     lines += ["", "| step | direction | " + setting + " | measured | baseline | "
               "distance / noise | explained | distance / noise |",
               "|---|---|---|---|---|---|---|---|"]

@@ -247,8 +247,8 @@ def sweep_json(analysis: SweepAnalysis) -> dict[str, Any]:
         final_rms = float(math.sqrt(np.mean(r * r))) if r.size else math.nan
         steps.append({
             "step": step.number, "direction": step.direction,
-            "setting": sweep.setting(step), "frequency_hz": step.frequency_hz,
-            "amplitude_m": step.amplitude_m, "settle_s": step.settle_s,
+            "setting": sweep.setting(step), q.frequency_hz: step.frequency_hz,
+            q.amplitude_m: step.amplitude_m, "settle_s": step.settle_s,
             "dwell_s": float(d.t[-1]), "regime": data.regimes[k],
             "drive": d.drive.as_json(),
             "own": {name: e.as_json() for name, e in ident.step_estimates(k).items()},

@@ -23,6 +23,7 @@ from typing import Any
 
 import numpy as np
 
+from analysis import quantities as q
 from analysis.dynamics.continuation import ContinuationError, ContinuationResult, continue_orbits
 from analysis.dynamics.measured_regime import judge_record_regime
 from analysis.dynamics.period_map import PeriodMap
@@ -505,7 +506,7 @@ def assemble(
     return DiagramComparison(
         name=name,
         parameter=sweep.parameter,
-        setting_name="beta" if sweep.parameter == "amplitude" else "f [Hz]",
+        setting_name=q.beta if sweep.parameter == "amplitude" else "f [Hz]",
         steps=steps,
         measured_changes=regime_changes(settings, directions, [m.short for m in measured]),
         model_changes=regime_changes(settings, directions, [s.short for s in judged]),
@@ -529,7 +530,7 @@ def model_orbits(
     if first is None:
         return None
     simulated = comparison.simulated[first]
-    parameter = "beta" if sweep.parameter == "amplitude" else "f_drive_hz"
+    parameter = q.beta if sweep.parameter == "amplitude" else q.f_drive_hz
     top = max(comparison.steps[i].setting for i in up)
     start = comparison.steps[first].setting
     if top <= start:

@@ -28,6 +28,7 @@ from typing import Any
 
 import numpy as np
 
+from analysis import quantities as q
 from analysis.exchange import read_meta, sidecar_path
 from analysis.hdf5_records import read_recording_arrays, stretch_record
 from analysis.identify.forced import MIN_DURATION_S
@@ -105,8 +106,8 @@ def sweep_from_recording(path: str | Path) -> Sweep:
         if dwell_s < MIN_DWELL_S:
             aside.append(_too_short(number, dwell_s))
             continue
-        drive = {"frequency_hz": float(row["frequency_hz"]),
-                 "amplitude_m": float(row["amplitude_m"])}
+        drive = {q.frequency_hz: float(row[q.frequency_hz]),
+                 q.amplitude_m: float(row[q.amplitude_m])}
         record = stretch_record(arrays, positions, path, f" step {number}", drive)
         steps.append(_step(path, number, int(row["direction"]), drive,
                            (first - int(row["settle_start_index"])) / rate, record))
@@ -148,8 +149,8 @@ def sweep_from_exchange(path: str | Path, meta_path: str | Path | None = None) -
         if select.size * dt < MIN_DWELL_S:
             aside.append(_too_short(number, select.size * dt))
             continue
-        drive = {"frequency_hz": _number(path, number, entry, "frequency_hz"),
-                 "amplitude_m": _number(path, number, entry, "amplitude_m")}
+        drive = {q.frequency_hz: _number(path, number, entry, q.frequency_hz),
+                 q.amplitude_m: _number(path, number, entry, q.amplitude_m)}
         record = _dwell(whole, select, f" step {number}", drive)
         steps.append(_step(path, number, int(entry.get("direction", UNKNOWN)), drive,
                            first_s - start_s, record))
@@ -181,7 +182,7 @@ def sweep_from_step_files(paths: Sequence[str | Path]) -> Sweep:
             aside.append(_too_short(number, dwell_s, f" ({path})"))
         else:
             drive = dict(record.drive or {})
-            for key in ("frequency_hz", "amplitude_m"):
+            for key in (q.frequency_hz, q.amplitude_m):
                 drive[key] = _number(path, number, drive, key)
             steps.append(_step(Path(path), number, UNKNOWN, drive, 0.0, record))
         number += 1
@@ -219,7 +220,7 @@ def _step(path: str | Path, number: int, direction: int, drive: Mapping[str, flo
         raise SweepFormatError(f"{path}: sweep step {number}: no tach edges in its dwell; "
                                "the drive's phase cannot be measured")
     try:
-        return SweepStep(number, direction, drive["frequency_hz"], drive["amplitude_m"],
+        return SweepStep(number, direction, drive[q.frequency_hz], drive[q.amplitude_m],
                          settle_s, record)
     except ValueError as error:
         raise SweepFormatError(f"{path}: {error}") from None

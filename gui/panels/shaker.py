@@ -17,6 +17,7 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
+from analysis import quantities as q
 from drivers.amplifier_registers import (
     DEVICE_MAX_AMPLITUDE_UM,
     DEVICE_MAX_FREQUENCY_MHZ,
@@ -120,9 +121,9 @@ class ShakerPanel(QGroupBox):
         lim = self.limits
         try:
             lim.check(
-                "frequency_hz", frequency_hz, lim.min_frequency_hz, lim.max_frequency_hz, "Hz"
+                q.frequency_hz, frequency_hz, lim.min_frequency_hz, lim.max_frequency_hz, "Hz"
             )
-            lim.check("amplitude_m", amplitude_m, 0.0, lim.max_amplitude_m, "m")
+            lim.check(q.amplitude_m, amplitude_m, 0.0, lim.max_amplitude_m, "m")
             lim.check("ramp_rate_m_s", ramp, lim.min_ramp_rate_m_s, lim.max_ramp_rate_m_s, "m/s")
         except LimitError as error:
             return str(error)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from PySide6.QtWidgets import QFormLayout, QGroupBox, QLabel, QWidget
 
+from analysis import quantities as q
 from drivers.interfaces import ActuatorStatus, StreamStatus
 from gui.units import DISPLAY
 from rig.engine import EngineStats
@@ -87,8 +88,8 @@ class StatusPanel(QGroupBox):
         measured = status.measured
         if measured:
             self.fields["drive"].setText(
-                f"{measured.get('frequency_hz', 0.0):.3f} Hz, "
-                f"{DISPLAY['displacement'].show(measured.get('amplitude_m', 0.0)):.3f} "
+                f"{measured.get(q.frequency_hz, 0.0):.3f} Hz, "
+                f"{DISPLAY['displacement'].show(measured.get(q.amplitude_m, 0.0)):.3f} "
                 f"{DISPLAY['displacement'].unit}"
             )
         faults = ", ".join(status.faults)

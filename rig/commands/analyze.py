@@ -7,6 +7,7 @@ import argparse
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from analysis import quantities as q
 from rig.cli import CommandError, add_command
 from rig.logs import progress
 
@@ -207,7 +208,7 @@ def _print_sweep_summary(js: dict) -> None:
                   + ("" if entry["named"] else " (differs from step to step: not named)"))
     for step in sweep["steps"]:
         print(f"step {step['step']}: {sweep['parameter']} {step['setting']:.4g}, drive "
-              f"{step['drive']['frequency_hz']:.6g} Hz, regime {step['regime']}, residual "
+              f"{step['drive'][q.frequency_hz]:.6g} Hz, regime {step['regime']}, residual "
               f"{step['rms_over_noise']:.3g} x noise")
     for step in sweep["set_aside"]:
         print(f"step {step['step']} set aside: {step['reason']}")

@@ -7,6 +7,7 @@ import math
 import sys
 from pathlib import Path
 
+from analysis import quantities as q
 from rig.cli import CommandError, add_command
 
 SETTLE_PERIODS = 2000
@@ -128,7 +129,7 @@ def run(args: argparse.Namespace) -> int:
 
     from analysis.dynamics.continuation import ContinuationError, continue_orbits
     from analysis.dynamics.continuation_output import plot_continuation, write_continuation
-    from analysis.dynamics.model_parameters import model_with
+    from analysis.dynamics.model_parameters import DRIVE_PARAMETERS, model_with
     from analysis.dynamics.period_map import PeriodMap
     from analysis.output_paths import check_outputs
     from analysis.packed import ParameterError
@@ -142,12 +143,12 @@ def run(args: argparse.Namespace) -> int:
     name, start, stop = _parse_vary(args.vary)
     params = parse_assignments(args.param)
     if args.f_drive_hz is not None:
-        params["f_drive_hz"] = args.f_drive_hz
-    if name in ("beta", "A_m", "f_drive_hz"):
+        params[q.f_drive_hz] = args.f_drive_hz
+    if name in DRIVE_PARAMETERS:
         params[name] = start
-    if "f_drive_hz" not in params and not args.case:
+    if q.f_drive_hz not in params and not args.case:
         raise CommandError("the drive frequency is needed: --f-drive-hz F (or --case)")
-    if not any(k in params for k in ("beta", "A_m")) and not args.case:
+    if not any(k in params for k in (q.beta, q.A_m)) and not args.case:
         raise CommandError("the drive amplitude is needed: --param beta=... or A_m=..., "
                            "or vary it with --vary beta=START:STOP")
     model, _ = build_model(args.case, "forced", params, args.cause)

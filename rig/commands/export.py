@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from analysis import quantities as q
 from rig.cli import CommandError, add_command
 from rig.logs import progress
 
@@ -140,5 +141,5 @@ def _drive_words(record) -> str:
     steps = record.context.get("sweep_steps")
     if steps:
         return f", a sweep of {len(steps)} steps: drive per step in the JSON"
-    frequency = (record.drive or {}).get("frequency_hz")
+    frequency = (record.drive or {}).get(q.frequency_hz)
     return f", {frequency:g} Hz drive" if frequency else ""

@@ -13,7 +13,10 @@ import math
 from pathlib import Path
 from typing import Any
 
+from analysis import quantities as q
+from analysis.progress import MapProgress
 from rig.cli import CommandError, add_command
+from rig.logs import progress
 
 KIND_DEFAULTS = {  # ics, transient periods, record periods
     "bifurcation": (4, 400, 100),
@@ -149,7 +152,7 @@ def run(args: argparse.Namespace) -> int:
             finish_map(args.out, figure, runner.map, overlay, runner.workers)  # on the workers
     except SchedulerError as error:
         raise CommandError(str(error)) from None
-    _say(args, f"map {plan.kind}: attractors classified; figure {figure}")
+    progress(f"map {plan.kind}: attractors classified; figure {figure}")
     print(
         f"map {plan.kind}: {report.trajectories} trajectories computed in {report.seconds:.2f} s "
         f"({report.rate_per_s:.0f} per s) on {report.workers} worker(s), {report.where} "
@@ -177,12 +180,12 @@ def _compute(
     try:
         left = int((~store.done).sum())
         if resume and left == 0 and figure.exists():
-            _say(args, f"{args.out}: the map is complete; nothing to do (--overwrite computes "
+            progress(f"{args.out}: the map is complete; nothing to do (--overwrite computes "
                  "it again)")
             return None
         if figure.exists() and not args.overwrite:  # not drawn by this map: never replaced
             raise CommandError(f"{figure}: already exists; pass --overwrite to replace it")
-        _say(args, f"map {plan.kind}: {plan.trajectories} trajectories in {len(plan.tasks)} "
+        progress(f"map {plan.kind}: {plan.trajectories} trajectories in {len(plan.tasks)} "
              f"tasks of up to {plan.batch} on {runner.workers} worker(s), {runner.where}"
              + (f"; {left} tasks left in {args.out}" if resume else ""))
         line = ProgressLine()
@@ -252,7 +255,7 @@ def _fixed_values(args: argparse.Namespace) -> dict[str, float]:
     from rig.commands.simulate import parse_assignments
 
     params = parse_assignments(args.param)
-    for option, name in (("--f-drive-hz", "f_drive_hz"), ("--beta", "beta")):
+    for option, name in (("--f-drive-hz", q.f_drive_hz), ("--beta", q.beta)):
         value = getattr(args, name)
         if value is not None:
             if name in params:
@@ -349,19 +352,14 @@ def _given(value: int | None, default: int) -> int:
     return default if value is None else value
 
 
-def _progress_text(progress: Any) -> str:
-    rate = progress.rate_per_s
+def _progress_text(state: MapProgress) -> str:
+    rate = state.rate_per_s
     speed = f"{rate:.0f} trajectories/s" if math.isfinite(rate) else "starting"
-    eta = f"ETA {progress.eta_s:.0f} s" if math.isfinite(progress.eta_s) else "ETA -"
+    eta = f"ETA {state.eta_s:.0f} s" if math.isfinite(state.eta_s) else "ETA -"
     return (
-        f"map: {progress.tasks.done}/{progress.tasks.total} tasks, "
-        f"{progress.trajectories.done}/{progress.trajectories.total} trajectories, "
+        f"map: {state.tasks.done}/{state.tasks.total} tasks, "
+        f"{state.trajectories.done}/{state.trajectories.total} trajectories, "
         f"{speed}, {eta}"
     )
 
 
-def _say(args: argparse.Namespace, text: str) -> None:
-    """A progress line (rig.logs.progress: on stderr unless --quiet, and in the log)."""
-    from rig.logs import progress
-
-    progress(text)

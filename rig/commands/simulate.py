@@ -26,14 +26,14 @@ from rig.cli import CommandError, add_command
 from rig.logs import log, progress
 
 DRIVE_PARAMETERS = {
-    "f_drive_hz": "drive frequency [Hz]",
-    "A_m": "table displacement amplitude [m]",
-    "beta": "amplitude as a fraction of L (A = beta L)",
+    q.f_drive_hz: "drive frequency [Hz]",
+    q.A_m: "table displacement amplitude [m]",
+    q.beta: "amplitude as a fraction of L (A = beta L)",
 }
 NONDIMENSIONAL_PARAMETERS = {
-    "eta": "omega / Omega (sets L, needs the drive frequency)",
-    "mu": "mu0 l Omega (sets mu0)",
-    "gamma": "K l^2.5 / (m Omega^2 L^2) (sets E for the rig's R)",
+    q.eta: "omega / Omega (sets L, needs the drive frequency)",
+    q.mu: "mu0 l Omega (sets mu0)",
+    q.gamma: "K l^2.5 / (m Omega^2 L^2) (sets E for the rig's R)",
 }
 MAX_SAMPLES = 50_000_000
 
@@ -260,7 +260,7 @@ def _rig_and_drive(
         rig, drive = paper_case(case).dimensional()
         frequency, amplitude = drive.frequency_hz, drive.amplitude_m
     rig = rig.with_values(**{k: v for k, v in params.items() if k in rig_names})
-    frequency = params.get("f_drive_hz", frequency)
+    frequency = params.get(q.f_drive_hz, frequency)
     nondimensional = {k: v for k, v in params.items() if k in NONDIMENSIONAL_PARAMETERS}
     if nondimensional:
         if frequency <= 0:
@@ -269,9 +269,9 @@ def _rig_and_drive(
         nd = replace(to_nondimensional(rig, Drive(0.0, frequency)), **nondimensional)
         rig, _ = from_nondimensional(nd, frequency, rig)
         amplitude = beta * rig.L_m
-    if "beta" in params:
-        amplitude = params["beta"] * rig.L_m
-    amplitude = params.get("A_m", amplitude)
+    if q.beta in params:
+        amplitude = params[q.beta] * rig.L_m
+    amplitude = params.get(q.A_m, amplitude)
     if not driven:
         return rig, Drive()
     if frequency <= 0 or amplitude <= 0:
@@ -305,8 +305,8 @@ def _metadata(model: Any, experiment: str, args: argparse.Namespace, extra: dict
     drive = None
     if experiment_kind(experiment).driven:
         drive = {
-            "frequency_hz": model.drive.frequency_hz,
-            "amplitude_m": model.drive.amplitude_m,
+            q.frequency_hz: model.drive.frequency_hz,
+            q.amplitude_m: model.drive.amplitude_m,
         }
     return ExchangeMeta(
         experiment=experiment,
@@ -372,7 +372,7 @@ def _write_recording(
             )
         if meta.drive:
             writer.append_drive(
-                [(0.0, 0, meta.drive["frequency_hz"], meta.drive["amplitude_m"], 1, 0)]
+                [(0.0, 0, meta.drive[q.frequency_hz], meta.drive[q.amplitude_m], 1, 0)]
             )
         writer.write_status(RecordingStatus(
             end_host_time_s=0.0, samples_written=n * len(sampled), samples_lost=0, flushes=1,
@@ -463,15 +463,15 @@ def run(args: argparse.Namespace) -> int:
     extra = {
         "rig": model.rig.as_dict(),
         "drive": {
-            "frequency_hz": model.drive.frequency_hz,
-            "amplitude_m": model.drive.amplitude_m,
+            q.frequency_hz: model.drive.frequency_hz,
+            q.amplitude_m: model.drive.amplitude_m,
             "phase_at_time_zero_rad": 0.0,
         },
         "barrier": model.barrier,
         "extensions": {k: dict(v) for k, v in model.extensions.items()},
         "paper_case": args.case,
         q.theta0_rad: args.theta0,
-        "theta_dot0_rad_s": args.omega0,
+        q.theta_dot0_rad_s: args.omega0,
         "skip_s": result.record_start_s,
         "sample_rate_hz": args.fs,
         "rtol": args.rtol,

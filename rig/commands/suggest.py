@@ -254,8 +254,8 @@ def _settings(args: argparse.Namespace, report: dict[str, Any], config: RigConfi
     drive = report.get("drive") or {}
     given = {"frequency": args.frequency_hz, "amplitude": args.amplitude_mm}
     said = drive.get("stated") or {}  # a forced report's drive: measured, and as stated
-    stated = {"frequency": drive.get("frequency_hz", said.get("frequency_hz")),
-              "amplitude": said.get("amplitude_m", drive.get("amplitude_m"))}
+    stated = {"frequency": drive.get(q.frequency_hz, said.get(q.frequency_hz)),
+              "amplitude": said.get(q.amplitude_m, drive.get(q.amplitude_m))}
     axes = {}
     for name, default, scale in (("frequency", DEFAULT_FREQUENCIES, 1.0),
                                  ("amplitude", DEFAULT_AMPLITUDES, 1e-3)):
@@ -335,7 +335,7 @@ def _why(result: PairSearch, s: Any) -> str:
 def _row(result: PairSearch, s: Any) -> dict[str, Any]:
     r = s.result
     row = {"pair": [result.pair.first.name, result.pair.second.name],
-           "frequency_hz": s.setting.frequency_hz, "amplitude_m": s.setting.amplitude_m,
+           q.frequency_hz: s.setting.frequency_hz, q.amplitude_m: s.setting.amplitude_m,
            "separation_in_noise": r.separation, "distance_in_noise": r.distance,
            "spread_in_noise": [r.spread_first, r.spread_second],
            "regimes": [r.regime_first, r.regime_second], "dwell_samples": s.samples}

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
+from analysis import quantities as q
 from rig.cli import CommandError, add_command
 from rig.commands.rig_options import (
     add_rig_options,
@@ -143,7 +144,7 @@ def run(args: argparse.Namespace) -> int:
 
 
 # the options of a --sweep that a plan's steps take the place of
-SWEEP_ONLY = ("start", "stop", "steps", "drive_hz", "beta", "amplitude_mm", "settle", "dwell",
+SWEEP_ONLY = ("start", "stop", "steps", "drive_hz", q.beta, "amplitude_mm", "settle", "dwell",
               "up_only")
 
 

@@ -89,15 +89,15 @@ def classify_steps(steps: list[Any], say: ProgressText) -> tuple[list[dict[str, 
     previous_beta = -math.inf
     for number, record in enumerate(steps):
         drive = record.drive
-        beta = drive["amplitude_m"] / record.rig_parameters().L_m
+        beta = drive[q.amplitude_m] / record.rig_parameters().L_m
         direction = "up" if beta >= previous_beta else "down"
         previous_beta = beta
         entry: dict[str, Any] = {
             "step": number,
             "direction": direction,
-            "beta": beta,
-            "amplitude_m": drive["amplitude_m"],
-            "frequency_hz": drive["frequency_hz"],
+            q.beta: beta,
+            q.amplitude_m: drive[q.amplitude_m],
+            q.frequency_hz: drive[q.frequency_hz],
             "duration_s": float(record.time_s[-1] - record.time_s[0]),
             "poincare_points": int(record.tach_indices.size),
         }
@@ -106,7 +106,7 @@ def classify_steps(steps: list[Any], say: ProgressText) -> tuple[list[dict[str, 
             noise, _ = _noise(record.angle_rad)
             regime, strobe = judge_record_regime(
                 record.angle_rad, record.sample_rate_hz, noise,
-                tach_indices=record.tach_indices, frequency_hz=drive["frequency_hz"],
+                tach_indices=record.tach_indices, frequency_hz=drive[q.frequency_hz],
             )
             entry.update(kind=regime.kind, period=regime.period, label=regime.label)
             entry["short"] = regime.short_name
@@ -201,7 +201,7 @@ def _forced_step_to_analyse(steps: list[Any], regimes: list[dict[str, Any]]):
     """A settled periodic step: the lowest period, then the smallest drive, preferring the way
     down (longer settled); else the first step."""
     periodic = [
-        (r["period"], r["direction"] != "down", r["beta"], r["step"])
+        (r["period"], r["direction"] != "down", r[q.beta], r["step"])
         for r in regimes
         if r["kind"] == "periodic"
     ]
@@ -234,7 +234,7 @@ def bifurcation_diagrams(
     )
     diagrams = simulated
     if regimes:
-        measured = bifurcation_from_recording([r["beta"] for r in regimes], sections)
+        measured = bifurcation_from_recording([r[q.beta] for r in regimes], sections)
         diagrams = (*simulated, measured)
     return diagrams
 

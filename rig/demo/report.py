@@ -68,7 +68,7 @@ class DemoResult:
         )
         if self.regimes:
             kinds = ", ".join(
-                f"{r['beta']:.3g}{'^' if r['direction'] == 'up' else 'v'} {r['short']}"
+                f"{r[q.beta]:.3g}{'^' if r['direction'] == 'up' else 'v'} {r['short']}"
                 for r in self.regimes
             )
             lines.append(f"  sweep regimes (beta, ^up/v down): {kinds}")
@@ -266,7 +266,7 @@ def write_report(result, settings, recordings, analyses, pages, figures, config)
     add("|---|---|---|---|---|")
     for r in result.regimes:
         add(
-            f"| {r['step']} | {r['direction']} | {r['beta']:.4g} | {r['poincare_points']} | "
+            f"| {r['step']} | {r['direction']} | {r[q.beta]:.4g} | {r['poincare_points']} | "
             f"{r['label']} |"
         )
     add("")
@@ -389,7 +389,7 @@ def bifurcation_json(
     """bifurcation.json: the identified model and each diagram's points (the angles a
     parameter value reached, without the padding of those that reached fewer)."""
     return {
-        "frequency_hz": frequency_hz,
+        q.frequency_hz: frequency_hz,
         "model": {
             "rig": model.rig.as_dict(),
             "extensions": {k: dict(v) for k, v in model.extensions.items()},

@@ -5,15 +5,19 @@ and the model know."""
 from __future__ import annotations
 
 import ast
+import math
 import re
 from dataclasses import fields
 from pathlib import Path
 
 import pytest
 
+from analysis import quantities as q
 from analysis.extensions import CAUSES
-from analysis.model import RigParameters
+from analysis.model import Drive, Nondimensional, RigParameters
+from analysis.packed import ParameterError
 from analysis.quantities import QUANTITIES, quantity
+from rig.config import ConfigError, parse_config
 
 ROOT = Path(__file__).resolve().parents[2]
 RUNTIME = ("analysis", "rig", "gui", "hardware_sim", "recording", "drivers")
@@ -23,6 +27,12 @@ BOUNDARY = {
     # the exchange format's sidecar keys (docs/MODEL.md section 5, with "g" for g_m_s2) are
     # that file format's, fixed by its readers elsewhere, not renamed with a quantity
     "analysis/exchange.py": "the exchange format's own sidecar keys",
+    # below analysis in the layers (they may not import it): the recording's sweep-step and
+    # drive-log fields (docs/recording_layout.md is their contract) and the shaker drivers'
+    # own setting names
+    "recording/layout.py": "the recording format's drive and sweep-step fields",
+    "drivers/shaker_device.py": "the shaker driver's measured settings",
+    "drivers/scpi_shaker.py": "the SCPI shaker driver's setting names in its messages",
 }
 
 
@@ -52,7 +62,7 @@ def test_the_scanner_finds_a_spelled_key_and_passes_docstrings_and_fstring_text(
 
 
 def test_no_runtime_module_spells_a_registered_key_outside_the_registry():
-    keys = set(QUANTITIES)
+    keys = set(QUANTITIES) | set(q.COMMAND_LINE_NAMES)
     found = []
     for package in RUNTIME:
         for path in sorted((ROOT / package).rglob("*.py")):
@@ -70,6 +80,11 @@ def test_the_boundary_modules_exist_and_still_spell_a_key():
     # an allowance that is no longer needed is removed, not left to cover a new literal
     for rel in BOUNDARY:
         assert spelled_keys((ROOT / rel).read_text(encoding="utf-8"), set(QUANTITIES)), rel
+
+
+def test_the_command_line_names_stand_for_registered_quantities():
+    assert set(q.COMMAND_LINE_NAMES.values()) <= set(QUANTITIES)
+    assert not set(q.COMMAND_LINE_NAMES) & set(QUANTITIES)
 
 
 def _section_7_keys() -> set[str]:
@@ -93,10 +108,45 @@ def test_the_rig_and_every_cause_name_registered_quantities():
             assert spec.doc == quantity(spec.name).doc  # meaning and unit defined once
 
 
+def test_a_cause_whose_fit_would_leave_the_physical_bounds_is_refused():
+    from analysis.extensions import ParameterSpec
+
+    with pytest.raises(ParameterError, match=r"tau_s = -0.1: must be >= 0"):
+        ParameterSpec(q.tau_s, 0.0, -0.1, 1.0)
+
+
 def test_every_quantity_knows_its_symbol_meaning_and_sane_bounds():
     for key, entry in QUANTITIES.items():
         assert entry.key == key and entry.symbol and entry.meaning, key
-        assert entry.bounds is None or entry.bounds[0] < entry.bounds[1], key
+        assert entry.bounds is None or entry.bounds.low < entry.bounds.high, key
+
+
+def test_a_value_is_checked_against_its_registered_bounds_with_one_line_naming_it():
+    assert q.check(q.theta_b_rad, -0.1) == -0.1
+    assert q.check(q.zeta, 0) == 0.0  # closed at 0
+    with pytest.raises(ParameterError, match=r"^m_kg = 0: must be > 0 \(pendulum mass, kg\)$"):
+        q.check(q.m_kg, 0)
+    with pytest.raises(ParameterError, match=r"theta_b_rad = 1.6: must be in \(-1.5708, 1.5708\)"):
+        q.check(q.theta_b_rad, 1.6)
+    with pytest.raises(ParameterError, match="expected a finite number"):
+        q.check(q.amplitude_m, math.inf)
+    with pytest.raises(ParameterError, match="expected a number"):
+        q.check(q.frequency_hz, True)
+
+
+def test_the_model_and_the_rig_file_take_their_limits_from_the_registry():
+    # the same bound, the same words, wherever a value is refused
+    with pytest.raises(ParameterError, match=r"theta_b_rad = 1.6: must be in \(-1.5708, 1.5708\)"):
+        RigParameters(theta_b_rad=1.6)
+    with pytest.raises(ParameterError, match=r"amplitude_m = -0.001: must be >= 0"):
+        Drive(amplitude_m=-0.001, frequency_hz=10.0)
+    with pytest.raises(ParameterError, match=r"gamma = 0: must be > 0"):
+        Nondimensional(eta=1.0, beta=0.1, mu=0.1, gamma=0)
+    text = (ROOT / "rig" / "default_rig.toml").read_text(encoding="utf-8")
+    assert "\nm_kg = " in text
+    bad = re.sub(r"\nm_kg = [^\n]*", "\nm_kg = 0.0", text, count=1)
+    with pytest.raises(ConfigError, match=r"'rig.constants.m_kg' is 0.0; expected a number > 0$"):
+        parse_config(bad, "rig.toml")
 
 
 def test_an_unknown_key_is_refused_by_name():

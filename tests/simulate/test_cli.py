@@ -11,6 +11,7 @@ import pytest
 
 from analysis.exchange import read_exchange
 from analysis.model import Model, paper_case
+from analysis.record_loaders import load_record
 from analysis.simulate import SimulationSettings, simulate
 from recording.reader import open_recording
 from rig.cli import main
@@ -172,6 +173,14 @@ def test_simulated_hdf5_is_a_recording_that_replays_and_exports_like_its_csv(tmp
                                    atol=1e-12)
     assert np.array_equal(back.tach_indices, direct.tach_indices)
     assert back.meta.drive == direct.meta.drive and back.meta.experiment == "forced"
+    # analyze reads the recording itself as the record its export is
+    record, exported = load_record(tmp_path / "sim.h5"), load_record(tmp_path / "back.csv")
+    assert record.experiment == exported.experiment and record.drive == exported.drive
+    assert np.array_equal(record.time_s, exported.time_s)
+    assert np.array_equal(record.tach_indices, exported.tach_indices)
+    for column in ("angle_rad", "table_m"):  # float32 values, written as decimal text
+        np.testing.assert_allclose(getattr(record, column), getattr(exported, column),
+                                   rtol=2**-23, atol=1e-12)
 
 
 def test_lyapunov_spectrum_is_printed_and_written_with_its_span_and_convergence(tmp_path):
