@@ -1,5 +1,5 @@
 """How the suite is run on several workers (pytest-xdist): the kernels compiled once, the long
-tests first.
+tests first, an expensive fixture made once.
 
 - **Compiled once.** With ``-n``, the controlling process starts ``tests/compiled_kernels.py``
   in a process of its own while the workers start and collect, and holds a lock until it
@@ -9,7 +9,13 @@ tests first.
   (:func:`compiled_by_the_suite`).
 - **Long tests first.** The modules holding a test marked ``slow`` run before the others
   (each module's tests kept together, in their order), so that the run ends on short tests
-  that the workers share out, not on one worker's long test while the other is idle.
+  that the workers share out, not on one worker's long test while the other is idle.  Under
+  ``--dist worksteal``, which first hands each worker a contiguous run of the collection and
+  lets an idle worker steal the end of a busy one's queue, the slow modules are dealt out
+  over those runs, each opening on its share and ending on short tests: what is stolen is
+  short, and a slow module is not split between workers.
+- **Made once.** :func:`computed_once` gives a module-scoped fixture a folder of data
+  that one worker makes and the others read, should the workers split the module.
 """
 
 from __future__ import annotations
@@ -21,6 +27,7 @@ import subprocess
 import sys
 import tempfile
 import threading
+from collections.abc import Callable
 from pathlib import Path
 
 import pytest
@@ -91,10 +98,80 @@ def compiled_by_the_suite() -> Path | None:
     return folder / MAP_NAME if verdict["compiled"] and verdict["status"] == 0 else None
 
 
-def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
-    """Modules with a test marked ``slow`` first, each module's tests kept in their order."""
-    def module(item: pytest.Item) -> str:
-        return getattr(getattr(item, "module", None), "__name__", "")
+DONE_NAME = "done"
 
-    slow = {module(item) for item in items if item.get_closest_marker("slow") is not None}
-    items.sort(key=lambda item: module(item) not in slow)
+
+def computed_once(tmp_path_factory: pytest.TempPathFactory, name: str,
+                  make: Callable[[Path], None]) -> Path:
+    """A folder that ``make`` fills with data files once per run, whichever worker asks for
+    it first (pytest-xdist's pattern: a lock and a folder in the run's temporary folder,
+    which its workers share; the others wait on the lock, then read the files).  Without
+    workers, a folder of this process's own.  A module-scoped fixture whose tests the
+    workers split between them is otherwise set up on each: ``make`` writes data (JSON,
+    ``.npz``, records), never pickles, so what a test reads is the same wherever it ran."""
+    if fcntl is None or "PYTEST_XDIST_WORKER" not in os.environ:
+        folder = tmp_path_factory.mktemp(name)
+        make(folder)
+        return folder
+    root = tmp_path_factory.getbasetemp().parent  # the run's folder; each worker's is in it
+    folder = root / name
+    with open(root / f"{name}.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        if not (folder / DONE_NAME).exists():  # first, or after a worker whose make failed
+            shutil.rmtree(folder, ignore_errors=True)
+            folder.mkdir()
+            make(folder)
+            (folder / DONE_NAME).write_text("")
+    return folder
+
+
+def _module(item: pytest.Item) -> str:
+    return getattr(getattr(item, "module", None), "__name__", "")
+
+
+def _chunk_sizes(count: int, workers: int) -> list[int]:
+    """How many tests ``--dist worksteal`` first hands each of ``workers`` idle workers, in
+    order: the collection cut into contiguous runs as its scheduler cuts it."""
+    sizes = []
+    for remaining in range(workers, 0, -1):
+        sizes.append((count - sum(sizes)) // remaining)
+    return sizes
+
+
+def _each_chunk_opens_on_slow_modules(items: list[pytest.Item], workers: int) -> list[pytest.Item]:
+    """The order for ``workers`` workers under ``--dist worksteal``: the slow modules dealt
+    out over the workers' first runs (the module with the most tests marked ``slow`` to the
+    run with the fewest so far), each run opening on its slow modules and filled up with
+    the others, so that every worker's queue ends on short tests, which is where an idle
+    worker steals from."""
+    modules: dict[str, list[pytest.Item]] = {}
+    for item in items:
+        modules.setdefault(_module(item), []).append(item)
+    weight = {name: sum(item.get_closest_marker("slow") is not None for item in module)
+              for name, module in modules.items()}
+    slow = sorted((name for name in modules if weight[name]), key=lambda name: -weight[name])
+    fast = [item for name, module in modules.items() if not weight[name] for item in module]
+    sizes = _chunk_sizes(len(items), workers)
+    dealt: list[list[pytest.Item]] = [[] for _ in sizes]
+    load = [0] * len(sizes)
+    for name in slow:  # stable: a module weighing as much as another keeps its place
+        chunk = min(range(len(sizes)), key=lambda k: (load[k], len(dealt[k])))
+        dealt[chunk].extend(modules[name])
+        load[chunk] += weight[name]
+    ordered: list[pytest.Item] = []
+    for chunk, size in zip(dealt, sizes, strict=True):
+        take = max(0, size - len(chunk))
+        ordered += chunk + fast[:take]
+        fast = fast[take:]
+    return ordered + fast
+
+
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """Modules with a test marked ``slow`` first, each module's tests kept in their order; on
+    several workers under ``--dist worksteal``, first in each worker's share (see
+    :func:`_each_chunk_opens_on_slow_modules`)."""
+    slow = {_module(item) for item in items if item.get_closest_marker("slow") is not None}
+    items.sort(key=lambda item: _module(item) not in slow)
+    workers = getattr(config, "workerinput", {}).get("workercount", 1)
+    if workers > 1 and config.getoption("dist", "no") == "worksteal":
+        items[:] = _each_chunk_opens_on_slow_modules(items, workers)

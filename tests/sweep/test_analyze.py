@@ -11,48 +11,57 @@ of the same rig names no cause."""
 from __future__ import annotations
 
 import json
+from dataclasses import asdict
 from pathlib import Path
 
 import pytest
 
-from analysis.json_output import json_ready
+from analysis.json_output import json_ready, write_json
 from analysis.sweep import analyze
 from analysis.sweep.analyze import compare_with_measured
+from reference.forced_records import RigTruth
 from reference.sweeps import generate_sweep
 from rig.cli import main
+from tests.conftest import computed_once
 from tests.tolerance import within_999
 
 THETA_B_RAD = 0.015
 
 
 @pytest.fixture(scope="module")
-def analysed(tmp_path_factory) -> tuple[dict, Path, object]:
-    folder = Path(tmp_path_factory.mktemp("sweep"))
+def analysed(tmp_path_factory) -> tuple[dict, Path, RigTruth]:
+    """The analysis's JSON, the folder of its report, and the rig the sweep was drawn on:
+    made once per run (``computed_once``), though the workers split this module's tests."""
+    folder = computed_once(tmp_path_factory, "sweep-analysed", _analyse)
+    return (json.loads((folder / "out.json").read_text()), folder,
+            RigTruth(**json.loads((folder / "rig.json").read_text())))
+
+
+def _analyse(folder: Path) -> None:
     path = folder / "sweep.h5"
     truth = generate_sweep(path, seed=1, theta_b_rad=THETA_B_RAD, betas=(0.02, 0.03, 0.04, 0.05),
                            interrupted_at=3)
-    with pytest.MonkeyPatch.context() as patch:  # what the diagrams were compared from
-        patch.setattr(analyze, "compare_with_measured", _remembered)
+    here = []
+
+    def remembered(ident, causes, **kwargs):
+        # what the diagrams were compared from, compared again in this process
+        here.append(json_ready(compare_with_measured(ident, causes).as_json()))
+        return compare_with_measured(ident, causes, **kwargs)
+
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(analyze, "compare_with_measured", remembered)
         # --workers 2: the diagrams' simulations on a local Dask cluster of 2 processes
         assert main(["analyze", str(path), "--json", str(folder / "out.json"), "--report",
                      str(folder / "report"), "--workers", "2"]) == 0
-    return json.loads((folder / "out.json").read_text()), folder, truth
-
-
-COMPARED: list = []
-
-
-def _remembered(ident, causes, **kwargs):
-    COMPARED.append((ident, causes))
-    return compare_with_measured(ident, causes, **kwargs)
+    write_json(folder / "here.json", here)
+    write_json(folder / "rig.json", asdict(truth.rig))
 
 
 @pytest.mark.slow
 def test_one_rig_for_every_step_holds_the_truth_in_its_intervals(analysed) -> None:
-    js, _, truth = analysed
+    js, _, rig = analysed
     sweep = js["sweep"]
     shared = sweep["shared"]
-    rig = truth.rig
     for name, value in (("omega_rad_s", rig.omega_rad_s), ("zeta", rig.zeta),
                         ("K_N_per_m1.5", rig.K_N_per_m1_5), ("mu0_s_per_m", rig.mu0_s_per_m),
                         ("theta_b_rad", THETA_B_RAD), ("offset_rad", 0.0),
@@ -106,12 +115,12 @@ def test_report_page_has_a_row_per_step_and_the_step_set_aside(analysed) -> None
 
 def test_the_diagrams_run_on_two_workers_as_here(analysed) -> None:
     """The JSON's sweep.diagram, simulated on a local cluster of 2 worker processes, holds
-    the same figures as the comparison made again in this process."""
+    the same figures as the comparison made again in the analysing process, from what the
+    diagrams were compared from."""
     diagram = analysed[0]["sweep"]["diagram"]
     assert diagram["named"] == ["barrier_offset"] and not diagram["explained_is_baseline"]
     assert [s["step"] for s in diagram["explained"]["steps"]] == [0, 1, 2]
     assert diagram["summary"].startswith("baseline: ")
     assert "; explained model: " in diagram["summary"]
-    (ident, causes), = COMPARED
-    here = json_ready(compare_with_measured(ident, causes).as_json())
+    here, = json.loads((analysed[1] / "here.json").read_text())
     assert here == diagram
