@@ -83,18 +83,20 @@ def prepare_data(record: Record, *, thinned: bool = True) -> tuple[FitData, list
     return data, notes
 
 
-def proposed_terms(record: Record, final: FitResult) -> list[ProposedTerm]:
-    """The terms the residual acceleration of a decay's final model asks for
+def proposed_terms(record: Record, model: ModelSpec,
+                   values: Mapping[str, float]) -> list[ProposedTerm]:
+    """The terms the residual acceleration of a decay's final model (``model`` at
+    ``values``) asks for
     (:mod:`analysis.discrepancy.term_proposal`), at every sample of the record (a contact
     lasts milliseconds) and at the data's true angle: the measured one with the model's
     sensor (its measured minus its true angle) taken off."""
     data, _ = prepare_data(record, thinned=False)
-    measured, sim = predict(data, final.model, final.values)
+    measured, sim = predict(data, model, values)
     n = min(data.t.size, sim.theta.size)
     true = np.asarray(sim.theta, dtype=float)[:n]
     rate = np.asarray(sim.theta_dot, dtype=float)[:n]
-    packed = packed_from_values(data.rig, data.drive, data.barrier, final.values,
-                                final.model.causes, data.phase0_rad)
+    packed = packed_from_values(data.rig, data.drive, data.barrier, values, model.causes,
+                                data.phase0_rad)
     theta = data.y[:n] - (measured[:n] - true)
     return propose_terms(data.t[:n], theta, data.valid[:n], packed, true, rate)
 
@@ -524,7 +526,8 @@ def analyze_decay(
     analysis.read()
     if analysis.unexplained:
         best = analysis.final_outcome
-        analysis.proposed_terms = proposed_terms(record, best.full if best else baseline)
+        final = best.full if best else baseline
+        analysis.proposed_terms = proposed_terms(record, final.model, final.values)
         say("proposed terms (not named causes): " + (
             ", ".join(f"{t.term} in {t.region}" for t in analysis.proposed_terms) or "none"))
     timings["total"] = time.perf_counter() - clock

@@ -53,6 +53,7 @@ from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
+from numpy.polynomial import Legendre, Polynomial
 from scipy import stats
 from scipy.signal import savgol_coeffs, savgol_filter
 
@@ -90,6 +91,12 @@ MIN_GAIN = 0.02
 # held-out blocks better at this one-sided level (a rival is listed, not proposed)
 RIVAL_LEVEL = 0.05
 MIN_SAMPLES = 200  # a region with fewer usable samples is not regressed
+# With the barrier in, test functions per flight (see weak_windows): independent rows a
+# held-out block adds, each flight's one window being too short to slide
+FLIGHT_TEST_FUNCTIONS = 3
+MIN_HALF = 8  # a flight shorter than 2 MIN_HALF + 1 samples holds no window
+# the weak form's rows per library term at least: each fold fits every term on half of them
+WEAK_ROWS_PER_TERM = 4
 SWING_SHARE = 0.3  # a decay is regressed while its swing is above this share of its largest
 DECIMATION = 16  # low-passed flight samples kept: this many per low-pass window
 
@@ -190,7 +197,8 @@ def propose_terms(t: np.ndarray, theta: np.ndarray, valid: np.ndarray, packed: n
     flight = flight_library(t, error.theta, error.rate, packed)
     if not driven(packed):
         proposed = select_terms(*weak_flight(t, error, flight, base_frequency_hz(packed),
-                                             bool(packed[P.BARRIER] != 0.0)))
+                                             bool(packed[P.BARRIER] != 0.0)),
+                                least=WEAK_ROWS_PER_TERM * len(flight.names))
         return proposed + _contact_terms(error, packed, blocks)
     columns = smoothed_like_acceleration(flight.columns, error.window)
     columns = savgol_filter(columns, error.lowpass, POLYORDER, axis=0)
@@ -224,37 +232,87 @@ def time_blocks(t: np.ndarray, end: float) -> np.ndarray:
 def weak_flight(t: np.ndarray, error: EquationError, flight: Library, base_hz: float,
                 barrier: bool) -> tuple[Library, np.ndarray, np.ndarray]:
     """The flight regression in weak form (a decay's): the equation theta'' = f + sum of
-    terms, integrated against smooth windows phi = (1 - s^2)^4 one swing long (a quarter
-    with the barrier in, whose flights last about half a swing; s from -1 to 1 across the
-    window,
-    windows a sixteenth apart, wholly in flight), with theta'' moved
-    onto phi'' by integrating by parts twice.  The data's second derivative, whose noise
-    grows as the frequency squared, never enters: its noise is the angle's, averaged by
-    phi'' (the weak SINDy of D. A. Messenger and D. M. Bortz, "Weak SINDy", Multiscale
-    Model. Simul. 19 (2021)).  A hairspring's theta^3 (truth -279 rad/s^2 per rad^3),
-    which the strong form fitted but could not tell from its noise (1.9 % of the held-out
-    squares, 3.5 standard errors), comes out at -279 [-283, -275], 98.5 % of them, 159
-    standard errors clear.  Returns the library over the windows, the weak residual and
-    each window's block, for :func:`select_terms`: the blocks divide the windows' own
-    centres, from the first to the last (the samples' blocks would leave the last block a
-    few windows, as a window a swing long does not fit near the span's end, and one such
-    block's share of its few squares, at -2.6, hid a cubic damping that took 69 % of the
-    held-out squares: t 2.5 over the blocks)."""
+    terms, integrated against smooth test functions wholly in flight, with theta'' moved
+    onto their second derivative by integrating by parts twice.  The data's second
+    derivative, whose noise grows as the frequency squared, never enters: its noise is the
+    angle's, averaged by the test function's second derivative (the weak SINDy of D. A.
+    Messenger and D. M. Bortz, "Weak SINDy", Multiscale Model. Simul. 19 (2021)).  A
+    hairspring's theta^3 (truth -279 rad/s^2 per rad^3), which the strong form fitted but
+    could not tell from its noise (1.9 % of the held-out squares, 3.5 standard errors),
+    comes out at -279 [-282, -275] (seed 7000 of ``reference/decays.py``), 98.6 % of them,
+    t 23.9 over the held-out blocks.
+
+    The windows are :func:`weak_windows`'s.  Each window's rows (its test functions) are
+    whitened by their noise covariance, the angle's white noise through the test
+    functions' second derivatives (the covariance-weighted weak form of D. M. Bortz, D. A.
+    Messenger and V. Dukic, "Direct estimation of parameters in ODE models using WENDy",
+    Bull. Math. Biol. 85 (2023)): rows of independent noise of one size, so that the
+    held-out blocks' squares add rows of like weight.  Returns the library over the rows,
+    the weak residual and each row's block, for :func:`select_terms`: the blocks divide the
+    windows' own centres, from the first to the last (the samples' blocks would leave the
+    last block a few windows, as a window a swing long does not fit near the span's end,
+    and one such block's share of its few squares, at -2.6, hid a cubic damping that took
+    69 % of the held-out squares: t 2.5 over the blocks)."""
     dt = float(t[1] - t[0])
-    swings = 0.125 if barrier else 0.5  # the window's half-length, in periods
-    half = max(8, round(swings / (base_hz * dt)))
-    s = np.arange(-half, half + 1) / half
-    phi = (1.0 - s * s) ** 4
-    phi2 = (-8.0 * (1.0 - s * s) ** 3 + 48.0 * s * s * (1.0 - s * s) ** 2) / (half * dt) ** 2
-    centres = np.arange(half, t.size - half, max(1, half // 8))
-    inside = np.array([bool(error.free[c - half:c + half + 1].all()) for c in centres],
-                      dtype=bool)
-    centres = centres[inside]
-    windows = centres[:, None] + np.arange(-half, half + 1)[None, :]
-    residual = dt * (error.angle[windows] @ phi2 - error.model_acceleration[windows] @ phi)
-    columns = dt * np.einsum("wik,i->wk", flight.columns[windows], phi)
+    centres, halves, orders = weak_windows(error.free, max(8, round(0.5 / (base_hz * dt))),
+                                           barrier)
+    residual = np.zeros((centres.size, orders))
+    columns = np.zeros((centres.size, orders, flight.columns.shape[1]))
+    for half in np.unique(halves):
+        phi, phi2 = test_functions(half, orders)
+        phi2 = phi2 / (half * dt) ** 2
+        # rows of unit, independent noise: L^-1 times them, L L' their covariance per unit
+        # noise variance of the angle
+        whiten = np.linalg.inv(np.linalg.cholesky(dt * dt * phi2.T @ phi2))
+        these = np.flatnonzero(halves == half)
+        windows = centres[these, None] + np.arange(-half, half + 1)[None, :]
+        rows = dt * (error.angle[windows] @ phi2 - error.model_acceleration[windows] @ phi)
+        residual[these] = rows @ whiten.T
+        weak = dt * np.einsum("wik,ij->wjk", flight.columns[windows], phi)
+        columns[these] = np.einsum("lj,wjk->wlk", whiten, weak)
     ends = t[centres[-1]] if centres.size else t[0]
-    return replace(flight, columns=columns), residual, time_blocks(t[centres], ends)
+    blocks = np.repeat(time_blocks(t[centres], ends), orders)
+    return (replace(flight, columns=columns.reshape(-1, flight.columns.shape[1])),
+            residual.ravel(), blocks)
+
+
+def weak_windows(free: np.ndarray, swing: int, barrier: bool) -> tuple[np.ndarray, np.ndarray,
+                                                                        int]:
+    """The weak form's windows wholly in the ``free`` samples: their centres, half-lengths
+    (samples) and test functions per window.
+
+    A free decay is one long flight: windows one ``swing`` long (samples), a sixteenth
+    apart, one test function each.  With the barrier in, a flight lasts about half a swing
+    and holds one window, as long as the flight (the weak residual's signal grows as the
+    window's half-length h, its noise falls as h^-1.5), probed by FLIGHT_TEST_FUNCTIONS
+    test functions.  Fixed windows of a quarter swing, a sixteenth apart, left a softening
+    hairspring's theta^3 (seed 7053) 40 % of the held-out squares at t 3.3; one window
+    per flight 91 % at t 4.1, whose blocks held one window each: the log of a ratio of
+    two single squares (variance about 10) put four of twenty blocks below zero; three
+    test functions per flight, 86 % at t 5.8.
+    """
+    if not barrier:
+        centres = np.arange(swing, free.size - swing, max(1, swing // 8))
+        inside = np.array([bool(free[c - swing:c + swing + 1].all()) for c in centres],
+                          dtype=bool)
+        return centres[inside], np.full(int(np.count_nonzero(inside)), swing), 1
+    edges = np.diff(np.concatenate([[0], free.astype(np.int8), [0]]))
+    starts, stops = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)  # [start, stop)
+    halves = np.minimum((stops - starts - 1) // 2, swing)
+    keep = halves >= MIN_HALF
+    return (starts + halves)[keep], halves[keep], FLIGHT_TEST_FUNCTIONS
+
+
+def test_functions(half: int, orders: int) -> tuple[np.ndarray, np.ndarray]:
+    """The test functions (1 - s^2)^4 P_k(s), k < ``orders`` (P_k Legendre's polynomials, s
+    from -1 to 1 over 2 ``half`` + 1 samples), and their second derivatives in s, as
+    columns: the even ones see the flight's symmetric part (a restoring term), the odd ones
+    its lopsided part (a damping); they and their first derivatives vanish at the ends."""
+    s = np.arange(-half, half + 1) / half
+    bump = Polynomial([1.0, 0.0, -1.0]) ** 4
+    polys = [bump * Legendre.basis(k).convert(kind=Polynomial) for k in range(orders)]
+    return (np.column_stack([p(s) for p in polys]),
+            np.column_stack([p.deriv(2)(s) for p in polys]))
 
 
 def equation_error(t: np.ndarray, theta: np.ndarray, valid: np.ndarray, packed: np.ndarray,
@@ -395,13 +453,13 @@ def contact_library(theta: np.ndarray, rate: np.ndarray, packed: np.ndarray) -> 
                    most=CONTACT_MOST)
 
 
-def select_terms(library: Library, residual: np.ndarray,
-                 blocks: np.ndarray) -> list[ProposedTerm]:
+def select_terms(library: Library, residual: np.ndarray, blocks: np.ndarray,
+                 least: int = MIN_SAMPLES) -> list[ProposedTerm]:
     """The terms of ``library`` that the residual acceleration asks for and that earn their
     place on held-out blocks (see the module's docstring), with their coefficients in
     theta'' per unit of the term."""
     ids = np.unique(blocks)
-    if residual.size < MIN_SAMPLES or ids.size < 4:
+    if residual.size < least or ids.size < 4:
         return []
     scale = np.sqrt(np.mean(library.columns**2, axis=0))
     live = scale > 0

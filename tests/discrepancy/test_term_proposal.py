@@ -3,7 +3,8 @@
 The library and the selection are tested on equation-error problems that numpy makes, with
 a known sparse term hidden in correlated noise; the whole proposal on forced records of
 the independent reference simulator (``reference``), one with a cubic hairspring
-at the pivot (an effect outside the named causes) and clean ones.
+at the pivot (an effect outside the named causes) and clean ones; and on an impact decay of
+that simulator with a softening pivot spring.
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
+from analysis.discrepancy.analyze import proposed_terms
 from analysis.discrepancy.term_proposal import (
     CONTACT_EXPONENTS,
     HELDOUT_BLOCKS,
@@ -27,6 +29,7 @@ from analysis.discrepancy.term_proposal import (
     select_terms,
     weak_flight,
 )
+from analysis.extensions import ModelSpec
 from analysis.identify.forced import (
     ForcedModel,
     fit_model,
@@ -36,8 +39,10 @@ from analysis.identify.forced import (
 )
 from analysis.packed import P
 from analysis.record_loaders import load_record
+from reference.decays import draw_effect_decay
 from reference.forced_records import draw_forced_case, write_forced_case
 from reference.unregistered import draw_unregistered_case
+from tests.tolerance import Z_95, Z_999
 
 SAMPLE_RATE_HZ = 200.0  # a low-passed flight residual, decimated: what the selection sees
 DURATION_S = 30.0
@@ -192,3 +197,35 @@ def test_a_pivot_hairspring_is_proposed_as_a_cubic_term_of_its_size():
 def test_a_clean_record_asks_for_no_term():
     case = draw_forced_case(7102, "none", frequency_hz=2.0, duration_s=RECORD_S)
     assert _proposal(case) == []
+
+
+# The final model that `analyze` fitted, on 2026-11-29, to the impact decay of
+# reference/decays.py with a softening pivot spring (seed 7053, the decay benchmark's draw):
+# a barrier offset and a sensor zero, the spring taken up by a lower frequency (omega 13.18
+# rad/s for 13.83) and a barrier 2e5 times too stiff.  Held here, the test skips the
+# analysis that fits it (minutes).
+SOFTENING_SEED = 7053
+SOFTENING_MODEL = ModelSpec.of("barrier_offset", "sensor_offset")
+SOFTENING_VALUES = {
+    "theta0_rad": -0.2083544573441633, "theta_dot0_rad_s": 0.07729980991628599,
+    "omega_rad_s": 13.178491705572796, "zeta": 0.0027868804042698405,
+    "K_N_per_m1.5": 42501849315.925316, "mu0_s_per_m": 0.7406585379904198,
+    "theta_b_rad": 0.0004566688210845611, "offset_rad": 0.002406535601694097}
+
+
+@pytest.mark.slow  # the reference simulator's decay, 37 s of impacts at 500 Hz, takes most
+def test_a_softening_pivot_spring_in_an_impact_decay_is_proposed_as_theta_cubed(tmp_path):
+    """The impact decay's flights last half a swing and each holds one weak-form window: with
+    a window of a quarter swing sliding along the flights the spring's theta^3 removed 40 %
+    of the held-out squares at t 3.3 over the blocks (5.3 needed) and nothing was
+    proposed; one window per flight, probed by three whitened test functions, proposes it
+    alone in flight, of the spring's sign and size (within its 99.9 % interval)."""
+    decay = draw_effect_decay(SOFTENING_SEED, "pivot_hairspring_softening")
+    record = load_record(decay.write(tmp_path))
+    terms = proposed_terms(record, SOFTENING_MODEL, SOFTENING_VALUES)
+    flight = [term for term in terms if term.region == "flight"]
+    assert [term.term for term in flight] == ["theta^3"], [t.sentence() for t in terms]
+    truth = -decay.effect_values["c3_per_s2"]  # theta'' gains -c3 theta^3
+    low, high = flight[0].ci95
+    half = (high - low) / 2.0 * Z_999 / Z_95
+    assert abs(flight[0].coefficient - truth) <= half, (truth, flight[0].sentence())
