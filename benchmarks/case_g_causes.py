@@ -56,6 +56,11 @@ DPI = 80
 SETTINGS = ["--transient-periods", "400", "--record-periods", "100", "--ics", "2",
             "--workers", "1", "--quiet"]
 CHAOTIC = KINDS.index("chaotic")
+# a size range narrower than the plausible one: pivot friction mapped over its whole
+# plausible range (Tc_N_m=0:0.05:21, the rest as here) gives case (g)'s small pendulum
+# (m g L = 0.0148 N m) a period-1 motion at every beta from 0.01 N m on; this resolves the
+# sizes below
+RANGES = {"coulomb_friction": (0.0, 0.01)}
 
 
 def case_options() -> list[str]:
@@ -82,7 +87,7 @@ def maps(work: Path) -> list[dict[str, Any]]:
         if cause.acts_on != "dynamics" or name == "contact_exponent":
             continue
         spec = cause.parameters[0]
-        low, high = spec.plausible or (spec.lower, spec.upper)
+        low, high = RANGES.get(name) or spec.plausible or (spec.lower, spec.upper)
         second = ["--vary", BETAS]
         if name == "excitation_distortion":
             second = ["--beta", f"{BETA_G:g}", "--vary", f"{q.phi2_rad}=-3.14159:3.14159:{PHASES}"]
@@ -127,7 +132,7 @@ def at_case_g(name: str, parameter: str, found: dict[str, np.ndarray]) -> dict[s
     """The sizes at which case (g) is chaotic (beta = 0.022; every phase for h2)."""
     at = np.ones(found["size"].size, bool) if name == "excitation_distortion" \
         else np.isclose(found["second"], BETA_G)
-    sizes = found["size"][at]
+    sizes = np.round(found["size"][at], 9)
     dominant = np.unique(sizes[found["dominant"][at] == CHAOTIC])
     anywhere = np.unique(sizes[found["any_chaotic"][at]])
     every = np.unique(sizes)
@@ -204,7 +209,7 @@ def candidate_entry(name: str, at: dict[str, Any], found: dict[str, np.ndarray],
     for key, value in extra.items():
         parameters[key] = {"value": value, "held": True}
     if name == "excitation_distortion":  # the phase at that size where it was chaotic
-        at_size = (found["size"] == chaotic) & (found["dominant"] == CHAOTIC)
+        at_size = np.isclose(found["size"], chaotic) & (found["dominant"] == CHAOTIC)
         parameters[q.phi2_rad] = {"value": float(found["second"][at_size][0]), "held": True}
     return {"cause": name, "score": 0.0, "implausible": None,
             "model": {"causes": [name], "parameters": parameters}}
