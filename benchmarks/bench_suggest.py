@@ -38,6 +38,12 @@ command, on this machine's 2 cores, with its load).
     python benchmarks/bench_suggest.py --only-undecided --cases 4 --max-draws 40
     python benchmarks/bench_suggest.py --causes sensor_nonlinearity,sensor_offset --first-duration 5
     python benchmarks/bench_suggest.py --save   # also benchmarks/results/suggest.json (the page)
+
+Runs over other seeds, made in parallel with ``--json``, are counted together with
+``--rows-from`` (their rows taken as they are, this run's cases added after them; the
+figures and the saved page name every run's command):
+
+    python benchmarks/bench_suggest.py --max-draws 0 --rows-from a.json --rows-from b.json --save
 """
 
 from __future__ import annotations
@@ -207,6 +213,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--keep", type=Path, help="keep every case's files in this folder")
     parser.add_argument("--json", type=Path, help="write the rows and figures here")
     parser.add_argument("--overwrite", action="store_true", help="replace the --json file")
+    parser.add_argument("--rows-from", type=Path, action="append", default=[],
+                        metavar="JSON", help="count the cases of an earlier run's --json "
+                        "file too (repeatable; runs over other seeds made in parallel)")
     parser.add_argument("--save", action="store_true",
                         help="also write the figures to benchmarks/results/suggest.json")
     args = parser.parse_args(argv)
@@ -216,6 +225,17 @@ def main(argv: list[str] | None = None) -> int:
     load = os.getloadavg()[0]
     clock = time.perf_counter()
     rows: list[dict[str, Any]] = []
+    earlier: list[str] = []
+    for path in args.rows_from:
+        try:
+            made = json.loads(path.read_text(encoding="utf-8"))
+            rows += made["rows"]
+            earlier.append(" ".join(["python", "benchmarks/bench_suggest.py",
+                                     *made["command"][1:]]))
+        except (OSError, ValueError, KeyError, TypeError) as error:
+            parser.error(f"--rows-from {path}: not a --json file of this benchmark ({error})")
+    args.earlier = earlier
+    before = len(rows)
     drawn = 0
     while drawn < args.max_draws and sum(
             not r.get("decided_at_first", True) or not args.only_undecided for r in rows
@@ -234,9 +254,10 @@ def main(argv: list[str] | None = None) -> int:
                        "failed": f"{type(error).__name__}: {error}"}
         rows.append(row)
         _print_row(row)
-        _write(args, figures(rows, drawn), rows)
-    found = figures(rows, drawn)
-    print(f"{drawn} cases drawn and run in {time.perf_counter() - clock:.0f} s "
+        _write(args, figures(rows, before + drawn), rows)
+    found = figures(rows, before + drawn)
+    print(f"{drawn} cases drawn and run ({before} more from --rows-from) in "
+          f"{time.perf_counter() - clock:.0f} s "
           f"(load {load:.1f} at the start, {os.getloadavg()[0]:.1f} at the end)")
     print(to_json_text(found))
     _write(args, found, rows)
@@ -299,6 +320,8 @@ def _save(args: argparse.Namespace, found: dict[str, Any], load: float) -> None:
              "independent reference simulator, hiding in turn " + ", ".join(
                  args.causes.split(",")) + "; the suggested steps recorded by "
              "`reference/next_step.py`")
+    if args.earlier:
+        about += "; counted with the cases of " + "; ".join(f"`{c}`" for c in args.earlier)
     save(result("suggest", rows, about=about, load_at_start=load))
 
 

@@ -7,6 +7,7 @@ from analysis.suggest.candidates import (
     ReportError,
     competing_pairs,
     report_rig,
+    weak_finding,
 )
 from analysis.suggest.forced_steps import (
     PairSearch,
@@ -29,4 +30,5 @@ __all__ = [
     "run_setting",
     "search",
     "settings_grid",
+    "weak_finding",
 ]

@@ -4,11 +4,13 @@ An ``analyze --json`` report of a forced record (docs/MODEL.md section 6) ranks 
 candidate model it fitted, each with its fitted parameters and their 95 % intervals
 (``ranking[].model``).  Two explanations compete when the report lists them as
 ``indistinct`` (the record cannot tell them apart), and the cause it named competes with
-its runner-up (the best other candidate, a plausible one when there is one).  A report
-that names no cause keeps the baseline (its ``baseline`` section) as its explanation,
-which competes with the best-ranked candidate: the first of the ranking (a plausible one
-when there is one), and the next ones the record ranks within the report's information
-criterion margin of it (at most ``BASELINE_RIVALS``).
+its runner-up (the best other candidate, a plausible one when there is one).  The
+best-ranked candidate (a plausible one when there is one) competes with the next ones the
+record ranks within the report's information criterion margin of it (``policy.bic_margin``;
+at most ``RIVALS`` in all): the record's scores do not tell them apart.  The report's
+baseline (its ``baseline`` section) competes as an explanation of its own: when the report
+names no cause, against each of those best-ranked candidates; when the finding it names is
+weak (:func:`weak_finding`: the report flags it), against the cause named.
 """
 
 from __future__ import annotations
@@ -30,9 +32,10 @@ from analysis.model import RigParameters
 RIG_KEYS = tuple(BASELINE_PLANS)
 # a 95 % interval spans 2 x Z95 standard deviations of a normal estimate
 CI95_WIDTH_IN_SD = 2.0 * Z95
-# the candidates paired with the baseline when nothing is named: the best-ranked, and the
-# next ones within the report's BIC margin of it, at most this many in all
-BASELINE_RIVALS = 2
+# the best-ranked candidate and the next ones within the report's BIC margin of it, at most
+# this many in all: set against each other, and each against the baseline when nothing is
+# named
+RIVALS = 2
 BASELINE = "baseline"  # the name the baseline competes under
 
 
@@ -149,19 +152,24 @@ def baseline_candidate(report: Mapping[str, Any], source: str) -> Candidate:
                      source)
 
 
-def _rivals_of_the_baseline(report: Mapping[str, Any],
-                            ranking: Sequence[Mapping[str, Any]]) -> list[Mapping[str, Any]]:
-    """The best-ranked candidates (plausible ones when there are any) that a report naming
-    nothing leaves against the baseline: the first, and the next ones within the report's
-    BIC margin of it (``policy.bic_margin``; none without it), at most ``BASELINE_RIVALS``."""
+def _policy_value(report: Mapping[str, Any], rule: str) -> float | None:
+    value = ((report.get("policy") or {}).get(rule) or {}).get("value")
+    return float(value) if isinstance(value, int | float) else None
+
+
+def best_ranked(report: Mapping[str, Any],
+                ranking: Sequence[Mapping[str, Any]]) -> list[Mapping[str, Any]]:
+    """The best-ranked candidates (plausible ones when there are any): the first, and the
+    next ones within the report's BIC margin of it (``policy.bic_margin``; none without
+    it), at most ``RIVALS``."""
     plausible = [e for e in ranking if not e.get("implausible")]
     ranked = plausible or list(ranking)
     if not ranked:
         return []
-    margin = ((report.get("policy") or {}).get("bic_margin") or {}).get("value")
+    margin = _policy_value(report, "bic_margin")
     best = ranked[0].get("score")
     out = [ranked[0]]
-    for entry in ranked[1:BASELINE_RIVALS]:
+    for entry in ranked[1:RIVALS]:
         score = entry.get("score")
         if not all(isinstance(v, int | float) for v in (margin, best, score)) \
                 or best - score > margin:
@@ -170,11 +178,31 @@ def _rivals_of_the_baseline(report: Mapping[str, Any],
     return out
 
 
-def competing_pairs(report: Mapping[str, Any], source: str) -> list[CompetingPair]:
-    """The explanations the report leaves competing: every ``indistinct`` pair, the named
-    cause against its runner-up, and, when no cause is named, the baseline against the
-    best-ranked candidate(s).  ReportError, in one line, when there is none or the report
-    is not a forced record's."""
+def weak_finding(report: Mapping[str, Any]) -> str | None:
+    """Why the cause a report names is a weak finding, from what the report flags: the
+    model still misses something (``unexplained``), the analysis warned, or the cause
+    earned its place only on the held-out error above the noise, its held-out error
+    falling by less than the policy's clear gain (its first step's ``heldout_ratio`` above
+    ``policy.heldout_ratio``).  None when the report names nothing or flags nothing."""
+    named = report.get("cause", NONE)
+    if named == NONE:
+        return None
+    if report.get("unexplained"):
+        return "the report says the model still misses something"
+    warnings = [str(w) for w in report.get("warnings") or []]
+    if warnings:
+        return f"the report warns: {warnings[0]}"
+    steps = [c for c in report.get("causes") or [] if isinstance(c, Mapping)]
+    ratio = ((steps[0].get("gain") or {}).get("heldout_ratio")) if steps else None
+    clear = _policy_value(report, "heldout_ratio")
+    if isinstance(ratio, int | float) and clear is not None and ratio > clear:
+        return (f"its held-out error x{ratio:.3g}, short of the clear gain (x{clear:g} or "
+                "less)")
+    return None
+
+
+def _forced_ranking(report: Mapping[str, Any], source: str) -> list[Mapping[str, Any]]:
+    """The ranking of a forced record's report; ReportError for any other report."""
     if report.get("kind") == "sweep":
         raise ReportError(f"{source}: a sweep's report; suggest reads the report of one "
                           "forced record (sweeps are not searched yet)")
@@ -185,7 +213,16 @@ def competing_pairs(report: Mapping[str, Any], source: str) -> list[CompetingPai
     ranking = report.get("ranking")
     if not isinstance(ranking, list):
         raise ReportError(f"{source}: no 'ranking': not an 'impact-rig analyze --json' report")
-    ranking = [entry for entry in ranking if isinstance(entry, Mapping)]
+    return [entry for entry in ranking if isinstance(entry, Mapping)]
+
+
+def competing_pairs(report: Mapping[str, Any], source: str) -> list[CompetingPair]:
+    """The explanations the report leaves competing: every ``indistinct`` pair, the named
+    cause against its runner-up, the best-ranked candidates within the BIC margin against
+    each other, and the baseline against the best-ranked candidate(s) when no cause is
+    named, or against the named cause when the finding is weak (:func:`weak_finding`).
+    ReportError, in one line, when there is none or the report is not a forced record's."""
+    ranking = _forced_ranking(report, source)
     entries = {entry.get("cause"): entry for entry in ranking}
     pairs: list[CompetingPair] = []
     seen: set[frozenset[str]] = set()
@@ -213,17 +250,24 @@ def competing_pairs(report: Mapping[str, Any], source: str) -> list[CompetingPai
         if runner_up is not None:
             add(named, runner_up["cause"],
                 f"{named} is named; {runner_up['cause']} is its runner-up")
-    if named == NONE:
-        rivals = _rivals_of_the_baseline(report, ranking)
-        if rivals:
-            baseline = baseline_candidate(report, source)
-            for number, entry in enumerate(rivals):
-                name = entry.get("cause")
-                why = (f"nothing named; the best-ranked candidate {name} against the baseline"
-                       if number == 0 else
-                       f"nothing named; {name}, ranked within the BIC margin of the best, "
-                       "against the baseline")
-                pairs.append(CompetingPair(baseline, candidate(entry, source), why))
+    rivals = best_ranked(report, ranking)
+    if named == NONE and rivals:
+        baseline = baseline_candidate(report, source)
+        for number, entry in enumerate(rivals):
+            name = entry.get("cause")
+            why = (f"nothing named; the best-ranked candidate {name} against the baseline"
+                   if number == 0 else
+                   f"nothing named; {name}, ranked within the BIC margin of the best, "
+                   "against the baseline")
+            pairs.append(CompetingPair(baseline, candidate(entry, source), why))
+    for entry in rivals[1:]:
+        add(rivals[0]["cause"], entry["cause"],
+            f"{entry['cause']} ranked within the BIC margin of {rivals[0]['cause']}")
+    weak = weak_finding(report)
+    if weak is not None and named in entries:
+        pairs.append(CompetingPair(candidate(entries[named], source),
+                                   baseline_candidate(report, source),
+                                   f"{named} is named, weakly ({weak}); against the baseline"))
     if not pairs:
         lacking = "no cause named and no candidate ranked" if named == NONE \
             else "no runner-up"

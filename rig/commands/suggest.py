@@ -26,9 +26,12 @@ the record's noise and beyond what their own parameter intervals can produce.
 REPORT is the JSON report of a forced record ('impact-rig analyze RECORD --json
 REPORT'). The competing explanations are the pairs it lists as indistinct (the record
 cannot tell them apart), the cause it named against its runner-up (the best other
-candidate), and, when it names no cause, the baseline against the best-ranked candidate
-(a plausible one when there is one; with the next one too when the record ranks it
-within the report's BIC margin of the best); each is its fitted model, with the 95 %
+candidate), the best-ranked candidate against the next one when the record ranks it
+within the report's BIC margin of the best, the named cause against the baseline when the
+finding is weak (the report says the model still misses something, warns, or the cause's
+held-out error fell by less than the policy's clear gain), and, when it names no cause,
+the baseline against the best-ranked candidate (a plausible one when there is one; with
+the next one too when it is within the margin); each is its fitted model, with the 95 %
 intervals of its parameters, and each pair is printed with why it was chosen. A report
 with none of these (no indistinct pair, no cause named, no candidate ranked) has nothing
 to tell apart: that is said in one line, with exit status 2.

@@ -6,10 +6,18 @@ is, analytically)."""
 from __future__ import annotations
 
 import pickle
+from typing import Any
 
 import pytest
 
-from analysis.suggest import ReportError, competing_pairs, report_rig, search, settings_grid
+from analysis.suggest import (
+    ReportError,
+    competing_pairs,
+    report_rig,
+    search,
+    settings_grid,
+    weak_finding,
+)
 from tests.suggest.reports import (
     BIC_MARGIN,
     FS_HZ,
@@ -90,12 +98,52 @@ def test_a_report_naming_nothing_sets_the_best_ranked_candidate_against_the_base
     assert set(baseline.intervals) == set(soft.intervals) - {"n", "theta_b_rad"}
 
 
-def test_candidates_ranked_within_the_margin_of_the_best_are_each_set_against_the_baseline(
+def test_candidates_ranked_within_the_margin_of_the_best_face_the_baseline_and_each_other(
         ) -> None:
     pairs = competing_pairs(nothing_named_report(second_score=5.0 - BIC_MARGIN), "r")
     assert [(p.first.name, p.second.name) for p in pairs] == [
-        ("baseline", "contact_exponent"), ("baseline", "barrier_offset")]
+        ("baseline", "contact_exponent"), ("baseline", "barrier_offset"),
+        ("contact_exponent", "barrier_offset")]
     assert "within the BIC margin" in pairs[1].why
+    assert pairs[2].why == "barrier_offset ranked within the BIC margin of contact_exponent"
+
+
+def weakly_named_report(**flags: Any) -> dict[str, Any]:
+    """A report naming the barrier offset, its contact-law runner-up ranked far behind,
+    flagged by ``flags`` (report keys)."""
+    report = contact_pair_report(indistinct=False)
+    report["ranking"][1]["score"] = 120.0 - 5 * BIC_MARGIN
+    report["policy"]["heldout_ratio"] = {"value": 0.95, "why": "as analyze's default"}
+    report["causes"] = [{"cause": "barrier_offset",
+                         "gain": {"information_criterion_delta": 120.0,
+                                  "heldout_ratio": 0.5}}]
+    return report | flags
+
+
+@pytest.mark.parametrize(("flags", "why"), [
+    ({"unexplained": True}, "the report says the model still misses something"),
+    ({"warnings": ["theta_b_rad on its bound"]},
+     "the report warns: theta_b_rad on its bound"),
+    ({"causes": [{"cause": "barrier_offset", "gain": {"heldout_ratio": 0.97}}]},
+     "its held-out error x0.97, short of the clear gain (x0.95 or less)"),
+])
+def test_a_weak_finding_sets_the_named_cause_against_the_baseline(
+        flags: dict[str, Any], why: str) -> None:
+    report = weakly_named_report(**flags)
+    assert weak_finding(report) == why
+    runner_up, weak = competing_pairs(report, "r")
+    assert (runner_up.first.name, runner_up.second.name) == ("barrier_offset",
+                                                             "contact_exponent")
+    assert (weak.first.name, weak.second.name) == ("barrier_offset", "baseline")
+    assert weak.first.causes == ("barrier_offset",) and weak.second.causes == ()
+    assert weak.why == f"barrier_offset is named, weakly ({why}); against the baseline"
+
+
+def test_a_finding_the_report_does_not_flag_is_not_set_against_the_baseline() -> None:
+    report = weakly_named_report()  # held-out error x0.5, nothing unexplained or warned
+    assert weak_finding(report) is None
+    assert [(p.first.name, p.second.name) for p in competing_pairs(report, "r")] == [
+        ("barrier_offset", "contact_exponent")]
 
 
 def test_an_implausible_best_gives_way_to_the_best_plausible_one() -> None:
