@@ -32,6 +32,7 @@ diagrams on N workers), with whether the two explanations' reports are the same.
     python benchmarks/bench_sweeps.py                       # 12 sweeps of 11 steps
     python benchmarks/bench_sweeps.py --sweeps 2 --up-steps 3 --json sweeps.json --overwrite
     python benchmarks/bench_sweeps.py --timing-only
+    python benchmarks/bench_sweeps.py --timing-only --no-explanation-timing   # simulation only
     python benchmarks/bench_sweeps.py --save    # also benchmarks/results/sweeps.json (the page)
     python benchmarks/bench_sweeps.py --sweeps 1 --up-steps 2 --settle 2 --dwell 3 \\
         --timing-steps 2 --timing-settle 2 --timing-dwell 3       # the smallest, a smoke run
@@ -260,11 +261,14 @@ def time_explanation(steps: int = TIMING_STEPS, settle_s: float = TIMING_SETTLE_
 
 
 def _timings(args: argparse.Namespace, truth: Any) -> dict[str, Any]:
-    """Both timings (see the module's docstring), the explanation's at the asked size."""
+    """Both timings (see the module's docstring) at the asked size, the explanation's
+    unless ``--no-explanation-timing``."""
     size = (args.timing_steps, args.timing_settle, args.timing_dwell)
     name = f"{size[0]}_steps_of_{size[1] + size[2]:g}_s"
-    return {f"timing_{name}": time_workers(truth, *size),
-            f"explanation_{name}": time_explanation(*size)}
+    out = {f"timing_{name}": time_workers(truth, *size)}
+    if not args.no_explanation_timing:
+        out[f"explanation_{name}"] = time_explanation(*size)
+    return out
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -276,6 +280,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--jobs", type=int, default=2, help="processes drawing the sweeps")
     parser.add_argument("--no-timing", action="store_true", help="skip the worker timing")
     parser.add_argument("--timing-only", action="store_true", help="only the worker timing")
+    parser.add_argument("--no-explanation-timing", action="store_true",
+                        help="time the simulated sweep only, not its whole explanation")
     parser.add_argument("--timing-steps", type=int, default=TIMING_STEPS,
                         help="steps of the timed sweeps")
     parser.add_argument("--timing-settle", type=float, default=TIMING_SETTLE_S,
