@@ -124,7 +124,7 @@ def coordinate_matrix(names: Sequence[str], steps: Sequence[float],
                       ties: Sequence[tuple[str, float] | None]) -> np.ndarray:
     """The matrix M that takes a fit's step units u to its parameters' coordinates (each
     value, or its log on a log scale), as offsets from their starts: each parameter's step on
-    the diagonal, and for one tied to another (:attr:`ParameterPlan.tie`, coefficient c)
+    the diagonal, and for one tied to another (``ParameterPlan.tie``, coefficient c)
     -c times the other's step in the other's column.  A tie to a parameter the fit holds
     fixed has no effect.  The coordinates' covariance is M C M^T for the covariance C of
     u."""
