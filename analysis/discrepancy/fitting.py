@@ -20,7 +20,13 @@ from scipy.optimize import least_squares
 
 from analysis import quantities as q
 from analysis.discrepancy.candidates import plan_for
-from analysis.extensions import ModelSpec, ParameterPlan, RecordScale, cause
+from analysis.extensions import (
+    ModelSpec,
+    ParameterPlan,
+    RecordScale,
+    cause,
+    coordinate_matrix,
+)
 from analysis.identify.intervals import Z95, sandwich_covariance
 from analysis.identify.result import Estimate, Residuals, SampledRecord
 from analysis.model import Drive, Model, RigParameters
@@ -160,6 +166,7 @@ def fit(
     origin = np.array([math.log(max(free[k][0], 1e-300)) if free[k][1].log else free[k][0]
                        for k in names])
     steps = np.array([free[k][1].step for k in names])
+    coordinates = coordinate_matrix(names, steps, [free[k][1].tie for k in names])
     lower = np.empty(len(names))
     upper = np.empty(len(names))
     for i, k in enumerate(names):
@@ -172,9 +179,15 @@ def fit(
     mask = data.valid
     y = data.y[mask]
 
+    tied = np.array([free[k][1].tie is not None for k in names])
+    low = np.array([free[k][2] for k in names])
+    high = np.array([free[k][3] for k in names])
+
     def values_of(u: np.ndarray) -> dict[str, float]:
-        raw = origin + u * steps
+        raw = origin + coordinates @ u
         raw = np.where(logs, np.exp(np.where(logs, raw, 0.0)), raw)
+        # a tied parameter's box in step units holds at its partner's start only
+        raw = np.where(tied, np.clip(raw, low, high), raw)
         return {**fixed, **dict(zip(names, raw.tolist(), strict=True))}
 
     def residual(u: np.ndarray) -> np.ndarray:
@@ -203,7 +216,7 @@ def fit(
     values = values_of(solution.x)
     theta, sim = predict(data, model, values)
     full_residual = np.where(mask, theta - np.where(mask, data.y, 0.0), np.nan)
-    estimates = _estimates(names, solution, values, steps, logs, data)
+    estimates = _estimates(names, solution, values, coordinates, logs)
     return FitResult(
         model=model, values=values, estimates=estimates, residual=full_residual,
         n_params=len(names), success=bool(solution.status > 0), message=str(solution.message),
@@ -211,18 +224,17 @@ def fit(
     )
 
 
-def _estimates(names, solution, values, steps, logs, data: FitData) -> dict[str, Estimate]:
+def _estimates(names, solution, values, coordinates, logs) -> dict[str, Estimate]:
     """95 % intervals from the sandwich covariance at the solution (delta method to x)."""
     out: dict[str, Estimate] = {}
     try:
         cov = sandwich_covariance([(solution.fun, solution.jac)])
-        variances = np.diag(cov.matrix)
+        variances = np.einsum("ij,jk,ik->i", coordinates, cov.matrix, coordinates)
     except (np.linalg.LinAlgError, ValueError):
         variances = np.full(len(names), np.nan)
     for i, k in enumerate(names):
         value = values[k]
-        half_u = Z95 * math.sqrt(variances[i]) if math.isfinite(variances[i]) else math.nan
-        half = half_u * steps[i]
+        half = Z95 * math.sqrt(variances[i]) if variances[i] >= 0 else math.nan
         if not math.isfinite(half) or (logs[i] and half > 50.0):
             out[k] = Estimate(value)  # not identified: no honest interval
         elif logs[i]:

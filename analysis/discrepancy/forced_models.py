@@ -227,7 +227,7 @@ def candidate_parameters(
             if plan.log:
                 value = max(value, spec.lower if spec.lower > 0 else 1e-12)
             extra.append(FreeParameter(spec.name, value, plan.step, plan.log, spec.lower,
-                                       spec.upper))
+                                       spec.upper, tie=plan.tie))
     return free_parameters(baseline_names(data, model), start, extra)
 
 

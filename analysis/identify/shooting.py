@@ -46,6 +46,7 @@ import numpy as np
 import scipy.sparse as sparse
 from scipy.sparse.linalg import splu
 
+from analysis.extensions import coordinate_matrix
 from analysis.identify.intervals import Z95, correlation_time
 from analysis.identify.preprocess import sample_detail
 from analysis.identify.result import Estimate, Residuals
@@ -140,6 +141,9 @@ class FreeParameter:
     lower: float = -math.inf
     upper: float = math.inf
     part: int | None = None  # the one part whose model it enters (None: every part's)
+    # another free parameter and a coefficient: the fit's coordinate of this one is its own
+    # plus that times the other's (:attr:`analysis.extensions.ParameterPlan.tie`)
+    tie: tuple[str, float] | None = None
 
 
 @dataclass(frozen=True)
@@ -397,6 +401,12 @@ class ShootingProblem:
         # memory (a filter) reads each chain of linked segments as one stretch
         self.measure_has_memory = measure_has_memory
         self.free = list(free)
+        # each parameter's coordinate (its value, or its log) at the start, and the map from
+        # step units to the coordinates' offsets (a tied parameter moves with its partner)
+        self.origin = np.array([math.log(p.start) if p.log else p.start for p in self.free])
+        self.coordinates = coordinate_matrix([p.name for p in self.free],
+                                             [p.step for p in self.free],
+                                             [p.tie for p in self.free])
         self.fixed = dict(fixed)
         self.rate_scale = float(rate_scale)  # theta' jumps count as theta jumps times this
         self.threads = thread_count(threads)
@@ -448,9 +458,11 @@ class ShootingProblem:
     def values_of(self, u: np.ndarray) -> dict[str, float]:
         """Shared values at the step-unit vector ``u``."""
         out = dict(self.fixed)
-        for p, ui in zip(self.free, u, strict=True):
-            x = (math.log(p.start) if p.log else p.start) + ui * p.step
-            out[p.name] = math.exp(x) if p.log else x
+        coordinates = self.origin + self.coordinates @ np.asarray(u, dtype=float)
+        for p, x in zip(self.free, coordinates.tolist(), strict=True):
+            value = math.exp(x) if p.log else x
+            # a tied parameter's box in step units holds at its partner's start only
+            out[p.name] = min(max(value, p.lower), p.upper) if p.tie else value
         return out
 
     def _integrate(self, values: Mapping[str, float], states: np.ndarray,
@@ -958,9 +970,11 @@ class ShootingProblem:
         values = self.values_of(u)
         out = {}
         var = np.diag(cov)
+        m = self.coordinates
+        spread = np.einsum("ij,jk,ik->i", m, cov, m)  # the coordinates' variances
         for i, p in enumerate(self.free):
             value = values[p.name]
-            half = Z95 * math.sqrt(var[i]) * p.step if var[i] >= 0 else math.nan
+            half = Z95 * math.sqrt(spread[i]) if spread[i] >= 0 else math.nan
             if not math.isfinite(half) or (p.log and half > 50.0):
                 out[p.name] = Estimate(value)
             elif p.log:
