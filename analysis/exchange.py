@@ -10,6 +10,7 @@ from __future__ import annotations
 import csv
 import json
 import math
+import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -269,17 +270,21 @@ def _read_columns(path: Path) -> dict[str, np.ndarray]:
     wanted = [name for name in REQUIRED_COLUMNS + OPTIONAL_COLUMNS if name in header]
     usecols = [header.index(name) for name in wanted]
     try:
-        data = np.loadtxt(
-            path,
-            delimiter=",",
-            skiprows=1,
-            usecols=usecols,
-            ndmin=2,
-            dtype=float,
-            encoding="utf-8",
-        )
+        with warnings.catch_warnings():  # no rows is this format's error below, not numpy's
+            warnings.filterwarnings("ignore", "loadtxt: input contained no data", UserWarning)
+            data = np.loadtxt(
+                path,
+                delimiter=",",
+                skiprows=1,
+                usecols=usecols,
+                ndmin=2,
+                dtype=float,
+                encoding="utf-8",
+            )
     except ValueError as error:
         raise ExchangeFormatError(f"{path}: {_first_bad_line(path, usecols) or error}") from None
+    if data.shape[0] == 0:
+        raise ExchangeFormatError(f"{path}: no data rows after the header")
     return {name: data[:, i].copy() for i, name in enumerate(wanted)}
 
 

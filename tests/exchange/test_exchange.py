@@ -1,6 +1,7 @@
 """The CSV + JSON exchange format: round trip, and clear errors on bad files."""
 
 import json
+import warnings
 
 import numpy as np
 import pytest
@@ -56,6 +57,16 @@ def test_garbled_value_names_line_and_column(tmp_path):
     path = write(tmp_path, "time_s,angle_rad\n0,1\n0.1,abc\n0.2,3\n")
     with pytest.raises(ExchangeFormatError, match=r"line 3.*angle_rad.*abc"):
         read_exchange(path)
+
+
+def test_a_header_without_rows_is_refused_in_one_error_and_no_warning(tmp_path):
+    # found by benchmarks/fuzz.py: numpy's own warning was printed before the error
+    path = write(tmp_path, "time_s,angle_rad\n")
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        with pytest.raises(ExchangeFormatError, match="no data rows after the header"):
+            read_exchange(path)
+    assert not caught
 
 
 def test_non_uniform_time_is_refused(tmp_path):
