@@ -15,8 +15,10 @@ import logging
 import os
 import select
 import threading
+import time
 import tty
 from collections import deque
+from collections.abc import Callable
 from dataclasses import dataclass
 
 from pymodbus.constants import ExcCodes
@@ -28,6 +30,8 @@ from drivers.amplifier_registers import HOLDING_COUNT, INPUT_COUNT
 from hardware_sim.amplifier_firmware import AmplifierFirmware, RegisterAccessError
 
 WATCHDOG_POLL_S = 0.02
+# a gap between two of the watchdog loop's turns longer than this is the emulator's own stall
+STALL_S = 5 * WATCHDOG_POLL_S
 START_TIMEOUT_S = 10.0
 LOG_LENGTH = 10_000  # requests kept for inspection
 _READ_INPUT, _READ_HOLDING = 4, 3
@@ -69,6 +73,43 @@ class ReceivedRequest:
         return self.function_code in _WRITES
 
 
+class AwakeClock:
+    """The firmware's watchdog clock inside an emulator: the wall clock ``inner`` less the
+    time the emulator's loop stood still (a gap of more than ``stall_s`` between two
+    :meth:`tick` calls, less that much).
+
+    A real amplifier's firmware never stalls; this one shares a process and its cores with
+    the host, and a loaded machine or a thread holding the GIL stops both.  Counted as the
+    host's silence, such a stall tripped the watchdog of a host that was heartbeating
+    (the guide's ``sweep --sim`` under a loaded test run): the heartbeats the host had sent
+    waited in the socket while the first request after the stall checked the watchdog.
+    A host silent while the emulator runs is still timed to the millisecond."""
+
+    def __init__(self, inner: Callable[[], float] = time.monotonic,
+                 stall_s: float = STALL_S) -> None:
+        self._inner = inner
+        self._stall_s = stall_s
+        self._lock = threading.Lock()
+        self._last = inner()
+        self._lost = 0.0
+
+    def _unseen(self, now: float) -> float:
+        gap = now - self._last
+        return gap - self._stall_s if gap > self._stall_s else 0.0
+
+    def tick(self) -> None:
+        """The emulator's loop is running (called every turn of its watchdog loop)."""
+        with self._lock:
+            now = self._inner()
+            self._lost += self._unseen(now)
+            self._last = now
+
+    def __call__(self) -> float:
+        with self._lock:
+            now = self._inner()
+            return now - self._lost - self._unseen(now)
+
+
 class AmplifierEmulator:
     """A pymodbus server answering as the shaker amplifier of docs/amplifier_registers.md.
 
@@ -88,6 +129,8 @@ class AmplifierEmulator:
         rtu_baudrate: int = 19200,
     ) -> None:
         self.firmware = firmware or AmplifierFirmware()
+        self._clock = AwakeClock(self.firmware.wall_clock)
+        self.firmware.wall_clock = self._clock
         self.host = host
         self._requested_port = port
         self._tcp, self._rtu = tcp, rtu
@@ -217,6 +260,7 @@ class AmplifierEmulator:
     async def _watchdog(self) -> None:
         # The firmware also checks on every request; this catches a host that went silent.
         while True:
+            self._clock.tick()
             self.firmware.service()
             await asyncio.sleep(WATCHDOG_POLL_S)
 

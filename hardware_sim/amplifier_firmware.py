@@ -75,7 +75,7 @@ class AmplifierFirmware:
             t0_s=plant_clock() if plant_clock is not None else 0.0
         )
         self._plant_clock = plant_clock
-        self._wall_clock = wall_clock
+        self.wall_clock = wall_clock  # an emulator swaps in its awake clock (AwakeClock)
         self._lock = threading.RLock()
         self.model_code = model_code
         self.firmware_version = firmware_version
@@ -180,7 +180,7 @@ class AmplifierFirmware:
                     raise RegisterAccessError(
                         ILLEGAL_VALUE, f"ENABLE refused: faults latched ({self._faults!r})"
                     )
-            now = self._wall_clock()
+            now = self.wall_clock()
             if s.enable and not self._set.enable:
                 self._last_heartbeat = now  # the watchdog starts when the drive goes on
             if Holding.HEARTBEAT in new:
@@ -197,7 +197,7 @@ class AmplifierFirmware:
             if self._plant_clock is not None:
                 self.response.advance_to(self._plant_clock())
             if self._set.enable and self._last_heartbeat is not None:
-                silent_s = self._wall_clock() - self._last_heartbeat
+                silent_s = self.wall_clock() - self._last_heartbeat
                 if silent_s > self._set.watchdog_ms / 1000.0:
                     self.trip(Fault.WATCHDOG_EXPIRED)
 
