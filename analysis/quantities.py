@@ -129,6 +129,10 @@ theta0_rad = _define("theta0_rad", "rad", "theta_0", "initial angle of a decay r
 theta_dot0_rad_s = _define("theta_dot0_rad_s", "rad/s", "theta'_0",
                            "initial angular velocity of a decay record")
 
+# ------------------------------------- the constant-restitution alternative (section 4)
+e = _define("e", "", "e", "coefficient of restitution of instantaneous impacts",
+            Bounds(0.0, 1.0))
+
 # ---------------------------------------------------------------- the drive (section 1)
 amplitude_m = _define("amplitude_m", "m", "A", "table drive amplitude", _NON_NEGATIVE)
 frequency_hz = _define("frequency_hz", "Hz", "f", "table drive frequency (0: undriven)",

@@ -546,7 +546,7 @@ def compare_restitution(
     if sim.contacts.count >= 2:
         ratios = np.abs(sim.contacts.theta_dot_out / sim.contacts.theta_dot_in)
         e0 = float(np.clip(np.median(ratios), 0.05, 0.99))
-    start = {**v, "e": e0}
+    start = {**v, q.e: e0}
     result = fit_restitution(data.t, data.y, data.valid, start, n_train)
     residual = result["residual"]
     rss = result["rss"]

@@ -116,7 +116,7 @@ def fit_restitution(
     dt = float(t[1] - t[0])
     x0 = np.array([
         start[q.theta0_rad], start[q.theta_dot0_rad_s], start[q.omega_rad_s],
-        max(start[q.zeta], 1e-5), start["e"],
+        max(start[q.zeta], 1e-5), start[q.e],
     ])
     lower = [-math.pi / 2, -np.inf, 0.5 * x0[2], 0.0, 0.0]
     upper = [math.pi / 2, np.inf, 2.0 * x0[2], 0.5, 1.0]
@@ -139,7 +139,7 @@ def fit_restitution(
     heldout = float(np.sqrt(np.mean((prediction[tail] - y[tail]) ** 2))) if tail.any() else math.nan
     full = solve(t.size, train.x)
     cov = sandwich_covariance([(full.fun, full.jac)])
-    names = (q.theta0_rad, q.theta_dot0_rad_s, q.omega_rad_s, q.zeta, "e")
+    names = (q.theta0_rad, q.theta_dot0_rad_s, q.omega_rad_s, q.zeta, q.e)
     estimates = {}
     for i, name in enumerate(names):
         half = Z95 * math.sqrt(max(cov.matrix[i, i], 0.0))

@@ -207,7 +207,7 @@ def write_report(
             "impacts. Hunt-Crossley contact lets the restitution depend on the impact speed "
             "and gives the contact a duration.",
             "",
-            f"- constant e = {_fmt(rc['parameters']['e'])}: rms residual "
+            f"- constant e = {_fmt(rc['parameters'][q.e])}: rms residual "
             f"{rc['rms_residual']:.3g} rad, held-out {rc['heldout_rms']:.3g} rad",
             f"- Hunt-Crossley: rms residual {rc['hunt_crossley_rms_residual']:.3g} rad, held-out "
             f"{rc['hunt_crossley_heldout_rms']:.3g} rad",

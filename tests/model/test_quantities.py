@@ -36,9 +36,41 @@ BOUNDARY = {
 }
 
 
+# The dict methods whose first argument is a key.
+_KEY_METHODS = {"get", "pop", "setdefault"}
+
+
+def _key_positions(tree: ast.AST) -> set[int]:
+    """ids of the string constants of ``tree`` that stand where a parameter key does: a dict
+    display's key, a subscript (``v["e"]``), the first argument of ``get``, ``pop`` or
+    ``setdefault``, the left side of ``in`` / ``not in``, and an element of a tuple, list or
+    set that also holds a registry constant (``(q.zeta, "e")``, a list of keys)."""
+    found: set[int] = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Dict):
+            found.update(id(k) for k in node.keys if k is not None)
+        elif isinstance(node, ast.Subscript):
+            found.add(id(node.slice))
+        elif (isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute)
+              and node.func.attr in _KEY_METHODS and node.args):
+            found.add(id(node.args[0]))
+        elif (isinstance(node, ast.Compare) and len(node.ops) == 1
+              and isinstance(node.ops[0], ast.In | ast.NotIn)):
+            found.add(id(node.left))
+        elif isinstance(node, ast.Tuple | ast.List | ast.Set) and any(
+                isinstance(v, ast.Attribute) and isinstance(v.value, ast.Name)
+                and v.value.id == "q" for v in node.elts):
+            found.update(id(v) for v in node.elts)
+    return found
+
+
 def spelled_keys(source: str, keys: set[str]) -> list[tuple[int, str]]:
     """(line, key) of every string constant of ``source`` equal to one of ``keys``, less
-    docstrings and the literal text of f-strings (an f-string's expressions are code)."""
+    docstrings and the literal text of f-strings (an f-string's expressions are code).
+
+    A one-letter key (``e``, ``n``) is also an ordinary one-letter string (a paper case's
+    name, a format code), so it counts only where it stands as a key (:func:`_key_positions`);
+    a longer key counts wherever it is spelled."""
     tree = ast.parse(source)
     skip = set()
     for node in ast.walk(tree):
@@ -48,9 +80,11 @@ def spelled_keys(source: str, keys: set[str]) -> list[tuple[int, str]]:
             first = node.body[0] if node.body else None
             if isinstance(first, ast.Expr) and isinstance(first.value, ast.Constant):
                 skip.add(id(first.value))
+    as_key = _key_positions(tree)
     return sorted((node.lineno, node.value) for node in ast.walk(tree)
                   if isinstance(node, ast.Constant) and isinstance(node.value, str)
-                  and node.value in keys and id(node) not in skip)
+                  and node.value in keys and id(node) not in skip
+                  and (len(node.value) > 1 or id(node) in as_key))
 
 
 def test_the_scanner_finds_a_spelled_key_and_passes_docstrings_and_fstring_text():
@@ -59,6 +93,21 @@ def test_the_scanner_finds_a_spelled_key_and_passes_docstrings_and_fstring_text(
               '    """theta_b_rad"""\n'
               '    return v["zeta"], f"zeta = {v[\'theta_b_rad\']}", "zeta_other"\n')
     assert spelled_keys(source, {"zeta", "theta_b_rad"}) == [(4, "theta_b_rad"), (4, "zeta")]
+
+
+def test_the_scanner_finds_a_one_letter_key_only_where_it_stands_as_a_key():
+    # what spelled the coefficient of restitution before it was registered, one per line
+    source = ('start = {**v, "e": e0}\n'
+              'x = start["e"]\n'
+              'names = (q.theta0_rad, q.zeta, "e")\n'
+              'y = v.get("e", 1.0)\n'
+              'z = "e" in v\n'
+              'line = f"e = {rc[\'parameters\'][\'e\']:.3g}"\n'
+              # a paper case's name, a format code, a plain tuple: not keys
+              'cases = [("e", 10.0, high, 0.064), ("n", 2.0)]\n'
+              'text = format(x, "e") + "e"\n'
+              'pair = ("e", "n")\n')
+    assert spelled_keys(source, {"e", "n"}) == [(i, "e") for i in range(1, 7)]
 
 
 def test_no_runtime_module_spells_a_registered_key_outside_the_registry():
