@@ -138,6 +138,14 @@ amplitude_m = _define("amplitude_m", "m", "A", "table drive amplitude", _NON_NEG
 frequency_hz = _define("frequency_hz", "Hz", "f", "table drive frequency (0: undriven)",
                        _NON_NEGATIVE)
 
+# the drive's timing where a forced record does not give it (no tach, no table channel):
+# fitted with the model, its phase at t = 0 and its frequency by the record's own clock
+drive_phase_rad = _define("drive_phase_rad", "rad", "phi_0",
+                          "drive phase at t = 0, fitted where the record does not give it")
+drive_frequency_hz = _define("drive_frequency_hz", "Hz", "f_d",
+                             "drive frequency by the record's own clock, fitted where no "
+                             "tach gives it", _POSITIVE)
+
 # the drive's names on the command line and in map files (simulate --param, map --vary,
 # continuation, a diagram's swept parameter), which the options have always taken: the
 # quantities above under shorter names, spelled here once

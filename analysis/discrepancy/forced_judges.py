@@ -9,6 +9,7 @@ from collections.abc import Mapping
 
 import numpy as np
 
+from analysis import quantities as q
 from analysis.discrepancy.forced_models import Layouts, ModelFits, as_fit_result
 from analysis.discrepancy.invariants import Invariants, invariant_distance, invariants
 from analysis.discrepancy.policy import DEFAULT_POLICY, SelectionPolicy
@@ -84,8 +85,8 @@ def model_invariants_distance(
     first segment's state over MODEL_INVARIANT_SPAN times the record's length."""
     causes = model.causes
     values = fit.values
-    phase = values.get("drive_phase_rad", data.drive.phase0_rad)
-    drive = data.drive.model_drive(values.get("drive_frequency_hz"))
+    phase = values.get(q.drive_phase_rad, data.drive.phase0_rad)
+    drive = data.drive.model_drive(values.get(q.drive_frequency_hz))
     p = packed_from_values(data.rig, drive, True, values, causes, phase)
     n = MODEL_INVARIANT_SPAN * data.t.size
     sim = simulate_packed(

@@ -171,7 +171,7 @@ def cause_hints(ident: ForcedIdentification) -> dict[str, float]:
     drive = ident.data.drive
     if drive.phase_known:
         # a sensor lagging by tau reads the response the drive caused Omega tau earlier
-        delay = -math.remainder(values["drive_phase_rad"] - drive.phase0_rad, 2 * math.pi) \
+        delay = -math.remainder(values[q.drive_phase_rad] - drive.phase0_rad, 2 * math.pi) \
             / drive.omega_rad_s
         if delay > 0:
             hints[q.tau_s] = delay
@@ -214,9 +214,9 @@ def candidate_parameters(
     """Free parameters of model ``model``: the baseline extended by its causes."""
     extra = []
     if not data.drive.timing_known:
-        extra.append(clock_parameter(start["drive_frequency_hz"]))
-        phase = start["drive_phase_rad"]
-        extra.append(FreeParameter("drive_phase_rad", phase, 1e-5, False, phase - math.pi,
+        extra.append(clock_parameter(start[q.drive_frequency_hz]))
+        phase = start[q.drive_phase_rad]
+        extra.append(FreeParameter(q.drive_phase_rad, phase, 1e-5, False, phase - math.pi,
                                    phase + math.pi))
     for c in map(cause, model.causes):
         plans = plan_for(c, scale)
@@ -273,7 +273,7 @@ def screen_cause(
     own free barrier, sensor zero and phase made for an effect it lacks.)  The segments'
     states are drawn onto the data for each model: its own sensor and dynamics at its start
     values decide where they must begin."""
-    timing = ("drive_phase_rad", "drive_frequency_hz") if not data.drive.timing_known else ()
+    timing = (q.drive_phase_rad, q.drive_frequency_hz) if not data.drive.timing_known else ()
     start = {k: v for k, v in ident.start.items() if k in BASELINE_PLANS or k in timing}
     free = candidate_parameters(data, model, start, record_scale(data, start),
                                 level_hints(model, hints))

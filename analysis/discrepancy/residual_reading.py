@@ -441,7 +441,7 @@ def _lines(t, r, ok, floor_rad, base_hz, drive_hz) -> list[Finding]:
                    "amplitude_over_noise": amplitude / floor_rad}
         where = ""
         if drive_hz is not None:
-            numbers["drive_frequency_hz"] = float(drive_hz)
+            numbers[q.drive_frequency_hz] = float(drive_hz)
             numbers["ratio_to_drive"] = frequency / drive_hz
             where = f", not a drive harmonic (drive {drive_hz:.4g} Hz)"
         out.append(Finding("line", f"a line at {frequency:.4g} Hz, {1e3 * amplitude:.3g} mrad"

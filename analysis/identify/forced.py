@@ -160,8 +160,8 @@ class ForcedModel:
     def packed(self, values: Mapping[str, float]) -> np.ndarray:
         """The packed vector for the integrator."""
         d = self.data
-        phase = values.get("drive_phase_rad", d.drive.phase0_rad)
-        drive = d.drive.model_drive(values.get("drive_frequency_hz"))
+        phase = values.get(q.drive_phase_rad, d.drive.phase0_rad)
+        drive = d.drive.model_drive(values.get(q.drive_frequency_hz))
         return packed_from_values(d.rig, drive, True, values, self.causes, phase)
 
     def measure(self, values: Mapping[str, float], t: np.ndarray, theta: np.ndarray,
@@ -302,7 +302,7 @@ def fit_over_record(
 
 def clock_parameter(frequency_hz: float) -> FreeParameter:
     """The drive frequency as a fitted parameter (records without tach or table channel)."""
-    return FreeParameter("drive_frequency_hz", frequency_hz, 1e-8, True, 0.99 * frequency_hz,
+    return FreeParameter(q.drive_frequency_hz, frequency_hz, 1e-8, True, 0.99 * frequency_hz,
                          1.01 * frequency_hz)
 
 
@@ -439,13 +439,13 @@ def identify_forced(
     # would otherwise bend every other parameter.  Its difference from the measured phase
     # is reported (and hints at a lag).
     phase = drive.phase0_rad if drive.phase_known else float(flight.phase_rad or 0.0)
-    start["drive_phase_rad"] = phase
-    extra.append(FreeParameter("drive_phase_rad", phase, 1e-5, False, phase - math.pi,
+    start[q.drive_phase_rad] = phase
+    extra.append(FreeParameter(q.drive_phase_rad, phase, 1e-5, False, phase - math.pi,
                                phase + math.pi))
     if not drive.timing_known:
         # without the table channel the drive's frequency is the tach's (a few parts in 1e6
         # off) or the stated one (parts in 1e4): the fit refines it from the angle
-        start["drive_frequency_hz"] = drive.frequency_hz
+        start[q.drive_frequency_hz] = drive.frequency_hz
         extra.append(clock_parameter(drive.frequency_hz))
     if not drive.phase_known:
         notes.append("drive frequency and phase fitted (neither tach nor table channel)")
@@ -528,9 +528,9 @@ def identification_result(found: ForcedIdentification, experiment: str) -> Ident
                                              a * (1 + e.ci95[1])) if e.ci95 else None)
     elif drive.table is not None:
         parameters[q.amplitude_m] = drive.table.amplitude_m
-    if "drive_phase_rad" in est:
-        parameters["drive_phase_rad"] = est["drive_phase_rad"]
-    parameters[q.frequency_hz] = est.get("drive_frequency_hz", Estimate(drive.frequency_hz))
+    if q.drive_phase_rad in est:
+        parameters[q.drive_phase_rad] = est[q.drive_phase_rad]
+    parameters[q.frequency_hz] = est.get(q.drive_frequency_hz, Estimate(drive.frequency_hz))
     quality = FitQuality(
         rms_residual_rad=fit.rms, noise_rad=data.noise_rad, n_samples=fit.n,
         n_excluded=int(data.valid.size - data.n_valid), variance_inflation=1.0,

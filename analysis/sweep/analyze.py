@@ -120,7 +120,7 @@ def step_drives(ident: SweepIdentification, values: dict[str, float]) -> list[Dr
     """Each step's measured drive as a model runs it: the stated amplitude, a pure sine,
     at the frequency measured on the step (or fitted as its own, ``drive_frequency_hz@N``);
     the model's drive causes shape it."""
-    return [d.drive.model_drive(values.get(step_name("drive_frequency_hz", n)))
+    return [d.drive.model_drive(values.get(step_name(q.drive_frequency_hz, n)))
             for d, n in zip(ident.data.steps, ident.data.numbers, strict=True)]
 
 
@@ -156,7 +156,7 @@ def compare_with_measured(
             first = data.sweep.steps[0]
             sweep = replace(data.sweep, steps=(replace(first, settle_s=0.0),
                                                *data.sweep.steps[1:]))
-            phase = values.get(step_name("drive_phase_rad", data.numbers[0]),
+            phase = values.get(step_name(q.drive_phase_rad, data.numbers[0]),
                                data.steps[0].drive.phase0_rad)
             cases.append((name, model, sweep, measured, _first_state(ident, fit), phase))
         else:

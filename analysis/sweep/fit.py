@@ -61,7 +61,7 @@ from analysis.sweep.steps import Sweep
 
 # The parameters a step has of its own when they are fitted: its drive's phase (and its
 # frequency when neither tach nor table channel timed the drive).
-PER_STEP = ("drive_phase_rad", "drive_frequency_hz")
+PER_STEP = (q.drive_phase_rad, q.drive_frequency_hz)
 # A step identified alone whose omega lies further than this share from the steps' median
 # found another basin, not another pendulum (every step swings the one pendulum, whose
 # omega a sound step's fit pins to a fraction of a per cent): a period-1 step of a
@@ -259,12 +259,12 @@ def sweep_parameters(
     own = []
     for k, (number, d) in enumerate(zip(data.numbers, data.steps, strict=True)):
         if phase_free or not d.drive.timing_known:
-            phase = start.get(step_name("drive_phase_rad", number), d.drive.phase0_rad)
-            own.append(FreeParameter(step_name("drive_phase_rad", number), phase, 1e-5, False,
+            phase = start.get(step_name(q.drive_phase_rad, number), d.drive.phase0_rad)
+            own.append(FreeParameter(step_name(q.drive_phase_rad, number), phase, 1e-5, False,
                                      phase - math.pi, phase + math.pi, part=k))
         if not d.drive.timing_known:
-            f = start.get(step_name("drive_frequency_hz", number), d.drive.frequency_hz)
-            own.append(FreeParameter(step_name("drive_frequency_hz", number), f, 1e-8, True,
+            f = start.get(step_name(q.drive_frequency_hz, number), d.drive.frequency_hz)
+            own.append(FreeParameter(step_name(q.drive_frequency_hz, number), f, 1e-8, True,
                                      0.99 * f, 1.01 * f, part=k))
     return shared + own
 
@@ -320,8 +320,8 @@ def identify_sweep(
         start[name] = float(np.median([a.short_fit.values[name] for a in alone]))
     stray = _strays(data, alone, start[q.omega_rad_s], say)
     for k, (number, a) in enumerate(zip(data.numbers, alone, strict=True)):
-        measured = {"drive_phase_rad": data.steps[k].drive.phase0_rad,
-                    "drive_frequency_hz": data.steps[k].drive.frequency_hz}
+        measured = {q.drive_phase_rad: data.steps[k].drive.phase0_rad,
+                    q.drive_frequency_hz: data.steps[k].drive.frequency_hz}
         for name in PER_STEP:
             if name in a.short_fit.values:
                 start[step_name(name, number)] = (measured[name] if k in stray
