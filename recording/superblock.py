@@ -15,6 +15,10 @@ from recording.errors import REPAIR_HINT, RecordingDamagedError, RecordingFormat
 
 HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
 SUPERBLOCK_V2_BYTES = 48  # version 2/3 superblock with 8-byte addresses, checksum last
+# bytes a superblock of each version needs up to its end-of-file address (with 8-byte
+# addresses; 48 for versions 2 and 3, their whole superblock), and where that address is
+SUPERBLOCK_BYTES = {0: 48, 1: 52, 2: 48, 3: 48}
+EOF_AT = {0: 40, 1: 44, 2: 28, 3: 28}
 WRITER_FLAGS = 0x01 | 0x04  # superblock consistency flags: open for writing / SWMR writing
 
 
@@ -32,7 +36,7 @@ def read_superblock(path: Path) -> Superblock:
     """The superblock of the HDF5 file ``path``; RecordingFormatError when it is none."""
     try:
         with path.open("rb") as handle:
-            head = handle.read(48)
+            head = handle.read(SUPERBLOCK_BYTES[1])
             size = os.fstat(handle.fileno()).st_size
     except FileNotFoundError:
         raise RecordingFormatError(f"{path}: file not found") from None
@@ -44,19 +48,20 @@ def read_superblock(path: Path) -> Superblock:
         raise RecordingFormatError(
             f"{path}: not an HDF5 file (it does not start with the HDF5 signature)"
         )
-    if len(head) < 48:
+    if len(head) <= 8:
         raise RecordingDamagedError(
             f"{path}: truncated to {size} bytes, too short for an HDF5 superblock"
         )
     version = head[8]
-    if version in (2, 3):
-        flags = head[11]
-        (eof,) = struct.unpack_from("<Q", head, 28)
-    elif version in (0, 1):  # files of other HDF5 writers: no consistency flags
-        flags = 0
-        (eof,) = struct.unpack_from("<Q", head, 40 if version == 0 else 44)
-    else:
+    if version not in SUPERBLOCK_BYTES:
         raise RecordingFormatError(f"{path}: HDF5 superblock version {version} is not supported")
+    if len(head) < SUPERBLOCK_BYTES[version]:
+        raise RecordingDamagedError(
+            f"{path}: truncated to {size} bytes, too short for an HDF5 superblock"
+        )
+    # files of other HDF5 writers (versions 0 and 1) keep no consistency flags
+    flags = head[11] if version in (2, 3) else 0
+    (eof,) = struct.unpack_from("<Q", head, EOF_AT[version])
     return Superblock(version, flags, eof, size)
 
 
