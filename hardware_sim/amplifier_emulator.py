@@ -76,7 +76,7 @@ class ReceivedRequest:
 class AwakeClock:
     """The firmware's watchdog clock inside an emulator: the wall clock ``inner`` less the
     time the emulator's loop stood still (a gap of more than ``stall_s`` between two
-    :meth:`tick` calls, less that much).
+    ``tick`` calls, less that much).
 
     A real amplifier's firmware never stalls; this one shares a process and its cores with
     the host, and a loaded machine or a thread holding the GIL stops both.  Counted as the
