@@ -12,7 +12,7 @@ import time
 
 from pyModbusTCP.client import ModbusClient
 
-from hardware_sim.amplifier_emulator import AmplifierEmulator, AwakeClock
+from hardware_sim.amplifier_emulator import AwakeClock
 
 # docs/amplifier_registers.md
 HR_AMPLITUDE_UM, HR_ENABLE, HR_HEARTBEAT, HR_WATCHDOG_MS = 2, 4, 5, 7
