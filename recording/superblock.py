@@ -17,7 +17,7 @@ HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
 SUPERBLOCK_V2_BYTES = 48  # version 2/3 superblock with 8-byte addresses, checksum last
 # bytes a superblock of each version needs up to its end-of-file address (with 8-byte
 # addresses; 48 for versions 2 and 3, their whole superblock), and where that address is
-SUPERBLOCK_BYTES = {0: 48, 1: 52, 2: 48, 3: 48}
+SUPERBLOCK_BYTES = {0: 48, 1: 52, 2: SUPERBLOCK_V2_BYTES, 3: SUPERBLOCK_V2_BYTES}
 EOF_AT = {0: 40, 1: 44, 2: 28, 3: 28}
 WRITER_FLAGS = 0x01 | 0x04  # superblock consistency flags: open for writing / SWMR writing
 
@@ -36,7 +36,7 @@ def read_superblock(path: Path) -> Superblock:
     """The superblock of the HDF5 file ``path``; RecordingFormatError when it is none."""
     try:
         with path.open("rb") as handle:
-            head = handle.read(SUPERBLOCK_BYTES[1])
+            head = handle.read(max(SUPERBLOCK_BYTES.values()))
             size = os.fstat(handle.fileno()).st_size
     except FileNotFoundError:
         raise RecordingFormatError(f"{path}: file not found") from None
