@@ -7,11 +7,12 @@ unchanged on either source.  This module sits above both readers and imports the
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
-from analysis.exchange import read_exchange
-from analysis.hdf5_records import load_hdf5_record
+from analysis.exchange import read_exchange, read_meta, sidecar_path
+from analysis.hdf5_records import load_hdf5_record, read_recording_arrays
+from analysis.output_paths import HDF5_SUFFIXES
 from analysis.records import Record
 from recording.errors import RecordFormatError
 
@@ -54,3 +55,20 @@ def load_record(path: str | Path, meta_path: str | Path | None = None) -> Record
             f"{path}: unknown file type {suffix or '(none)'!r}; expected one of {sorted(LOADERS)}"
         )
     return loader(path, Path(meta_path) if meta_path else None)
+
+
+def is_sweep(paths: Sequence[str | Path], meta_path: str | Path | None = None) -> bool:
+    """Whether ``paths`` are a sweep: several files, or one recording or exported CSV that
+    lists sweep steps.  (A file that cannot be read is no sweep here: its loader says why.)
+    Here, beside the loaders, so that a command asks it before importing any analysis."""
+    if len(paths) > 1:
+        return True
+    path = Path(paths[0])
+    try:
+        if path.suffix.lower() in HDF5_SUFFIXES:
+            return bool(read_recording_arrays(path).steps.size)
+        if path.suffix.lower() == ".csv":
+            return bool(read_meta(meta_path or sidecar_path(path)).extra.get("sweep_steps"))
+    except (OSError, ValueError, KeyError):
+        return False
+    return False

@@ -45,7 +45,7 @@ class SweepExplanation:
 
 def is_sweep_recording(path: str | Path) -> bool:
     """Whether ``path`` is a sweep (a recording with ``/sweep_steps``, a sweep's CSV)."""
-    from analysis.sweep.load import is_sweep
+    from analysis.record_loaders import is_sweep
 
     return is_sweep([path])
 

@@ -29,36 +29,20 @@ from typing import Any
 import numpy as np
 
 from analysis import quantities as q
-from analysis.exchange import read_meta, sidecar_path
+from analysis.exchange import sidecar_path
 from analysis.hdf5_records import read_recording_arrays, stretch_record
 from analysis.identify.forced import MIN_DURATION_S
-from analysis.record_loaders import load_record
+from analysis.output_paths import HDF5_SUFFIXES
+from analysis.record_loaders import is_sweep, load_record
 from analysis.records import Record
 from analysis.sweep.steps import UNKNOWN, SetAside, Sweep, SweepStep, SweptParameter
 from recording.errors import RecordFormatError
 
 MIN_DWELL_S = MIN_DURATION_S  # a forced record's least duration: tens of drive periods
-HDF5_SUFFIXES = (".h5", ".hdf5")
 
 
 class SweepFormatError(RecordFormatError):
     """A file (or files) that is no sweep: no steps, overlapping steps, a step without tach."""
-
-
-def is_sweep(paths: Sequence[str | Path], meta_path: str | Path | None = None) -> bool:
-    """Whether ``paths`` are a sweep: several files, or one recording or exported CSV that
-    lists sweep steps.  (A file that cannot be read is no sweep here: its loader says why.)"""
-    if len(paths) > 1:
-        return True
-    path = Path(paths[0])
-    try:
-        if path.suffix.lower() in HDF5_SUFFIXES:
-            return bool(read_recording_arrays(path).steps.size)
-        if path.suffix.lower() == ".csv":
-            return bool(read_meta(meta_path or sidecar_path(path)).extra.get("sweep_steps"))
-    except (OSError, ValueError, KeyError):
-        return False
-    return False
 
 
 def load_sweep(paths: Sequence[str | Path], meta_path: str | Path | None = None) -> Sweep:

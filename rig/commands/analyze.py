@@ -12,6 +12,7 @@ from rig.cli import CommandError, add_command
 from rig.logs import progress
 
 if TYPE_CHECKING:
+    from analysis.discrepancy.policy import SelectionPolicy
     from analysis.records import Record
 
 DESCRIPTION = """\
@@ -129,26 +130,23 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Analyse the record (or the sweep) and print a short summary (the JSON report goes to
-    --json)."""
-    from analysis.discrepancy.policy import SelectionPolicy
-    from analysis.sweep.load import is_sweep
+    --json).  The files are read before the analysis is imported: a file that cannot be
+    analysed is refused in a second, not after the imports."""
+    from analysis.record_loaders import is_sweep
 
     args.file = args.files[0]
     _check_files(args)
-    try:
-        policy = SelectionPolicy.from_assignments(args.rule)
-    except ValueError as error:
-        raise CommandError(f"--rule: {error}") from error
     if is_sweep(args.files, args.meta):
-        return _run_sweep(args, policy)
+        return _run_sweep(args, _policy(args))
     if args.scheduler is not None:
         raise CommandError(f"--scheduler {args.scheduler}: only a sweep's diagram runs on a "
                            "Dask scheduler; analyse a single record without it")
+    record, priors = _load_record_and_priors(args)
+    policy = _policy(args)
     from analysis.discrepancy import AnalysisError, analyze_record
     from analysis.identify import IdentificationError
     from analysis.report.discrepancy import report_json
 
-    record, priors = _load_record_and_priors(args)
     try:
         analysis = analyze_record(record, workers=args.workers, progress=progress,
                                   priors=priors, policy=policy)
@@ -157,6 +155,16 @@ def run(args: argparse.Namespace) -> int:
     from analysis.report import write_report
 
     return _emit(report_json(analysis), analysis, write_report, _print_summary, args)
+
+
+def _policy(args: argparse.Namespace) -> SelectionPolicy:
+    """The selection policy with the --rule assignments."""
+    from analysis.discrepancy.policy import SelectionPolicy
+
+    try:
+        return SelectionPolicy.from_assignments(args.rule)
+    except ValueError as error:
+        raise CommandError(f"--rule: {error}") from error
 
 
 def _run_sweep(args: argparse.Namespace, policy) -> int:
@@ -253,13 +261,14 @@ def _load_record_and_priors(
     args: argparse.Namespace,
 ) -> tuple[Record, dict[str, float] | None]:
     """The record, and the start values from --free-decay and --impact-decay (None without)."""
-    from analysis.discrepancy.analyze import priors_from_decays
     from analysis.record_loaders import load_record
 
     try:
         record = load_record(args.file, args.meta)
         priors = None
         if args.free_decay or args.impact_decay:
+            from analysis.discrepancy.analyze import priors_from_decays
+
             priors = priors_from_decays(
                 load_record(args.free_decay) if args.free_decay else None,
                 load_record(args.impact_decay) if args.impact_decay else None,

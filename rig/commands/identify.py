@@ -88,9 +88,10 @@ def _parse_hold(text: str) -> dict[str, float]:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Load the record, run the fit its experiment calls for, print and save the report."""
+    """Load the record, run the fit its experiment calls for, print and save the report.
+    The files are read before the fits are imported: a file that cannot be read is refused
+    in a second."""
     from analysis.experiments import FREE_DECAY
-    from analysis.identify import IdentificationError, fit_free_decay, pool_free_decays
     from analysis.json_output import write_json
     from analysis.output_paths import check_outputs, record_inputs
     from analysis.provenance import provenance
@@ -104,6 +105,11 @@ def run(args: argparse.Namespace) -> int:
         check_outputs([args.json_out], inputs=inputs, overwrite=args.overwrite)
     try:
         records = [load_record(path, args.meta) for path in args.files]
+    except ValueError as error:  # format errors name the file and field themselves
+        raise CommandError(str(error)) from None
+    from analysis.identify import IdentificationError, fit_free_decay, pool_free_decays
+
+    try:
         if len(records) > 1:
             kinds = {r.experiment for r in records}
             if kinds != {FREE_DECAY.name}:

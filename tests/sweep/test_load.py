@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 
 from analysis.exchange import read_meta, sidecar_path
-from analysis.sweep.load import SweepFormatError, is_sweep, load_sweep
+from analysis.record_loaders import is_sweep
+from analysis.sweep.load import SweepFormatError, load_sweep
 from reference.sweeps import write_marked_recording
 from rig.cli import main
 from tests.sweep.recordings import sine_sweep
