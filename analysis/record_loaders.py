@@ -11,10 +11,11 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 
 from analysis.exchange import read_exchange, read_meta, sidecar_path
-from analysis.hdf5_records import load_hdf5_record, read_recording_arrays
+from analysis.hdf5_records import load_hdf5_record
 from analysis.output_paths import HDF5_SUFFIXES
 from analysis.records import Record
 from recording.errors import RecordFormatError
+from recording.reader import open_recording
 
 
 def load_exchange_record(path: Path, meta_path: Path | None = None) -> Record:
@@ -60,13 +61,15 @@ def load_record(path: str | Path, meta_path: str | Path | None = None) -> Record
 def is_sweep(paths: Sequence[str | Path], meta_path: str | Path | None = None) -> bool:
     """Whether ``paths`` are a sweep: several files, or one recording or exported CSV that
     lists sweep steps.  (A file that cannot be read is no sweep here: its loader says why.)
-    Here, beside the loaders, so that a command asks it before importing any analysis."""
+    Here, beside the loaders, so that a command asks it before importing any analysis; a
+    recording's step table alone is read (its loader reads and verifies the samples)."""
     if len(paths) > 1:
         return True
     path = Path(paths[0])
     try:
         if path.suffix.lower() in HDF5_SUFFIXES:
-            return bool(read_recording_arrays(path).steps.size)
+            with open_recording(path) as recording:
+                return bool(recording.sweep_steps().size)
         if path.suffix.lower() == ".csv":
             return bool(read_meta(meta_path or sidecar_path(path)).extra.get("sweep_steps"))
     except (OSError, ValueError, KeyError):
