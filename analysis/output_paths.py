@@ -21,6 +21,9 @@ def check_suffix(path: str | Path, suffixes: Iterable[str], what: str) -> Path:
     format)."""
     path = Path(path)
     allowed = tuple(suffixes)
+    if not path.name:  # '' and '.' have no name to give a suffix to
+        raise OutputPathError(f"{str(path)!r}: no file name; name {what} like "
+                              f"run{allowed[0]}")
     if path.suffix.lower() not in allowed:
         raise OutputPathError(
             f"{path}: {what} is written as {' or '.join(allowed)}; name it "

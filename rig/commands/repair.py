@@ -51,7 +51,9 @@ def run(args: argparse.Namespace) -> int:
     from analysis.output_paths import HDF5_SUFFIXES, check_outputs, check_suffix
     from analysis.provenance import provenance
     from recording.repair import repair_recording
+    from recording.superblock import read_superblock
 
+    read_superblock(args.recording)  # no such file, a folder, no HDF5: refused before --out
     out = args.out or args.recording.with_name(f"{args.recording.stem}_repaired.h5")
     check_suffix(out, HDF5_SUFFIXES, "the repaired recording (HDF5)")
     (out,) = check_outputs([out], inputs=[args.recording], overwrite=args.overwrite)

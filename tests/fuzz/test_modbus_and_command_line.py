@@ -95,3 +95,19 @@ def test_every_command_ends_well_or_refuses_in_one_line(name, command_inputs, tm
         check_command_line(argv, tmp_path_factory.mktemp("run"))
 
     one()
+
+
+# found by benchmarks/fuzz.py's command-line boundary (10 minutes, 2026-11-30): an empty
+# FILE or --out became Path('.'), whose name-less with_name/with_suffix raised a ValueError
+# the command had not foreseen ("PosixPath('.') has an empty name")
+@pytest.mark.parametrize("argv", [
+    ["repair", ""],
+    ["repair", "0", "--out", ""],
+    ["repair", "{recording}", "--out", ""],
+    ["export", "{recording}", "--out", ""],
+    ["export", "{recording}", "--out", "."],
+], ids=" ".join)
+def test_an_empty_file_name_is_refused_in_one_line(argv, command_inputs, tmp_path):
+    recording = command_inputs[0]
+    argv = [a.format(recording=recording) for a in argv]
+    assert check_command_line(argv, tmp_path) == "refused"
