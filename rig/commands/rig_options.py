@@ -92,11 +92,12 @@ def load_rig_config(args: argparse.Namespace) -> RigConfig:
 def check_output(args: argparse.Namespace) -> Path:
     """Refuse an output (or the log beside it) that exists or cannot be written, before any
     device is touched; with --config, the rig file is an input never written over."""
-    from analysis.output_paths import check_outputs
+    from analysis.output_paths import HDF5_SUFFIXES, check_outputs, check_suffix
     from rig.logs import log_path_for
     from rig.recorder import RecordingError, check_destination
 
     inputs = [Path(args.config)] if args.config else []
+    check_suffix(args.out, HDF5_SUFFIXES, "a recording (HDF5)")  # a name to put its log beside
     check_outputs([Path(args.out), log_path_for(args.out)], inputs=inputs, overwrite=args.overwrite)
     try:
         return check_destination(Path(args.out), overwrite=args.overwrite)

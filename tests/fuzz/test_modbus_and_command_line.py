@@ -106,6 +106,9 @@ def test_every_command_ends_well_or_refuses_in_one_line(name, command_inputs, tm
     ["repair", "{recording}", "--out", ""],
     ["export", "{recording}", "--out", ""],
     ["export", "{recording}", "--out", "."],
+    ["record", "--sim", "--out", ""],
+    ["sweep", "--sim", "--sweep", "frequency", "--start", "5", "--stop", "6",
+     "--beta", "0.02", "--out", ""],
 ], ids=" ".join)
 def test_an_empty_file_name_is_refused_in_one_line(argv, command_inputs, tmp_path):
     recording = command_inputs[0]
