@@ -91,6 +91,11 @@ MAX_POINTS = 4000
 LOCATE_TOLERANCE = 1e-9
 NEAR_GRAZING_RAD = 1e-4
 SWITCH_STEP = 1e-3  # displacement along the -1 eigenvector to the period-2k branch
+# when the arclength switch fails (a doubling beside a grazing: the map is nearly
+# non-smooth there), the period-2k orbit is sought at fixed parameter offsets from the
+# doubling (scaled units, either side), displaced by these fractions of SWITCH_STEP
+SWITCH_OFFSETS = (1e-5, 1e-4, 1e-3)
+SWITCH_FIXED_STEPS = (0.1, 1.0)
 
 EVENT_KINDS = ("period_doubling", "fold", "branch_point", "grazing")  # grazing: contacts
 
@@ -528,7 +533,13 @@ def _locate(problem: _Branching, before: BranchPoint, after: BranchPoint,
 
 
 def _switch_at_period_doubling(problem: _Branching, event: BifurcationEvent, drive_rate: float):
-    """The first point of the period-2k branch born at ``event``, or None."""
+    """The first point of the period-2k branch born at ``event``, or None.
+
+    First the pseudo-arclength switch: displaced along the multiplier -1's eigenvector,
+    the parameter free.  Where that finds nothing (a doubling a hair past a grazing, where
+    the map is nearly non-smooth and the free parameter sends Newton across the barrier),
+    the period-2k orbit is sought at fixed parameter values on either side of the doubling
+    (``SWITCH_OFFSETS``): a flip is super- or subcritical, and the branch lies on one side."""
     point = event.point
     doubled = _Branching(problem.map.with_periods(2 * problem.map.periods), drive_rate)
     try:
@@ -541,8 +552,15 @@ def _switch_at_period_doubling(problem: _Branching, event: BifurcationEvent, dri
     v /= np.linalg.norm(v)
     u_pd = doubled.unknowns(point.state, point.value)
     direction = np.array([v[0], v[1], 0.0])
-    for step in (SWITCH_STEP, 3 * SWITCH_STEP, 10 * SWITCH_STEP):
-        candidate = doubled.correct(u_pd + step * direction, direction, direction)
+    fixed = np.array([0.0, 0.0, 1.0])
+    attempts = [(u_pd + step * direction, direction, step)
+                for step in (SWITCH_STEP, 3 * SWITCH_STEP, 10 * SWITCH_STEP)]
+    attempts += [(u_pd + fraction * SWITCH_STEP * direction + side * offset * fixed, fixed,
+                  fraction * SWITCH_STEP)
+                 for offset in SWITCH_OFFSETS for side in (-1.0, 1.0)
+                 for fraction in SWITCH_FIXED_STEPS]
+    for predicted, normal, step in attempts:
+        candidate = doubled.correct(predicted, normal, direction)
         if candidate is None:
             continue
         x = candidate.state
@@ -557,4 +575,3 @@ def _switch_at_period_doubling(problem: _Branching, event: BifurcationEvent, dri
             candidate = replace(candidate, tangent=-candidate.tangent)
         return doubled, candidate
     return None
-

@@ -17,6 +17,7 @@ from analysis.dynamics.periodic_orbits import find_periodic_orbit
 from analysis.model import Drive, Model, RigParameters, paper_case
 from analysis.packed import P
 from analysis.simulate import SimulationSettings, simulate, simulate_packed
+from tests.dynamics.baseline_reference import reference_image
 
 
 def _case_g(**values: float) -> Model:
@@ -228,3 +229,31 @@ def test_brute_force_diagram_over_another_parameter_sets_that_parameter():
                                          periods=40, record_periods=4, mode="fixed")
         np.testing.assert_array_equal(by_name.theta[i], direct.theta[0])
     assert not np.allclose(by_name.theta[0], by_name.theta[1])
+
+
+def test_a_period_doubling_a_hair_past_a_grazing_still_gives_its_period_8_branch():
+    """The gallery's 10 Hz rig: the period-4 branch doubles 8.5e-7 in beta past the grazing
+    that gives it a new contact, where the map is nearly non-smooth.  The arclength switch
+    (parameter free) sends Newton back and forth across the barrier there; from 614c1c0 the
+    period-8 branch was not followed at all (issue 34).  The flip is subcritical: the
+    period-8 orbit lives below the doubling, unstable, and turns at a fold."""
+    model = _case_g(beta=0.01)
+    period_s = 1.0 / model.drive.frequency_hz
+    run = simulate(model, 0.0, 0.0, settings=SimulationSettings(
+        duration_s=period_s, fs_hz=1.0 / period_s, skip_s=2000 * period_s))
+    start = np.array([run.poincare.theta[-1], run.poincare.theta_dot[-1]])
+    result = continue_orbits(PeriodMap(model, "beta", 2), 0.01, 0.108, start, max_periods=8)
+    four = next(b for b in result.branches if b.periods == 4)
+    grazings = [e.value for e in four.events if e.kind == "grazing"]
+    doubling = next(e for e in four.events if e.kind == "period_doubling")
+    assert min(abs(doubling.value - g) for g in grazings) < 1e-5  # the hard case, still
+    eight = [b for b in result.branches if b.periods == 8]
+    assert len(eight) == 1, four.stop_reason
+    branch = eight[0]
+    assert branch.values.min() < doubling.value - 1e-5  # below the doubling: subcritical
+    fold = next(e for e in branch.events if e.kind == "fold")
+    # the fold's orbit, checked with the scipy reference simulator: period 8, not 4
+    state = fold.point.state
+    at_fold = model_with(model, "beta", fold.value)
+    assert np.abs(reference_image(at_fold, state, 8) - state).max() < 1e-6
+    assert np.abs(reference_image(at_fold, state, 4) - state).max() > 1e-3

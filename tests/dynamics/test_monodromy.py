@@ -12,8 +12,7 @@ from analysis.dynamics.model_parameters import model_with, parameter_value
 from analysis.dynamics.period_map import PeriodMap
 from analysis.dynamics.periodic_orbits import find_periodic_orbit
 from analysis.model import Model, paper_case
-from analysis.packed import P
-from reference.simulator import Pendulum, TableMotion, simulate_reference
+from tests.dynamics.baseline_reference import reference_image
 
 BETA = 0.022
 
@@ -37,26 +36,13 @@ def orbit():
     return model, found.state
 
 
-def _reference_image(model: Model, state: np.ndarray) -> np.ndarray:
-    rig, packed = model.rig, model.pack()
-    pendulum = Pendulum(m_kg=rig.m_kg, l_m=rig.l_m, L_m=rig.L_m, zeta=rig.zeta,
-                        K_n=packed[P.K], mu0_s_per_m=packed[P.MU0],
-                        theta_b_rad=packed[P.THETA_B])
-    table = TableMotion(amplitude_m=model.drive.amplitude_m,
-                        frequency_hz=model.drive.frequency_hz)
-    end = 2.0 / model.drive.frequency_hz
-    run = simulate_reference(pendulum, table, float(state[0]), float(state[1]),
-                             np.array([end]), rtol=1e-12, atol=1e-14)
-    return np.array([run.theta_rad[-1], run.theta_dot_rad_s[-1]])
-
-
 def _reference_jacobian(model: Model, state: np.ndarray, steps: np.ndarray) -> np.ndarray:
     columns = []
     for j, step in enumerate(steps):
         dx = np.zeros(2)
         dx[j] = step
-        columns.append((_reference_image(model, state + dx)
-                        - _reference_image(model, state - dx)) / (2.0 * step))
+        columns.append((reference_image(model, state + dx, 2)
+                        - reference_image(model, state - dx, 2)) / (2.0 * step))
     return np.column_stack(columns)
 
 
