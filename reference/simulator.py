@@ -231,6 +231,7 @@ class _Equations:
         self.friction_acc = pendulum.Tc_N_m / (pendulum.m_kg * pendulum.L_m**2)
         self.sin_b = math.sin(pendulum.theta_b_rad)
         self.lowpass_tau_s = lowpass_tau_s
+        self.acceleration_without_friction = self._acceleration_without_friction()
 
     def surface(self, theta: float) -> float:
         """sin(theta) - sin(theta_b): the penetration over l, > 0 in contact."""
@@ -297,34 +298,72 @@ class _Equations:
         force = self.elastic_force(t, delta) if delta > 0.0 else 0.0
         return force * (1.0 + p.mu0_s_per_m * delta_dot) + p.c_N_s_per_m * delta_dot
 
-    def acceleration_without_friction(self, t: float, theta: float, theta_dot: float) -> float:
-        """theta'' from every term except Coulomb friction."""
-        p = self.p
-        force = max(self.unclamped_force(t, theta, theta_dot), 0.0)
-        return (
-            -p.c3_per_s2 * theta**3
-            - self.two_zeta_omega * theta_dot
-            - p.d3_s_per_rad2 * theta_dot**3
-            - p.d21_per_rad2_s * theta**2 * theta_dot
-            - p.c2_per_rad * theta_dot * abs(theta_dot)
-            - self.table.acceleration(t) / p.L_m * math.cos(theta)
-            - self.omega2 * math.sin(theta)
-            - self.contact_gain * force
-        )
+    def _acceleration_without_friction(self) -> Callable[[float, float, float], float]:
+        """theta''(t, theta, theta') from every term except Coulomb friction.
+
+        The right-hand side's cost is the reference's: the terms are read once into the
+        closure, and the plain contact law (no other damping exponent, no mount) and the
+        steady table are written out here; the other laws call :meth:`unclamped_force` and
+        :meth:`TableMotion.acceleration`.  Every operation is the same IEEE operation in
+        the same order as in those methods: the motion is the same to the last bit."""
+        p, table = self.p, self.table
+        c3, d3, d21, c2 = p.c3_per_s2, p.d3_s_per_rad2, p.d21_per_rad2_s, p.c2_per_rad
+        two_zeta_omega, omega2, contact_gain = self.two_zeta_omega, self.omega2, self.contact_gain
+        L, l_m, sin_b, barrier = p.L_m, p.l_m, self.sin_b, p.barrier
+        plain_contact = p.damping_exponent is None and p.k_mount_N_per_m == 0.0
+        K_n, K_drift, n, mu0, c = p.K_n, p.K_drift_per_s, p.n, p.mu0_s_per_m, p.c_N_s_per_m
+        moving, steady = table.is_moving, table.am_depth == 0.0
+        w = 2.0 * math.pi * table.frequency_hz
+        amplitude, phase0, h2, phi2 = table.amplitude_m, table.phase_rad, table.h2, table.phi2_rad
+        table_acceleration, unclamped_force = table.acceleration, self.unclamped_force
+        sin, cos = math.sin, math.cos
+
+        def acceleration(t: float, theta: float, theta_dot: float) -> float:
+            sin_theta, cos_theta = sin(theta), cos(theta)
+            delta = l_m * (sin_theta - sin_b)
+            if not barrier or delta <= 0.0 or cos_theta <= 0.0:
+                force = 0.0
+            elif plain_contact:
+                delta_dot = l_m * cos_theta * theta_dot
+                force = max((K_n * (1.0 + K_drift * t)) * delta**n * (1.0 + mu0 * delta_dot)
+                            + c * delta_dot, 0.0)
+            else:
+                force = max(unclamped_force(t, theta, theta_dot), 0.0)
+            if not moving:
+                table_acc = 0.0
+            elif steady:
+                phase = w * t + phase0
+                table_acc = -w * w * amplitude * (sin(phase) + 4.0 * h2 * sin(2.0 * phase + phi2))
+            else:
+                table_acc = table_acceleration(t)
+            return (
+                -c3 * theta**3
+                - two_zeta_omega * theta_dot
+                - d3 * theta_dot**3
+                - d21 * theta**2 * theta_dot
+                - c2 * theta_dot * abs(theta_dot)
+                - table_acc / L * cos_theta
+                - omega2 * sin_theta
+                - contact_gain * force
+            )
+
+        return acceleration
 
     def rhs(self, mode: _Mode) -> Callable[[float, np.ndarray], list[float]]:
         """d/dt of (theta, theta'[, low-passed theta]) in one mode."""
         friction = self.friction_acc * mode.direction
         tau = self.lowpass_tau_s
+        acceleration = self.acceleration_without_friction
 
         def sliding(t: float, y: np.ndarray) -> list[float]:
             # Python floats, not numpy scalars: the same IEEE operations in the same order
             # (bit for bit the same motion), each several times cheaper
-            theta, theta_dot = float(y[0]), float(y[1])
-            acc = self.acceleration_without_friction(float(t), theta, theta_dot) - friction
             if tau is None:
-                return [theta_dot, acc]
-            return [theta_dot, acc, (theta - float(y[2])) / tau]
+                theta, theta_dot = y.tolist()
+                return [theta_dot, acceleration(float(t), theta, theta_dot) - friction]
+            theta, theta_dot, low = y.tolist()
+            return [theta_dot, acceleration(float(t), theta, theta_dot) - friction,
+                    (theta - low) / tau]
 
         def stuck(t: float, y: np.ndarray) -> list[float]:
             if tau is None:
