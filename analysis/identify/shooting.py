@@ -688,10 +688,11 @@ class ShootingProblem:
             theta, ends = self.read(values, *motion)
             return self.residuals(theta, ends, s_), theta, ends, motion
 
-        repaired = self._continued_states(self.values_of(u), s)  # states from elsewhere
+        r, theta, ends, motion = evaluate(u, s)
+        repaired = self._continued_states(self.values_of(u), s, motion)  # states from elsewhere
         if repaired is not None:
             s = repaired
-        r, theta, ends, motion = evaluate(u, s)
+            r, theta, ends, motion = evaluate(u, s)
         cost = 0.5 * float(r @ r)
         noise_cost = 0.5 * float(np.count_nonzero(self.fitted))  # a perfect model's, expected
         if self.robust:
@@ -755,7 +756,7 @@ class ShootingProblem:
                 small_before = small
             if repair_round == REPAIR_ROUNDS:
                 break
-            repaired = self._continued_states(self.values_of(u), s)
+            repaired = self._continued_states(self.values_of(u), s, motion)
             if repaired is None:
                 break
             s = repaired
@@ -766,7 +767,8 @@ class ShootingProblem:
         return _Solution(u, s, r, theta, ends, success, message, iterations)
 
     def _continued_states(
-        self, values: Mapping[str, float], s: np.ndarray
+        self, values: Mapping[str, float], s: np.ndarray,
+        motion: tuple[np.ndarray, np.ndarray],
     ) -> np.ndarray | None:
         """Segment states with each segment that sits in a worse basin than its
         predecessor's motion continued replaced by that continuation, or None when none is.
@@ -777,7 +779,8 @@ class ShootingProblem:
         segment takes its predecessor's end state when that lowers its own cost (its data,
         the jump into it and the jump out of it) by more than REPAIR_GAIN; a segment whose
         predecessor changed waits for the next pass, and passes repeat (a good motion
-        continues along a run of bad segments) up to REPAIR_PASSES times."""
+        continues along a run of bad segments) up to REPAIR_PASSES times.  ``motion`` is
+        the model's motion at (values, s) (``_integrate``), which the caller has."""
         if self.links.size == 0:
             return None
         n_seg = self.segments.count
@@ -799,7 +802,7 @@ class ShootingProblem:
             return 0.5 * (data + out)
 
         changed = False
-        theta_s, ends_s = self.run(values, s)
+        theta_s, ends_s = self.read(values, *motion)
         r_s = self.residuals(theta_s, ends_s, s)
         for _ in range(REPAIR_PASSES):
             trial = s.copy()
