@@ -59,7 +59,7 @@ def test_a_thrown_off_segment_takes_its_predecessors_motion(thrown_off, monkeypa
     assert fit.rms < 1.2 * noise
     # without the repair the same fit leaves it where it was thrown
     monkeypatch.setattr(shooting.ShootingProblem, "_continued_states",
-                        lambda self, values, states: None)
+                        lambda self, values, states, motion: None)
     stuck = problem.fit(states, max_iterations=2)
     assert abs(stuck.states[THROWN, 1] - true_states[THROWN, 1]) > 0.5
     assert stuck.rms > 1.2 * noise
